@@ -1,0 +1,159 @@
+"""Configuration: frozen dataclasses validated on construction, TOML files and named presets.
+
+Units are metres and radians inside; ``_m``/``_deg``/``_mm`` suffixes name the unit at this
+boundary. An invalid value raises ValueError naming the field, the value and the allowed range.
+"""
+
+import dataclasses
+import math
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from glsynth import design
+from glsynth.checks import check_interval, check_number, fail
+from glsynth.design import StandardDesign
+
+
+@dataclass(frozen=True)
+class EnvironmentConfig:
+    """Random trajectories and their meshes (paper Section 3.1, Table 4)."""
+
+    n_viaducts: int = 10
+    """N, viaducts per environment."""
+    initial_height_m: tuple[float, float] = (6.5, 12.0)
+    """Range of the first viaduct's height (ground to deck top at its centre)."""
+    cutoff_factor: float = 2.0
+    """Cutoff frequency of the rectangular spectra, as cutoff_factor / N cycles per viaduct."""
+    ground_amplitude_m: float = 1.0
+    """Spectrum amplitude of the ground-height increments (unitary DFT)."""
+    height_amplitude_m: float = 0.2
+    """Spectrum amplitude of the viaduct-height increments (unitary DFT)."""
+    min_radius_m: tuple[float, float] = (500.0, 5000.0)
+    """Range of the smallest radius of curvature along the trajectory; (inf, inf) is straight."""
+    height_limits_m: tuple[float, float] = (design.HEIGHT_MIN_M, design.HEIGHT_MAX_M)
+    """Table 4: 5.0 <= H <= 14 m."""
+    max_slope: float = 0.02
+    """Table 4: |S| < 0.02 between neighbouring viaducts."""
+    panel_distance_m: float = 30.0
+    """Scene panels stand this far from the centre line (paper: 30 m)."""
+    panel_height_m: float = 30.0
+    end_margin_m: float = 30.0
+    """Ground and panels run on past both ends of the trajectory by this much."""
+    sweep_step_m: float = 1.0
+    """Arc-length step of curved sweeps (slab, rails, ground...); chord error step^2 / 8R."""
+    cylinder_segments: int = 12
+    """Facets around poles and wires."""
+
+    def __post_init__(self) -> None:
+        s = "environment"
+        check_number(s, "n_viaducts", self.n_viaducts, 1, 1000, integer=True)
+        check_interval(s, "height_limits_m", self.height_limits_m,
+                        design.HEIGHT_MIN_M, design.HEIGHT_MAX_M)
+        check_interval(s, "initial_height_m", self.initial_height_m, *self.height_limits_m)
+        check_number(s, "cutoff_factor", self.cutoff_factor, 0.0, self.n_viaducts / 2)
+        check_number(s, "ground_amplitude_m", self.ground_amplitude_m, 0.0, 100.0)
+        check_number(s, "height_amplitude_m", self.height_amplitude_m, 0.0, 100.0)
+        check_interval(s, "min_radius_m", self.min_radius_m, 100.0, math.inf)
+        if math.isinf(self.min_radius_m[1]) and not math.isinf(self.min_radius_m[0]):
+            fail(s, "min_radius_m", self.min_radius_m,
+                 "finite, or [inf, inf] for straight track")
+        check_number(s, "max_slope", self.max_slope, 0.0, 0.2, lo_open=True)
+        check_number(s, "panel_distance_m", self.panel_distance_m, 15.0, 1000.0)
+        check_number(s, "panel_height_m", self.panel_height_m, 1.0, 1000.0)
+        check_number(s, "end_margin_m", self.end_margin_m, 0.0, 1000.0)
+        check_number(s, "sweep_step_m", self.sweep_step_m, 0.01, 6.0)
+        check_number(s, "cylinder_segments", self.cylinder_segments, 3, 256, integer=True)
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """How many environments a run makes and which are held out."""
+
+    n_environments: int = 200
+    """Paper: 200 environments."""
+    n_test_environments: int = 25
+    """The last ones are the test split (paper: 25 of 200)."""
+
+    def __post_init__(self) -> None:
+        check_number("dataset", "n_environments", self.n_environments, 1, 10**6, integer=True)
+        check_number("dataset", "n_test_environments", self.n_test_environments,
+                      0, self.n_environments, integer=True)
+
+
+@dataclass(frozen=True)
+class Config:
+    environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
+    design: StandardDesign = field(default_factory=StandardDesign)
+    dataset: DatasetConfig = field(default_factory=DatasetConfig)
+
+    def __post_init__(self) -> None:
+        half_deck = self.design.deck_width_m / 2
+        if self.environment.panel_distance_m <= half_deck + 1.0:
+            fail("environment", "panel_distance_m", self.environment.panel_distance_m,
+                  f"more than half the deck width plus 1 m ({half_deck + 1.0})")
+
+
+PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    # The paper's full configuration (200 environments, 25 of them test).
+    "paper": {},
+    # A small but complete run for the README's main job and for tests.
+    "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1}},
+}
+
+_SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig}
+
+
+def _coerce(cls: type, key: str, value: Any) -> Any:
+    hint = typing.get_type_hints(cls)[key]
+    if isinstance(value, list):
+        return tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                     for v in value)
+    if hint is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
+    """Overlay ``{section: {key: value}}`` on ``base`` (default: the built-in defaults)."""
+    base = base or Config()
+    sections = {}
+    for section, values in data.items():
+        if section not in _SECTIONS:
+            raise ValueError(f"unknown config section [{section}]: "
+                             f"allowed sections are {sorted(_SECTIONS)}")
+        cls = _SECTIONS[section]
+        allowed = {f.name for f in dataclasses.fields(cls)}
+        if not isinstance(values, dict):
+            raise ValueError(f"config section [{section}] must be a table of key = value")
+        unknown = sorted(set(values) - allowed)
+        if unknown:
+            raise ValueError(f"unknown key(s) {unknown} in [{section}]: "
+                             f"allowed keys are {sorted(allowed)}")
+        coerced = {k: _coerce(cls, k, v) for k, v in values.items()}
+        sections[section] = dataclasses.replace(getattr(base, section), **coerced)
+    return dataclasses.replace(base, **sections)
+
+
+def load_config(preset: str = "paper", path: str | Path | None = None) -> Config:
+    """A named preset, optionally overlaid with a TOML file."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset = {preset!r}: choose one of {sorted(PRESETS)}")
+    config = config_from_dict(PRESETS[preset])
+    if path is not None:
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ValueError(f"config file {str(path)!r} does not exist") from None
+        except tomllib.TOMLDecodeError as err:
+            raise ValueError(f"config file {str(path)!r} is not valid TOML: {err}") from None
+        config = config_from_dict(data, config)
+    return config
+
+
+def config_to_dict(config: Config) -> dict[str, Any]:
+    """Plain JSON-able form (inf stays a float; json writes it as Infinity)."""
+    return dataclasses.asdict(config)

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Installs what glsynth needs on a Debian machine (run as root): Mesa's EGL and OSMesa, a virtual
+# environment in .venv with the project, torch==2.13.0 and the test tools. Idempotent: a second
+# run with an unchanged pyproject.toml returns at once.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# GL: EGL (default) and OSMesa (fallback) from Mesa; libxrender1 because pyrender imports pyglet;
+# jemalloc for full-resolution training (see ../shared/notes/fcn58-facts.md).
+system_packages=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libosmesa6 libxrender1
+                 libjemalloc2)
+command -v python3 >/dev/null || system_packages+=(python3)
+python3 -c 'import ensurepip, venv' 2>/dev/null || system_packages+=(python3-venv)
+missing=()
+for pkg in "${system_packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" \
+        || missing+=("$pkg")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "installing system packages: ${missing[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq
+    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+stamp=.venv/.glsynth-install
+want=$(cat pyproject.toml scripts/install.sh | sha256sum | cut -d' ' -f1)
+if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
+    exit 0
+fi
+[ -x .venv/bin/python ] || python3 -m venv .venv
+pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
+# torch first and pinned: a looser requirement would pull several GB of CUDA packages.
+"${pip[@]}" "torch==2.13.0"
+"${pip[@]}" -e ".[model,test]"
+
+# The Khronos glTF validator (a test checks exported scenes with it), when npm is available.
+if command -v npm >/dev/null; then
+    npm install --silent --no-audit --no-fund --prefix .tools gltf-validator@2.0.0-dev.3.10 \
+        >/dev/null 2>&1 || echo "note: could not install gltf-validator; its test will skip"
+fi
+echo "$want" > "$stamp"

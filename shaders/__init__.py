@@ -1,0 +1,1 @@
+"""GLSL sources, installed as the glsynth.shaders package; load them with glsynth.resources."""

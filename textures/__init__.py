@@ -1,0 +1,1 @@
+"""The texture repository (one folder per category), installed as glsynth.textures."""
