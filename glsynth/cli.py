@@ -4,6 +4,7 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -61,6 +62,37 @@ def cmd_histograms(args: argparse.Namespace) -> None:
           f"-> {args.out}")
 
 
+def cmd_render(args: argparse.Namespace) -> None:
+    from glsynth.render import EnvironmentView, describe_output, write_render
+
+    config = _config(args)
+    view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
+    print(f"GL platform: {view.renderer.platform}")
+    for index in args.camera:
+        t0 = time.perf_counter()
+        placement, output = view.render(index)
+        elapsed = time.perf_counter() - t0
+        out = Path(args.out) if len(args.camera) == 1 else Path(args.out) / f"camera_{index:03d}"
+        write_render(out, placement, output, {"root_seed": args.seed, "env": args.env})
+        print(f"camera {index} ({placement.kind}, f = {placement.camera.focal_mm:.1f} mm): "
+              f"{describe_output(output)}; rendered in {elapsed:.2f} s -> {out}")
+
+
+def cmd_preview(args: argparse.Namespace) -> None:
+    from glsynth.fileio import atomic_write_bytes
+    from glsynth.render import EnvironmentView, png_bytes, preview_config, preview_sheet
+
+    t0 = time.perf_counter()
+    config = preview_config(_config(args), args.width)
+    view = EnvironmentView.open(config, args.seed, args.env)
+    total = config.cameras.n_regular + config.cameras.n_closeup
+    cameras = np.linspace(0, total - 1, args.cameras).round().astype(int).tolist()
+    atomic_write_bytes(args.out, png_bytes(preview_sheet(view, cameras)))
+    print(f"cameras {cameras} at {config.render.width}x{config.render.height} "
+          f"(colour | components | damage | depth) in {time.perf_counter() - t0:.1f} s "
+          f"-> {args.out}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -79,6 +111,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trajectories (default: the preset's n_environments)")
     p.add_argument("--out", required=True, help="output .png path")
     p.set_defaults(func=cmd_histograms)
+
+    p = sub.add_parser("render", help="render cameras of one environment at full resolution")
+    _add_config_args(p)
+    p.add_argument("--seed", type=_seed, required=True, help="root seed")
+    p.add_argument("--env", type=_seed, required=True, help="environment index")
+    p.add_argument("--camera", type=_seed, nargs="+", required=True,
+                   help="camera index (0-49 regular, 50-99 close-up); several make subfolders")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("preview", help="low-resolution contact sheet of one environment")
+    _add_config_args(p)
+    p.add_argument("--seed", type=_seed, required=True, help="root seed")
+    p.add_argument("--env", type=_seed, required=True, help="environment index")
+    p.add_argument("--cameras", type=int, default=6, help="how many cameras (spread evenly)")
+    p.add_argument("--width", type=int, default=384, help="width of each tile in pixels")
+    p.add_argument("--out", required=True, help="output .png")
+    p.set_defaults(func=cmd_preview)
     return parser
 
 

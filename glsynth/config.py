@@ -69,6 +69,80 @@ class EnvironmentConfig:
 
 
 @dataclass(frozen=True)
+class CameraConfig:
+    """Synthetic cameras (paper Section 3.4)."""
+
+    n_regular: int = 50
+    """Regular cameras per environment (global views)."""
+    n_closeup: int = 50
+    """Close-up cameras per environment (mostly columns)."""
+    focal_mm: tuple[float, float] = (15.0, 55.0)
+    sensor_mm: float = 36.0
+    """Sensor width; it spans the image width."""
+    regular_distance_m: float = 10.0
+    regular_height_m: tuple[float, float] = (1.0, 10.0)
+    closeup_distance_m: float = 5.0
+    closeup_height_m: tuple[float, float] = (1.0, 6.5)
+    rot_x_deg: tuple[float, float] = (45.0, 135.0)
+    """Blender XYZ Euler X: 90 looks horizontally."""
+    rot_y_deg: tuple[float, float] = (-15.0, 15.0)
+    rot_z_deg: tuple[float, float] = (-90.0, 90.0)
+    """Relative to the direction that points to the viaduct centre line."""
+
+    def __post_init__(self) -> None:
+        s = "cameras"
+        check_number(s, "n_regular", self.n_regular, 0, 100000, integer=True)
+        check_number(s, "n_closeup", self.n_closeup, 0, 100000, integer=True)
+        check_interval(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
+        check_number(s, "sensor_mm", self.sensor_mm, 1.0, 100.0)
+        check_number(s, "regular_distance_m", self.regular_distance_m, 0.0, 1000.0)
+        check_number(s, "closeup_distance_m", self.closeup_distance_m, 0.0, 1000.0)
+        check_interval(s, "regular_height_m", self.regular_height_m, 0.0, 1000.0)
+        check_interval(s, "closeup_height_m", self.closeup_height_m, 0.0, 1000.0)
+        check_interval(s, "rot_x_deg", self.rot_x_deg, 0.0, 180.0)
+        check_interval(s, "rot_y_deg", self.rot_y_deg, -180.0, 180.0)
+        check_interval(s, "rot_z_deg", self.rot_z_deg, -180.0, 180.0)
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """Image size, antialiasing, clip planes and lighting of the GL renderer."""
+
+    width: int = 1920
+    height: int = 1080
+    msaa: int = 4
+    """Samples for the colour pass (0: none; llvmpipe supports up to 4). Labels and depth are
+    never multisampled."""
+    znear_m: float = 0.05
+    zfar_m: float = 2000.0
+    """Also the depth of pixels that see no geometry (sky)."""
+    sun_elevation_deg: float = 50.0
+    sun_azimuth_deg: float = 30.0
+    """From +x (the initial track direction), counter-clockwise."""
+    sun_intensity: float = 3.0
+    ambient_intensity: float = 0.6
+    sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
+    """Background colour where no geometry is hit (linear RGB)."""
+    exposure: float = 1.0
+
+    def __post_init__(self) -> None:
+        s = "render"
+        check_number(s, "width", self.width, 1, 16384, integer=True)
+        check_number(s, "height", self.height, 1, 16384, integer=True)
+        if self.msaa not in (0, 2, 4, 8, 16):
+            fail(s, "msaa", self.msaa, "one of 0, 2, 4, 8, 16")
+        check_number(s, "znear_m", self.znear_m, 1e-4, 10.0)
+        check_number(s, "zfar_m", self.zfar_m, self.znear_m, 1e7, lo_open=True)
+        check_number(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
+        check_number(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
+        check_number(s, "sun_intensity", self.sun_intensity, 0.0, 100.0)
+        check_number(s, "ambient_intensity", self.ambient_intensity, 0.0, 100.0)
+        if len(self.sky_rgb) != 3 or not all(0.0 <= c <= 1.0 for c in self.sky_rgb):
+            fail(s, "sky_rgb", self.sky_rgb, "three values in [0, 1]")
+        check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
+
+
+@dataclass(frozen=True)
 class DatasetConfig:
     """How many environments a run makes and which are held out."""
 
@@ -88,6 +162,8 @@ class Config:
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     design: StandardDesign = field(default_factory=StandardDesign)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
+    cameras: CameraConfig = field(default_factory=CameraConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
 
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
@@ -103,7 +179,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1}},
 }
 
-_SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig}
+_SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
+             "cameras": CameraConfig, "render": RenderConfig}
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:

@@ -1,0 +1,1 @@
+"""Everything that touches OpenGL lives in this package."""

@@ -1,0 +1,92 @@
+"""The one place where GL contexts are made: EGL by default, OSMesa as the fallback.
+
+Both give a moderngl.Context on Mesa (llvmpipe without a GPU). EGL comes from glcontext's
+standalone EGL backend. OSMesa has no glcontext backend, so it is made here through ctypes and
+handed to moderngl as a function loader (OSMesaGetProcAddress), which needs no PyOpenGL.
+"""
+
+import ctypes
+import ctypes.util
+import os
+
+import moderngl
+
+REQUIRED_GL = 330
+PLATFORMS = ("egl", "osmesa")
+_PACKAGES = {"egl": "libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1",
+             "osmesa": "libosmesa6"}
+
+
+class GLUnavailableError(RuntimeError):
+    """No GL context could be made; the message lists each platform tried and why it failed."""
+
+
+class _OSMesaLoader:
+    """An OSMesa core-profile context with a 1x1 default framebuffer; moderngl loads GL
+    functions through it. Offscreen rendering then goes to moderngl framebuffers."""
+
+    _FORMAT, _DEPTH_BITS, _PROFILE, _CORE, _MAJOR, _MINOR = 0x22, 0x30, 0x33, 0x34, 0x36, 0x37
+    _RGBA, _UNSIGNED_BYTE = 0x1908, 0x1401
+
+    def __init__(self) -> None:
+        name = ctypes.util.find_library("OSMesa") or "libOSMesa.so.8"
+        self.lib = ctypes.CDLL(name)
+        self.lib.OSMesaCreateContextAttribs.restype = ctypes.c_void_p
+        self.lib.OSMesaCreateContextAttribs.argtypes = [ctypes.POINTER(ctypes.c_int),
+                                                        ctypes.c_void_p]
+        self.lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
+                                               ctypes.c_int, ctypes.c_int]
+        self.lib.OSMesaGetProcAddress.restype = ctypes.c_void_p
+        self.lib.OSMesaGetProcAddress.argtypes = [ctypes.c_char_p]
+        self.lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
+        attribs = (ctypes.c_int * 11)(self._FORMAT, self._RGBA, self._DEPTH_BITS, 24,
+                                      self._PROFILE, self._CORE, self._MAJOR, 3, self._MINOR, 3, 0)
+        self.ctx = self.lib.OSMesaCreateContextAttribs(attribs, None)
+        if not self.ctx:
+            raise RuntimeError("OSMesaCreateContextAttribs returned NULL (no GL 3.3 core)")
+        self.buffer = ctypes.create_string_buffer(4)
+        if not self.lib.OSMesaMakeCurrent(self.ctx, self.buffer, self._UNSIGNED_BYTE, 1, 1):
+            raise RuntimeError("OSMesaMakeCurrent failed")
+
+    def load_opengl_function(self, name: str) -> int:
+        return self.lib.OSMesaGetProcAddress(name.encode()) or 0
+
+    def release(self) -> None:
+        if self.ctx:
+            self.lib.OSMesaDestroyContext(self.ctx)
+            self.ctx = None
+
+
+def _create(platform: str) -> moderngl.Context:
+    if platform == "egl":
+        return moderngl.create_standalone_context(backend="egl", require=REQUIRED_GL)
+    loader = _OSMesaLoader()
+    moderngl.init_context(loader)
+    ctx = moderngl.get_context()
+    ctx.extra = {"osmesa": loader}  # keep the context alive as long as moderngl's
+    if ctx.version_code < REQUIRED_GL:
+        raise RuntimeError(f"OSMesa gives GL {ctx.version_code}, need {REQUIRED_GL}")
+    return ctx
+
+
+def create_context(platform: str | None = None) -> tuple[moderngl.Context, str]:
+    """A GL context and the platform that made it.
+
+    platform: "egl", "osmesa", or None for the environment variable GLSYNTH_GL_PLATFORM, else
+    EGL then OSMesa.
+    """
+    platform = platform or os.environ.get("GLSYNTH_GL_PLATFORM") or None
+    if platform is not None and platform not in PLATFORMS:
+        raise ValueError(f"GL platform = {platform!r}: choose one of {PLATFORMS} "
+                         "(or leave it unset to try EGL, then OSMesa)")
+    tried = []
+    for name in ([platform] if platform else PLATFORMS):
+        try:
+            return _create(name), name
+        except Exception as err:  # any failure of one platform: record it, try the next
+            tried.append(f"{name.upper()}: {type(err).__name__}: {err} "
+                         f"(Debian packages: {_PACKAGES[name]})")
+    raise GLUnavailableError("no OpenGL context could be created. Tried:\n  "
+                             + "\n  ".join(tried)
+                             + "\nInstall the packages above (scripts/install.sh does), "
+                               "or set GLSYNTH_GL_PLATFORM to a platform that works.")

@@ -1,0 +1,245 @@
+"""Offscreen renderer: draws a glsynth RenderScene (a pyrender Scene) with glsynth's programs.
+
+Passes:
+- colour: PBR into an RGBA8 target, multisampled when msaa > 0 and resolved before read-back;
+- labels: one draw per part into one RGBA32F target holding (component id, damage id, linear
+  depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis.
+Only the passes asked for are drawn. Pixels with no geometry read component 1 (Nonbridge),
+damage 1 (no damage) and depth = zfar.
+"""
+
+import math
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from glsynth.cameras import Camera
+from glsynth.config import RenderConfig
+from glsynth.gl.context import create_context
+from glsynth.gl.programs import compile_programs
+from glsynth.labels import Component, Damage
+from glsynth.scene import RenderScene
+
+PASSES = frozenset({"color", "component", "damage", "depth"})
+_LABEL_PASSES = frozenset({"component", "damage", "depth"})
+
+
+@dataclass(frozen=True)
+class RenderOutput:
+    color: np.ndarray | None = None
+    """(H, W, 3) uint8 sRGB."""
+    component: np.ndarray | None = None
+    """(H, W) uint8 component ids."""
+    damage: np.ndarray | None = None
+    """(H, W) uint8 damage ids."""
+    depth: np.ndarray | None = None
+    """(H, W) float32 metres along the optical axis; zfar where nothing was hit."""
+
+
+@dataclass
+class _Draw:
+    name: str
+    pose: np.ndarray
+    vaos: dict[str, moderngl.VertexArray]
+    material: object  # pyrender.MetallicRoughnessMaterial
+    textures: dict[str, moderngl.Texture]
+    component: float
+    damage_mask: moderngl.Texture | None
+    center: np.ndarray
+    """World-space centre of the bounding box, for front-to-back ordering."""
+
+
+class Renderer:
+    """One GL context, its programs and framebuffers; load a scene, then render cameras."""
+
+    def __init__(self, config: RenderConfig, platform: str | None = None) -> None:
+        self.config = config
+        self.ctx, self.platform = create_context(platform)
+        self.programs = compile_programs(self.ctx)
+        self.size = (config.width, config.height)
+        self._draws: list[_Draw] = []
+        self._textures: dict[int, moderngl.Texture] = {}
+        self._defaults = {
+            "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
+            "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
+        }
+        self._make_framebuffers()
+
+    # --- resources --------------------------------------------------------------------------
+    def _make_framebuffers(self) -> None:
+        ctx, size, samples = self.ctx, self.size, self.config.msaa
+        self.color_target = ctx.renderbuffer(size, 4)
+        self.color_fbo = ctx.framebuffer([self.color_target], ctx.depth_renderbuffer(size))
+        if samples:
+            self.msaa_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4, samples=samples)],
+                                            ctx.depth_renderbuffer(size, samples=samples))
+        self.label_target = ctx.renderbuffer(size, 4, dtype="f4")
+        self.label_fbo = ctx.framebuffer([self.label_target], ctx.depth_renderbuffer(size))
+
+    def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
+        key = id(array)
+        if key in self._textures:
+            return self._textures[key]
+        array = np.ascontiguousarray(array)
+        h, w = array.shape[:2]
+        channels = 1 if array.ndim == 2 else array.shape[2]
+        # Image rows run top to bottom; GL's t runs bottom to top: flip so that uv (0, 0) is
+        # the image's bottom-left corner, as glTF and Blender define it.
+        data = np.ascontiguousarray(array[::-1])
+        if integer:
+            tex = self.ctx.texture((w, h), channels, data.tobytes(), dtype="u1", alignment=1)
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        else:
+            tex = self.ctx.texture((w, h), channels, data.tobytes(), alignment=1)
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.repeat_x = tex.repeat_y = True
+        self._textures[key] = tex
+        return tex
+
+    def load(self, render_scene: RenderScene) -> None:
+        """Upload the geometry and textures of every mesh node (replacing any earlier scene)."""
+        self.release_scene()
+        scene = render_scene.scene
+        for node in sorted(scene.mesh_nodes, key=lambda n: n.name):
+            label = render_scene.labels[node.name]
+            for primitive in node.mesh.primitives:
+                data = np.hstack([primitive.positions, primitive.normals,
+                                  primitive.texcoord_0]).astype(np.float32)
+                vbo = self.ctx.buffer(data.tobytes())
+                ibo = self.ctx.buffer(primitive.indices.astype(np.uint32).tobytes())
+                vaos = {
+                    "color": self.ctx.vertex_array(
+                        self.programs["color"],
+                        [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")], ibo, 4),
+                    "labels": self.ctx.vertex_array(
+                        self.programs["labels"],
+                        [(vbo, "3f 12x 2f", "in_position", "in_uv")], ibo, 4),
+                }
+                mat = primitive.material
+                textures = {}
+                for slot, tex in (("base", mat.baseColorTexture),
+                                  ("mr", mat.metallicRoughnessTexture),
+                                  ("emissive", mat.emissiveTexture),
+                                  ("normal", mat.normalTexture)):
+                    if tex is not None:
+                        textures[slot] = self._upload_texture(tex.source)
+                mask = (self._upload_texture(label.damage_mask, integer=True)
+                        if label.damage_mask is not None else None)
+                pose = scene.get_pose(node)
+                box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
+                center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
+                self._draws.append(_Draw(node.name, pose, vaos, mat, textures,
+                                         float(label.component), mask, center))
+
+    def release_scene(self) -> None:
+        defaults = {id(t) for t in self._defaults.values()}
+        for draw in self._draws:
+            for vao in draw.vaos.values():
+                vao.release()
+        for key, tex in list(self._textures.items()):
+            if id(tex) not in defaults:
+                tex.release()
+                del self._textures[key]
+        self._draws = []
+
+    def release(self) -> None:
+        self.release_scene()
+        self.ctx.release()
+
+    # --- drawing ----------------------------------------------------------------------------
+    def _front_to_back(self, camera: Camera) -> list[_Draw]:
+        """Nearest parts first: llvmpipe's early depth test then skips hidden fragments."""
+        eye = camera.pose[:3, 3]
+        return sorted(self._draws, key=lambda d: float(np.sum((d.center - eye) ** 2)))
+
+    @staticmethod
+    def _matrices(camera: Camera, pose: np.ndarray) -> tuple[bytes, bytes]:
+        modelview = camera.view() @ pose  # float64, then float32 for GL
+        normal = np.linalg.inv(modelview[:3, :3]).T
+        return (modelview.astype("f4").T.tobytes(), normal.astype("f4").T.tobytes())
+
+    def _color_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
+        cfg, prog = self.config, self.programs["color"]
+        fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
+        fbo.use()
+        sky = cfg.sky_rgb
+        fbo.clear(*(c ** (1 / 2.2) for c in (1 - math.exp(-sky[0]), 1 - math.exp(-sky[1]),
+                                              1 - math.exp(-sky[2]))), 1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        view3 = camera.view()[:3, :3]
+        el, az = math.radians(cfg.sun_elevation_deg), math.radians(cfg.sun_azimuth_deg)
+        sun = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        prog["u_sun_dir"].value = tuple(view3 @ sun)
+        prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
+        prog["u_sun_color"].value = (cfg.sun_intensity,) * 3
+        prog["u_sky_color"].value = tuple(cfg.ambient_intensity * np.array(sky))
+        prog["u_ground_color"].value = tuple(cfg.ambient_intensity * 0.35 * np.array(sky))
+        prog["u_exposure"].value = cfg.exposure
+        for unit, name in enumerate(("u_base_color_map", "u_metallic_roughness_map",
+                                     "u_emissive_map", "u_normal_map")):
+            prog[name].value = unit
+        for draw in draws:
+            modelview, normal = self._matrices(camera, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_normal_matrix"].write(normal)
+            mat = draw.material
+            prog["u_base_color"].value = tuple(float(c) for c in mat.baseColorFactor)
+            prog["u_metallic"].value = float(mat.metallicFactor)
+            prog["u_roughness"].value = float(mat.roughnessFactor)
+            prog["u_emissive"].value = tuple(float(c) for c in mat.emissiveFactor)
+            prog["u_has_normal_map"].value = "normal" in draw.textures
+            tex = draw.textures
+            tex.get("base", self._defaults["white"]).use(0)
+            tex.get("mr", self._defaults["white"]).use(1)
+            tex.get("emissive", self._defaults["white"]).use(2)
+            tex.get("normal", self._defaults["flat"]).use(3)
+            draw.vaos["color"].render()
+        if cfg.msaa:
+            self.ctx.copy_framebuffer(self.color_fbo, self.msaa_fbo)
+        raw = self.color_fbo.read(components=3, alignment=1)
+        return np.frombuffer(raw, np.uint8).reshape(self.size[1], self.size[0], 3)[::-1]
+
+    def _label_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
+        prog = self.programs["labels"]
+        self.label_fbo.use()
+        self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
+                             camera.zfar, 0.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        prog["u_damage_mask"].value = 0
+        for draw in draws:
+            modelview, _ = self._matrices(camera, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_component"].value = draw.component
+            prog["u_has_damage_mask"].value = draw.damage_mask is not None
+            if draw.damage_mask is not None:
+                draw.damage_mask.use(0)
+            draw.vaos["labels"].render()
+        raw = self.label_fbo.read(components=4, dtype="f4")
+        return np.frombuffer(raw, np.float32).reshape(self.size[1], self.size[0], 4)[::-1]
+
+    def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES) -> RenderOutput:
+        unknown = set(passes) - PASSES
+        if unknown:
+            raise ValueError(f"passes {sorted(unknown)}: choose from {sorted(PASSES)}")
+        if (camera.width, camera.height) != self.size:
+            raise ValueError(f"camera size {camera.width}x{camera.height} differs from the "
+                             f"renderer's {self.size[0]}x{self.size[1]}: make the camera with "
+                             "the same [render] width and height")
+        draws = self._front_to_back(camera)
+        color = self._color_pass(camera, draws) if "color" in passes else None
+        out: dict[str, np.ndarray] = {}
+        if passes & _LABEL_PASSES:
+            labels = self._label_pass(camera, draws)
+            if "component" in passes:
+                out["component"] = labels[..., 0].astype(np.uint8)
+            if "damage" in passes:
+                out["damage"] = labels[..., 1].astype(np.uint8)
+            if "depth" in passes:
+                out["depth"] = np.ascontiguousarray(labels[..., 2])
+        return RenderOutput(color=None if color is None else np.ascontiguousarray(color), **out)

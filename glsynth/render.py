@@ -1,0 +1,100 @@
+"""Rendering one environment's cameras to files (glsynth render) and quick previews.
+
+GL stays in glsynth.gl; this module only orchestrates: environment -> materials -> scene ->
+renderer -> files. Every output is written atomically.
+"""
+
+import io
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from glsynth.cameras import CameraPlacement, environment_camera
+from glsynth.config import Config
+from glsynth.environment import Environment, build_environment
+from glsynth.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.gl.renderer import PASSES, Renderer, RenderOutput
+from glsynth.labels import Component
+from glsynth.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.scene import RenderScene, build_scene, default_materials
+
+
+def png_bytes(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(array).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def npy_bytes(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, array)
+    return buf.getvalue()
+
+
+@dataclass
+class EnvironmentView:
+    """An environment loaded into a renderer, ready for its cameras."""
+
+    config: Config
+    environment: Environment
+    scene: RenderScene
+    renderer: Renderer
+
+    @classmethod
+    def open(cls, config: Config, root_seed: int, env_index: int,
+             renderer: Renderer | None = None) -> "EnvironmentView":
+        env = build_environment(config, root_seed, env_index)
+        scene = build_scene(env.parts, default_materials(env))
+        renderer = renderer or Renderer(config.render)
+        renderer.load(scene)
+        return cls(config, env, scene, renderer)
+
+    def camera(self, index: int) -> CameraPlacement:
+        cfg = self.config
+        return environment_camera(self.environment.trajectory, cfg.cameras, cfg.render,
+                                  self.environment.root_seed, self.environment.env_index, index)
+
+    def render(self, index: int, passes: frozenset[str] = PASSES
+               ) -> tuple[CameraPlacement, RenderOutput]:
+        placement = self.camera(index)
+        return placement, self.renderer.render(placement.camera, passes)
+
+
+def write_render(out_dir: str | Path, placement: CameraPlacement, output: RenderOutput,
+                 meta: dict) -> None:
+    """image.png, component.png, damage.png (uint8 ids), depth.npy (float32), camera.json."""
+    out = Path(out_dir)
+    atomic_write_bytes(out / "image.png", png_bytes(output.color))
+    atomic_write_bytes(out / "component.png", png_bytes(output.component))
+    atomic_write_bytes(out / "damage.png", png_bytes(output.damage))
+    atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
+    info = placement.camera.to_json()
+    info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,
+                side=placement.side, distance_m=placement.distance_m,
+                height_above_ground_m=placement.height_above_ground_m,
+                euler_xyz_rad=list(placement.euler_xyz_rad), **meta)
+    atomic_write_json(out / "camera.json", info)
+
+
+def preview_sheet(view: EnvironmentView, cameras: list[int]) -> np.ndarray:
+    """Rows of (colour, component overlay, damage overlay, depth) for each camera."""
+    rows = []
+    for index in cameras:
+        _, out = view.render(index)
+        comp = overlay(out.color, out.component, COMPONENT_RGB, 0.55)
+        dmg = overlay(out.color, out.damage, DAMAGE_RGB, 0.8, skip=(1,))
+        rows.append(np.concatenate([out.color, comp, dmg, depth_rgb(out.depth)], axis=1))
+    return np.concatenate(rows, axis=0)
+
+
+def preview_config(config: Config, width: int) -> Config:
+    """The same scene at a preview width (same aspect), without MSAA."""
+    height = max(1, round(width * config.render.height / config.render.width))
+    return replace(config, render=replace(config.render, width=width, height=height, msaa=0))
+
+
+def describe_output(output: RenderOutput) -> str:
+    ids = sorted(Component(int(i)).name.lower() for i in np.unique(output.component))
+    return f"components {ids}, depth {output.depth.min():.2f}-{output.depth.max():.2f} m"

@@ -1,0 +1,21 @@
+#version 330 core
+// Shared by the colour and the label pass, so both see the same positions and UVs.
+uniform mat4 u_modelview;     // camera-from-mesh, composed in float64 on the CPU
+uniform mat4 u_projection;
+uniform mat3 u_normal_matrix; // inverse transpose of u_modelview's 3x3
+
+in vec3 in_position;
+in vec3 in_normal;
+in vec2 in_uv;
+
+out vec3 v_view_pos;   // camera space
+out vec3 v_normal;     // camera space
+out vec2 v_uv;
+
+void main() {
+    vec4 view = u_modelview * vec4(in_position, 1.0);
+    v_view_pos = view.xyz;
+    v_normal = u_normal_matrix * in_normal;
+    v_uv = in_uv;
+    gl_Position = u_projection * view;
+}

@@ -1,0 +1,38 @@
+"""Small scenes and cameras for GL tests."""
+
+import dataclasses
+
+import numpy as np
+import trimesh
+from trimesh.visual import TextureVisuals
+
+from glsynth.cameras import Camera
+from glsynth.config import RenderConfig
+from glsynth.environment import Part
+from glsynth.labels import Component
+from glsynth.materials import Material
+from glsynth.scene import build_scene
+
+
+def quad(corners: np.ndarray, uv: np.ndarray | None = None) -> trimesh.Trimesh:
+    """Two triangles over 4 corners given counter-clockwise as seen from the front."""
+    mesh = trimesh.Trimesh(np.asarray(corners, float), [[0, 1, 2], [0, 2, 3]], process=False)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) if uv is None else uv
+    mesh.visual = TextureVisuals(uv=uv)
+    return mesh
+
+
+def scene_of(*items: tuple[str, Component, trimesh.Trimesh, Material]):
+    parts = [Part(name, comp, None, mesh, np.eye(4)) for name, comp, mesh, _ in items]
+    return build_scene(parts, {name: mat for name, _, _, mat in items})
+
+
+def camera(width: int = 64, height: int = 48, focal_mm: float = 36.0,
+           pose: np.ndarray | None = None, zfar: float = 2000.0) -> Camera:
+    """Default: at the origin, looking down -z (fx = width)."""
+    return Camera(width, height, focal_mm, 36.0, np.eye(4) if pose is None else pose,
+                  0.05, zfar)
+
+
+def render_config(width: int = 64, height: int = 48, msaa: int = 0) -> RenderConfig:
+    return dataclasses.replace(RenderConfig(), width=width, height=height, msaa=msaa)

@@ -1,0 +1,189 @@
+"""Renderer tests on Mesa (llvmpipe in CI) at small sizes, against analytic depth, a CPU ray
+cast (trimesh) and constructed label textures. The GL error state is checked around each test."""
+
+import numpy as np
+import pytest
+from glhelpers import camera, quad, render_config, scene_of
+
+from glsynth.gl import context as gl_context
+from glsynth.gl.programs import PROGRAMS, compile_programs
+from glsynth.gl.renderer import Renderer
+from glsynth.labels import Component
+from glsynth.materials import Material, plain_material
+from glsynth.paths import shader_dir
+
+PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    r = Renderer(render_config(64, 48))
+    yield r
+    r.release()
+
+
+@pytest.fixture(autouse=True)
+def gl_clean(request):
+    if "renderer" not in request.fixturenames:
+        yield
+        return
+    r = request.getfixturevalue("renderer")
+    assert r.ctx.error == "GL_NO_ERROR"
+    yield
+    assert r.ctx.error == "GL_NO_ERROR"
+
+
+def test_every_shader_compiles_and_every_file_is_used(renderer):
+    programs = compile_programs(renderer.ctx)
+    assert set(programs) == set(PROGRAMS)
+    used = {f for pair in PROGRAMS.values() for f in pair}
+    on_disk = {p.name for p in shader_dir().iterdir() if p.suffix in {".vert", ".frag", ".glsl"}}
+    assert on_disk == used
+
+
+@pytest.mark.parametrize("distance", [0.5, 5.0, 30.0, 100.0, 1000.0])
+def test_fronto_parallel_plane_depth_is_exact(renderer, distance):
+    h = 2.0 * distance
+    plane = quad([[-h, -h, -distance], [h, -h, -distance], [h, h, -distance],
+                  [-h, h, -distance]])
+    renderer.load(scene_of(("slab_plane", Component.SLAB, plane, PLAIN)))
+    out = renderer.render(camera())
+    assert out.depth.dtype == np.float32
+    # Float32 precision: within 2 ulp of the exact distance, everywhere.
+    assert np.abs(out.depth - distance).max() <= 2 * np.spacing(np.float32(distance))
+    assert np.all(out.component == Component.SLAB)
+
+
+@pytest.mark.parametrize("distance", [0.5, 5.0, 30.0, 100.0])
+def test_tilted_plane_matches_ray_plane_intersection(renderer, distance):
+    # Plane through (0, 0, -d) turned 45 degrees about y.
+    n = np.array([np.sin(np.pi / 4), 0.0, np.cos(np.pi / 4)])
+    u = np.array([np.cos(np.pi / 4), 0.0, -np.sin(np.pi / 4)])
+    v = np.array([0.0, 1.0, 0.0])
+    p0 = np.array([0.0, 0.0, -distance])
+    s = 3.0 * distance
+    corners = [p0 - s * u - s * v, p0 + s * u - s * v, p0 + s * u + s * v, p0 - s * u + s * v]
+    renderer.load(scene_of(("beam_tilted", Component.BEAM, quad(corners), PLAIN)))
+    cam = camera()
+    out = renderer.render(cam)
+    _, dirs = cam.rays()
+    t = (n @ p0) / (dirs @ n)  # dirs have unit length along the optical axis: t is depth
+    hit = out.component == Component.BEAM
+    assert hit.mean() > 0.9
+    assert np.allclose(out.depth[hit], t[hit], rtol=2e-6, atol=0)
+
+
+def test_image_labels_and_depth_are_aligned(renderer):
+    """An asymmetric scene: one box in the upper left of the view; a flip of rows or columns
+    in any output would move it elsewhere."""
+    from glsynth.meshes import box, pose
+
+    b = box((1.0, 1.0, 1.0))
+    b.apply_transform(pose(0.0, [-2.0, 1.2, -8.0]))
+    renderer.load(scene_of(("column_box", Component.COLUMN, b,
+                            Material(base_color=(1.0, 0.2, 0.1, 1.0)))))
+    out = renderer.render(camera())
+    hit = out.component == Component.COLUMN
+    rows, cols = np.nonzero(hit)
+    assert 0 < rows.max() < 24 and 0 < cols.max() < 32  # upper-left quadrant only
+    assert np.array_equal(hit, out.depth < 1000.0)
+    red = (out.color[..., 0].astype(int) - out.color[..., 2]) > 60
+    assert (red == hit).mean() > 0.98  # colour agrees except maybe silhouette pixels
+    # Projection of the box's front face centre lands where K says.
+    k = camera().K
+    col, row = k[0, 0] * -2.0 / 7.5 + k[0, 2], -k[1, 1] * 1.2 / 7.5 + k[1, 2]
+    assert hit[int(round(row)), int(round(col))]
+
+
+def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
+    """A fronto-parallel plate whose UVs map the texture exactly onto the 64 x 48 image."""
+    d = 10.0
+    cam = camera()
+    k = cam.K
+    # Plate corners at the outer pixel edges: pixel (c, r) covers uv [c/64, (c+1)/64] etc.
+    x0, x1 = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
+    y1, y0 = -(-0.5 - k[1, 2]) / k[1, 1] * d, -(47.5 - k[1, 2]) / k[1, 1] * d
+    corners = [[x0, y0, -d], [x1, y0, -d], [x1, y1, -d], [x0, y1, -d]]
+    rng = np.random.default_rng(5)  # test data only
+    mask = rng.choice(np.array([1, 2, 3], np.uint8), size=(48, 64), p=[0.6, 0.3, 0.1])
+    bumps = np.zeros((48, 64, 3), np.uint8)
+    tilt = rng.normal(0, 0.5, (48, 64, 2))
+    normal = np.dstack([tilt, np.ones((48, 64))])
+    normal /= np.linalg.norm(normal, axis=2, keepdims=True)
+    bumps[:] = np.round((normal * 0.5 + 0.5) * 255)
+    plate = quad(corners)
+    base = Material(base_color=(0.7, 0.7, 0.7, 1.0), damage_mask=mask)
+    bumpy = Material(base_color=(0.7, 0.7, 0.7, 1.0), damage_mask=mask, normal_map=bumps)
+    renderer.load(scene_of(("column_plate", Component.COLUMN, plate, base)))
+    flat = renderer.render(cam)
+    renderer.load(scene_of(("column_plate", Component.COLUMN, plate, bumpy)))
+    shaded = renderer.render(cam)
+    # Image row 0 is the top; the mask's row 0 is the top of the texture (v = 1).
+    assert np.array_equal(flat.damage, mask)
+    assert np.array_equal(shaded.damage, flat.damage)
+    assert np.array_equal(shaded.component, flat.component)
+    assert np.array_equal(shaded.depth, flat.depth)
+    diff = np.abs(shaded.color.astype(int) - flat.color.astype(int))
+    assert diff.mean() > 5 and np.std(shaded.color) > 2 * np.std(flat.color)
+
+
+def test_msaa_changes_colour_edges_only_never_labels_or_depth():
+    from glsynth.meshes import box, pose
+
+    b = box((1.0, 1.0, 1.0))
+    b.apply_transform(pose(0.4, [0.3, 0.2, -6.0]))
+    scene = scene_of(("column_box", Component.COLUMN, b, plain_material(Component.COLUMN)))
+    outs = []
+    for msaa in (0, 4):
+        r = Renderer(render_config(64, 48, msaa=msaa))
+        r.load(scene)
+        outs.append(r.render(camera()))
+        assert r.ctx.error == "GL_NO_ERROR"
+        r.release()
+    a, b4 = outs
+    assert np.array_equal(a.component, b4.component) and np.array_equal(a.depth, b4.depth)
+    changed = np.any(a.color != b4.color, axis=2)
+    assert changed.any()
+    edge = np.zeros_like(changed)
+    hit = a.component == Component.COLUMN
+    edge[1:-1, 1:-1] = (hit[1:-1, 1:-1] != hit[:-2, 1:-1]) | (hit[1:-1, 1:-1] != hit[2:, 1:-1]) \
+        | (hit[1:-1, 1:-1] != hit[1:-1, :-2]) | (hit[1:-1, 1:-1] != hit[1:-1, 2:])
+    near_edge = edge | np.roll(edge, 1, 0) | np.roll(edge, -1, 0) | np.roll(edge, 1, 1) \
+        | np.roll(edge, -1, 1)
+    assert not np.any(changed & ~near_edge)
+
+
+def test_unknown_platform_and_failure_message(monkeypatch):
+    with pytest.raises(ValueError, match="GL platform = 'vulkan'"):
+        gl_context.create_context("vulkan")
+
+    def broken(name):
+        raise OSError(f"lib for {name} not found")
+
+    monkeypatch.setattr(gl_context, "_create", broken)
+    with pytest.raises(gl_context.GLUnavailableError) as info:
+        gl_context.create_context()
+    message = str(info.value)
+    assert "EGL: OSError" in message and "OSMESA: OSError" in message
+    assert "libegl1" in message and "libosmesa6" in message
+
+
+def test_egl_and_osmesa_render_the_same(env0):
+    from glsynth.cameras import environment_camera
+    from glsynth.config import Config
+    from glsynth.scene import build_scene, default_materials
+
+    rc = render_config(96, 54)
+    scene = build_scene(env0.parts, default_materials(env0))
+    cam = environment_camera(env0.trajectory, Config().cameras, rc, 0, 0, 60).camera
+    outs = {}
+    for platform in ("egl", "osmesa"):
+        r = Renderer(rc, platform=platform)
+        assert r.platform == platform
+        r.load(scene)
+        outs[platform] = r.render(cam)
+        assert r.ctx.error == "GL_NO_ERROR"
+        r.release()
+    e, o = outs["egl"], outs["osmesa"]
+    assert np.array_equal(e.component, o.component) and np.array_equal(e.depth, o.depth)
+    assert np.abs(e.color.astype(int) - o.color.astype(int)).max() <= 1

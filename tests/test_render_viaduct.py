@@ -1,0 +1,135 @@
+"""Rendering real viaduct views: agreement with an independent CPU ray cast, valid ids,
+reproducibility, and the render/preview commands."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from glhelpers import render_config
+from PIL import Image
+from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+from glsynth.cameras import environment_camera
+from glsynth.cli import main
+from glsynth.config import Config
+from glsynth.gl.renderer import Renderer
+from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.scene import build_scene, default_materials
+
+RC = render_config(160, 90)
+CAMERAS = Config().cameras
+
+
+@pytest.fixture(scope="module")
+def loaded(env0):
+    r = Renderer(RC)
+    r.load(build_scene(env0.parts, default_materials(env0)))
+    yield r
+    assert r.ctx.error == "GL_NO_ERROR"
+    r.release()
+
+
+def cam(env0, index):
+    return environment_camera(env0.trajectory, CAMERAS, RC, 0, 0, index).camera
+
+
+def ray_cast(env0, camera):
+    """Nearest hit per pixel centre: (depth along the optical axis, component id), sky = inf."""
+    meshes = [trimesh.Trimesh(p.world_vertices(), p.mesh.faces, process=False)
+              for p in env0.parts]
+    face_component = np.concatenate([np.full(len(p.mesh.faces), int(p.component))
+                                     for p in env0.parts])
+    scene = trimesh.util.concatenate(meshes)
+    origin, dirs = camera.rays()
+    d = dirs.reshape(-1, 3)
+    tri, ray, loc = RayMeshIntersector(scene).intersects_id(
+        np.repeat(origin[None], len(d), 0), d, multiple_hits=False, return_locations=True)
+    depth = np.full(len(d), np.inf)
+    comp = np.ones(len(d), np.uint8)
+    # Depth along the optical axis: the ray parameter, as the directions have unit axial length.
+    depth[ray] = np.einsum("ij,ij->i", loc - origin, d[ray]) / np.einsum("ij,ij->i", d[ray], d[ray])
+    comp[ray] = face_component[tri]
+    h, w = camera.height, camera.width
+    return depth.reshape(h, w), comp.reshape(h, w)
+
+
+@pytest.mark.parametrize("index", [0, 55])
+def test_depth_and_labels_match_a_cpu_ray_cast(env0, loaded, index):
+    camera = cam(env0, index)
+    out = loaded.render(camera)
+    depth, comp = ray_cast(env0, camera)
+    # Interior pixels: the ray cast's component and depth are the same in the 3x3 neighbourhood.
+    interior = np.zeros(depth.shape, bool)
+    core = (slice(1, -1), slice(1, -1))
+    same = np.ones(depth[core].shape, bool)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            shifted = (slice(1 + dr, depth.shape[0] - 1 + dr), slice(1 + dc, depth.shape[1] - 1 + dc))
+            same &= comp[shifted] == comp[core]
+            same &= np.isclose(depth[shifted], depth[core], rtol=0.05) | (
+                np.isinf(depth[shifted]) & np.isinf(depth[core]))
+    interior[core] = same
+    assert interior.mean() > 0.6
+    hit = interior & np.isfinite(depth)
+    assert hit.sum() > 1000
+    assert np.allclose(out.depth[hit], depth[hit], rtol=1e-4)
+    assert np.array_equal(out.component[interior], comp[interior])
+    assert len(np.unique(comp[interior])) >= 3
+
+
+def test_label_maps_hold_only_valid_ids(env0, loaded):
+    for index in range(0, 100, 7):
+        out = loaded.render(cam(env0, index))
+        assert set(np.unique(out.component)) <= COMPONENT_IDS - {0, 8}
+        assert set(np.unique(out.damage)) <= DAMAGE_IDS - {0}
+        assert np.all(np.isfinite(out.depth)) and out.depth.min() > 0.0
+        assert out.depth.max() <= RC.zfar_m
+
+
+def test_a_camera_renders_the_same_bytes_alone_or_in_a_batch(env0, loaded):
+    batch = [loaded.render(cam(env0, i)) for i in range(4)]
+    alone = Renderer(RC)
+    alone.load(build_scene(env0.parts, default_materials(env0)))
+    single = alone.render(cam(env0, 2))
+    alone.release()
+    for name in ("color", "component", "damage", "depth"):
+        assert getattr(single, name).tobytes() == getattr(batch[2], name).tobytes()
+
+
+def test_only_requested_passes_are_returned(env0, loaded):
+    out = loaded.render(cam(env0, 1), {"depth"})
+    assert out.color is None and out.component is None and out.depth is not None
+    with pytest.raises(ValueError, match="passes"):
+        loaded.render(cam(env0, 1), {"normals"})
+
+
+def test_render_command_writes_the_documented_files(tmp_path):
+    cfg = tmp_path / "small.toml"
+    cfg.write_text("[render]\nwidth = 192\nheight = 108\n")
+    out = tmp_path / "r"
+    assert main(["render", "--seed", "0", "--env", "1", "--camera", "57", "--config", str(cfg),
+                 "--out", str(out)]) == 0
+    image = np.array(Image.open(out / "image.png"))
+    comp = np.array(Image.open(out / "component.png"))
+    dmg = np.array(Image.open(out / "damage.png"))
+    depth = np.load(out / "depth.npy")
+    assert image.shape == (108, 192, 3) and image.dtype == np.uint8
+    assert comp.shape == dmg.shape == (108, 192) and comp.dtype == np.uint8
+    assert depth.shape == (108, 192) and depth.dtype == np.float32
+    info = json.loads((out / "camera.json").read_text())
+    k = np.array(info["K"])
+    assert k.shape == (3, 3) and k[0, 0] == pytest.approx(info["focal_mm"] / 36.0 * 192)
+    assert np.array(info["pose"]).shape == (4, 4)
+    assert (info["width"], info["height"], info["kind"]) == (192, 108, "closeup")
+    # Several cameras go to subfolders.
+    assert main(["render", "--seed", "0", "--env", "1", "--camera", "1", "2", "--config",
+                 str(cfg), "--out", str(tmp_path / "many")]) == 0
+    assert (tmp_path / "many" / "camera_002" / "depth.npy").exists()
+
+
+def test_preview_command(tmp_path):
+    out = tmp_path / "p.png"
+    assert main(["preview", "--seed", "0", "--env", "0", "--cameras", "2", "--width", "96",
+                 "--out", str(out)]) == 0
+    assert Image.open(out).size == (4 * 96, 2 * 54)
