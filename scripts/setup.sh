@@ -6,3 +6,4 @@ cd "$(dirname "$0")/.."
 bash scripts/install.sh
 .venv/bin/glsynth export --preset demo --seed 0 --env 0 --out out/demo/scene.glb
 .venv/bin/glsynth histograms --preset demo --seed 0 --count 200 --out out/demo/trajectories.png
+.venv/bin/glsynth preview --preset demo --seed 0 --env 0 --out out/demo/preview.png
