@@ -79,8 +79,8 @@ def cmd_render(args: argparse.Namespace) -> None:
 
 
 def cmd_preview(args: argparse.Namespace) -> None:
-    from glsynth.fileio import atomic_write_bytes
-    from glsynth.render import EnvironmentView, png_bytes, preview_config, preview_sheet
+    from glsynth.fileio import atomic_write_bytes, png_bytes
+    from glsynth.render import EnvironmentView, preview_config, preview_sheet
 
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)

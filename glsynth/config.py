@@ -143,6 +143,120 @@ class RenderConfig:
 
 
 @dataclass(frozen=True)
+class DamageConfig:
+    """Procedural concrete damage and exposed rebar of the columns (paper Section 3.3).
+
+    The paper's numbers are kept as written. Reading (DESIGN.md): slight damage is 0-1 % damaged
+    area; for medium and severe, the paper's [90 %, 99 %] and [70 %, 90 %] are the intact share,
+    i.e. the quantile of |noise| at which the threshold t sits: 1-10 % and 10-30 % damaged area.
+    """
+
+    resolution: int = 1024
+    """Damage texture size in pixels (paper: 2048; the paper preset uses 2048)."""
+    octaves: int = 8
+    frequency: tuple[float, float] = (0.2, 2.0)
+    """First-octave feature size as a fraction of the texture size (paper: 20-200 %)."""
+    tile_m: float = 1.0
+    """Physical size of one damage texture at texture scale 1.0."""
+    slight_area: tuple[float, float] = (0.0, 0.01)
+    slight_depth_cm: tuple[float, float] = (1.0, 2.0)
+    medium_intact: tuple[float, float] = (0.90, 0.99)
+    medium_depth_cm: tuple[float, float] = (1.0, 10.0)
+    severe_intact: tuple[float, float] = (0.70, 0.90)
+    severe_depth_cm: tuple[float, float] = (2.0, 10.0)
+    axial_cover_cm: tuple[float, float] = (2.5, 7.5)
+    stirrup_cover_offset_cm: float = 2.0
+    """c_s = c_a - 2 cm."""
+    axial_radius: float = 1 / 200
+    """Rebar radius as a fraction of the texture size."""
+    stirrup_radius: float = 1 / 300
+    spacing_diameters: tuple[float, float] = (3.0, 10.0)
+    ripple: float = 0.1
+    """Sinusoidal ripple amplitude as a fraction of the bar radius."""
+    undamaged_probability: float = 0.1
+    scale: tuple[float, float] = (0.2, 1.0)
+    """Texture scale of a damaged column (the texture repeats every 1/scale * tile_m metres)."""
+    bank_size: int = 1000
+    """Damage textures per severity (made lazily, on first use, and cached)."""
+
+    def __post_init__(self) -> None:
+        s = "damage"
+        check_number(s, "resolution", self.resolution, 16, 8192, integer=True)
+        check_number(s, "octaves", self.octaves, 1, 16, integer=True)
+        check_interval(s, "frequency", self.frequency, 0.001, 100.0)
+        check_number(s, "tile_m", self.tile_m, 0.0, 100.0, lo_open=True)
+        check_interval(s, "slight_area", self.slight_area, 0.0, 1.0)
+        for name in ("medium_intact", "severe_intact"):
+            check_interval(s, name, getattr(self, name), 0.0, 1.0)
+        for name in ("slight_depth_cm", "medium_depth_cm", "severe_depth_cm"):
+            check_interval(s, name, getattr(self, name), 0.0, 1000.0)
+        check_interval(s, "axial_cover_cm", self.axial_cover_cm, 0.0, 1000.0)
+        check_number(s, "stirrup_cover_offset_cm", self.stirrup_cover_offset_cm, 0.0,
+                     self.axial_cover_cm[0])
+        check_number(s, "axial_radius", self.axial_radius, 0.0, 0.25, lo_open=True)
+        check_number(s, "stirrup_radius", self.stirrup_radius, 0.0, 0.25, lo_open=True)
+        check_interval(s, "spacing_diameters", self.spacing_diameters, 1.0, 1000.0)
+        check_number(s, "ripple", self.ripple, 0.0, 0.9)
+        check_number(s, "undamaged_probability", self.undamaged_probability, 0.0, 1.0)
+        check_interval(s, "scale", self.scale, 0.0, 100.0)
+        if self.scale[0] <= 0:
+            fail(s, "scale", self.scale, "an interval of positive scales")
+        check_number(s, "bank_size", self.bank_size, 1, 10**6, integer=True)
+
+    def area_range(self, severity: str) -> tuple[float, float]:
+        """Damaged-area fraction range of a severity, under the documented reading."""
+        if severity == "slight":
+            return self.slight_area
+        if severity in ("medium", "severe"):
+            lo, hi = getattr(self, f"{severity}_intact")
+            return (1.0 - hi, 1.0 - lo)
+        raise ValueError(f"severity = {severity!r}: choose slight, medium or severe")
+
+    def depth_range_m(self, severity: str) -> tuple[float, float]:
+        self.area_range(severity)  # validates the name
+        lo, hi = getattr(self, f"{severity}_depth_cm")
+        return (lo / 100.0, hi / 100.0)
+
+
+@dataclass(frozen=True)
+class MaterialsConfig:
+    """Texture repository and the per-component PBR rules (paper Sections 2.3, 3.2)."""
+
+    repository: str = ""
+    """Folder with concrete/, steel/, painted/, wood/, ground/, scene/ images; empty: the
+    built-in procedural repository (generated once and cached)."""
+    texture_size: int = 512
+    """Repository images are resized to this many pixels square."""
+    images_per_category: int = 12
+    """Size of the built-in procedural repository."""
+    repository_seed: int = 0
+    """Seed of the built-in procedural repository."""
+    concrete_scale: tuple[float, float] = (0.1, 1.0)
+    """Slabs, beams, undamaged columns, sleepers, rails, wires, fences, poles."""
+    ground_scale: tuple[float, float] = (0.0, 0.1)
+    """Ground (a scale of 0 shows a single texel colour)."""
+    steel_roughness: tuple[float, float] = (0.0, 1.0)
+    painted_metallic: tuple[float, float] = (0.0, 1.0)
+    painted_roughness: tuple[float, float] = (0.0, 1.0)
+    panel_emission: float = 0.5
+    """Emission strength of the scene panels (paper: 0.5)."""
+
+    def __post_init__(self) -> None:
+        s = "materials"
+        if not isinstance(self.repository, str):
+            fail(s, "repository", self.repository, "a folder path (string)")
+        check_number(s, "texture_size", self.texture_size, 4, 8192, integer=True)
+        check_number(s, "images_per_category", self.images_per_category, 1, 10000,
+                     integer=True)
+        check_number(s, "repository_seed", self.repository_seed, 0, 2**63 - 1, integer=True)
+        for name in ("concrete_scale", "ground_scale"):
+            check_interval(s, name, getattr(self, name), 0.0, 100.0)
+        for name in ("steel_roughness", "painted_metallic", "painted_roughness"):
+            check_interval(s, name, getattr(self, name), 0.0, 1.0)
+        check_number(s, "panel_emission", self.panel_emission, 0.0, 100.0)
+
+
+@dataclass(frozen=True)
 class DatasetConfig:
     """How many environments a run makes and which are held out."""
 
@@ -164,6 +278,8 @@ class Config:
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     cameras: CameraConfig = field(default_factory=CameraConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
+    damage: DamageConfig = field(default_factory=DamageConfig)
+    materials: MaterialsConfig = field(default_factory=MaterialsConfig)
 
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
@@ -174,13 +290,14 @@ class Config:
 
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
-    "paper": {},
+    "paper": {"damage": {"resolution": 2048}},
     # A small but complete run for the README's main job and for tests.
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1}},
 }
 
 _SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
-             "cameras": CameraConfig, "render": RenderConfig}
+             "cameras": CameraConfig, "render": RenderConfig, "damage": DamageConfig,
+             "materials": MaterialsConfig}
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:

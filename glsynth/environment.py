@@ -83,6 +83,19 @@ def _samples(s0: float, s1: float, step: float, breaks: np.ndarray = np.empty(0)
     return np.unique(np.concatenate([s, inside]))
 
 
+def _photo_uv(mesh: trimesh.Trimesh, mirror: bool) -> trimesh.Trimesh:
+    """A scene panel shows one photo: UVs normalised to [0, 1] over the panel (an exception to
+    UVs in metres), v = 1 at the top, u left to right as seen from the track (``mirror`` when
+    the sweep runs right to left for that viewer)."""
+    uv = mesh.visual.uv / mesh.visual.uv.max(axis=0)
+    if np.corrcoef(uv[:, 1], mesh.vertices[:, 2])[0, 1] < 0:
+        uv[:, 1] = 1.0 - uv[:, 1]
+    if mirror:
+        uv[:, 0] = 1.0 - uv[:, 0]
+    mesh.visual.uv = uv
+    return mesh
+
+
 class _Builder:
     """Holds the trajectory and design while parts are made; the result is plain data."""
 
@@ -264,7 +277,8 @@ class _Builder:
                 top_bottom = [[u, cfg.panel_height_m], [u, -1.0]]
                 profile = np.array(top_bottom if u > 0 else top_bottom[::-1])
                 self.add(f"scene_{tag}_{side}", Component.NONBRIDGE, viaduct,
-                         meshes.sweep(profile, path, across, up, closed=False))
+                         _photo_uv(meshes.sweep(profile, path, across, up, closed=False),
+                                   mirror=u < 0))
         # End panels close the view along the track.
         for tag, s_end, facing in (("start", -margin, 1.0), ("end", n * L + margin, -1.0)):
             point, tangent, normal = traj.frame(np.array([s_end]))
@@ -279,7 +293,8 @@ class _Builder:
             up = np.tile(self.up, (2, 1))
             profile = np.array([[0.0, cfg.panel_height_m], [0.0, -1.0]])
             self.add(f"scene_{tag}_across", Component.NONBRIDGE, None,
-                     meshes.sweep(profile, ends, -across, up, closed=False))
+                     _photo_uv(meshes.sweep(profile, ends, -across, up, closed=False),
+                               mirror=False))
 
 
 def build_environment(config: Config, root_seed: int, env_index: int) -> Environment:

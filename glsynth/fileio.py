@@ -4,12 +4,16 @@ Data goes to a temporary file in the destination folder, is flushed to disk, and
 over the destination (atomic on POSIX within one file system).
 """
 
+import io
 import json
 import math
 import os
 import tempfile
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+from PIL import Image
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -57,3 +61,15 @@ def _jsonable(value: Any) -> Any:
 def atomic_write_json(path: str | Path, data: Any) -> None:
     text = json.dumps(_jsonable(data), indent=2, allow_nan=False) + "\n"
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def png_bytes(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(array).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def npy_bytes(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, array)
+    return buf.getvalue()

@@ -6,10 +6,12 @@ space; damage mask (H, W) uint8 damage ids. ``uv_scale`` multiplies the mesh UVs
 map repeats every 1 / uv_scale metres.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from glsynth.config import MaterialsConfig
 from glsynth.labels import Component, Damage
 
 
@@ -39,11 +41,12 @@ class Material:
                 want = "(H, W)" if channels == 0 else f"(H, W, {channels})"
                 raise ValueError(f"material.{name}: dtype {value.dtype}, shape {value.shape}; "
                                  f"must be uint8 {want}")
-        if self.damage_mask is not None and not np.isin(
-                self.damage_mask, [d.value for d in Damage if d != Damage.UNLABELLED]).all():
+        if self.damage_mask is not None and self.damage_mask.size and not (
+                Damage.NO_DAMAGE <= self.damage_mask.min()
+                and self.damage_mask.max() <= Damage.REBAR):
             raise ValueError("material.damage_mask: must hold only damage ids 1, 2, 3")
-        if not (np.isfinite(self.uv_scale) and self.uv_scale > 0):
-            raise ValueError(f"material.uv_scale = {self.uv_scale!r}: must be > 0")
+        if not (np.isfinite(self.uv_scale) and self.uv_scale >= 0):
+            raise ValueError(f"material.uv_scale = {self.uv_scale!r}: must be >= 0")
 
 
 # Untextured stand-ins per component (linear base colour, metallic, roughness); the texture
@@ -64,3 +67,51 @@ def plain_material(component: Component, *, emissive: bool = False) -> Material:
     if emissive:  # scene panels: emission only (paper: emission shader, intensity 0.5)
         return Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=(0.5, 0.6, 0.45))
     return Material(color, metallic, roughness)
+
+
+@dataclass(frozen=True)
+class Assignment:
+    """What was sampled for one part (recorded in per-image metadata)."""
+
+    category: str
+    image: int
+    metallic: float
+    roughness: float
+    scale: float
+    damage: dict | None = None
+    """For columns: {"damaged": bool, and if damaged severity, bank index, params}."""
+
+
+def part_kind(name: str) -> str:
+    """slab, beam, column, sleeper, rail, wire, painted (fence, pole, portal), ground, scene."""
+    prefix = name.split("_")[0]
+    if prefix == "nonstructural":
+        return "wire" if "_wire_" in name else "painted"
+    return prefix
+
+
+def sample_assignment(kind: str, cfg: MaterialsConfig, rng: np.random.Generator,
+                      sleeper_category: str, count: Callable[[str], int]) -> Assignment:
+    """Section 3.2 for one part (columns here are the undamaged case)."""
+    u = rng.uniform
+    if kind in ("slab", "beam", "column"):
+        return Assignment("concrete", int(rng.integers(count("concrete"))), 0.0, 1.0,
+                          u(*cfg.concrete_scale))
+    if kind == "sleeper":
+        steel = sleeper_category == "steel"
+        return Assignment(sleeper_category, int(rng.integers(count(sleeper_category))),
+                          1.0 if steel else 0.0, u(*cfg.steel_roughness) if steel else 1.0,
+                          u(*cfg.concrete_scale))
+    if kind in ("rail", "wire"):
+        return Assignment("steel", int(rng.integers(count("steel"))), 1.0,
+                          u(*cfg.steel_roughness), u(*cfg.concrete_scale))
+    if kind == "painted":
+        return Assignment("painted", int(rng.integers(count("painted"))),
+                          u(*cfg.painted_metallic), u(*cfg.painted_roughness),
+                          u(*cfg.concrete_scale))
+    if kind == "ground":
+        return Assignment("ground", int(rng.integers(count("ground"))), 0.0, 1.0,
+                          u(*cfg.ground_scale))
+    if kind == "scene":
+        return Assignment("scene", int(rng.integers(count("scene"))), 0.0, 1.0, 1.0)
+    raise ValueError(f"part kind {kind!r} has no material rule")

@@ -8,8 +8,11 @@ import numpy as np
 import trimesh
 from trimesh.visual import TextureVisuals
 
-# Box faces: (axis of the face normal, sign); the two in-plane axes (a, b) satisfy a x b = normal.
-_BOX_FACES = ((0, 1, 1, 2), (0, -1, 2, 1), (1, 1, 2, 0), (1, -1, 0, 2), (2, 1, 0, 1), (2, -1, 1, 0))
+# Box faces: (normal axis, normal sign, u axis, u sign, v axis) with (u sign * u axis) x v axis =
+# normal. On the four side faces v is +z, so texture "up" is world up (axial rebar runs up a
+# column on every face).
+_BOX_FACES = ((0, 1, 1, 1, 2), (0, -1, 1, -1, 2), (1, 1, 0, -1, 2), (1, -1, 0, 1, 2),
+              (2, 1, 0, 1, 1), (2, -1, 0, -1, 1))
 
 
 def _mesh(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> trimesh.Trimesh:
@@ -22,10 +25,10 @@ def _box_arrays(extents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     half = np.asarray(extents, dtype=float) / 2.0
     verts, faces, uvs = [], [], []
     corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
-    for axis, sign, a, b in _BOX_FACES:
+    for axis, sign, a, a_sign, b in _BOX_FACES:
         quad = np.zeros((4, 3))
         quad[:, axis] = sign * half[axis]
-        quad[:, a] = corners[:, 0] * half[a]
+        quad[:, a] = a_sign * corners[:, 0] * half[a]
         quad[:, b] = corners[:, 1] * half[b]
         base = 4 * len(faces) // 2
         verts.append(quad)

@@ -4,33 +4,22 @@ GL stays in glsynth.gl; this module only orchestrates: environment -> materials 
 renderer -> files. Every output is written atomically.
 """
 
-import io
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 from glsynth.cameras import CameraPlacement, environment_camera
 from glsynth.config import Config
 from glsynth.environment import Environment, build_environment
-from glsynth.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
 from glsynth.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.labels import Component
 from glsynth.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
-from glsynth.scene import RenderScene, build_scene, default_materials
-
-
-def png_bytes(array: np.ndarray) -> bytes:
-    buf = io.BytesIO()
-    Image.fromarray(array).save(buf, format="PNG")
-    return buf.getvalue()
-
-
-def npy_bytes(array: np.ndarray) -> bytes:
-    buf = io.BytesIO()
-    np.save(buf, array)
-    return buf.getvalue()
+from glsynth.appearance import Dressing, dress, open_repository
+from glsynth.damage_bank import DamageBank
+from glsynth.scene import RenderScene, build_scene
+from glsynth.visibility import visible_parts
 
 
 @dataclass
@@ -39,17 +28,27 @@ class EnvironmentView:
 
     config: Config
     environment: Environment
+    dressing: Dressing
     scene: RenderScene
     renderer: Renderer
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
              renderer: Renderer | None = None) -> "EnvironmentView":
+        """Build, dress and upload environment ``env_index``. Damage textures are made for the
+        columns that some camera of the environment (all of them, not only those rendered now)
+        can see, so a camera renders the same bytes alone or in a batch."""
         env = build_environment(config, root_seed, env_index)
-        scene = build_scene(env.parts, default_materials(env))
+        n_cameras = config.cameras.n_regular + config.cameras.n_closeup
+        cameras = [environment_camera(env.trajectory, config.cameras, config.render,
+                                      root_seed, env_index, i).camera for i in range(n_cameras)]
+        visible = visible_parts(env.parts, cameras)
+        dressing = dress(env, config, open_repository(config),
+                         DamageBank(config.damage, root_seed), visible)
+        scene = build_scene(env.parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
         renderer.load(scene)
-        return cls(config, env, scene, renderer)
+        return cls(config, env, dressing, scene, renderer)
 
     def camera(self, index: int) -> CameraPlacement:
         cfg = self.config
@@ -90,9 +89,14 @@ def preview_sheet(view: EnvironmentView, cameras: list[int]) -> np.ndarray:
 
 
 def preview_config(config: Config, width: int) -> Config:
-    """The same scene at a preview width (same aspect), without MSAA."""
+    """The same scene at a preview width (same aspect), without MSAA, with 256-pixel damage
+    and repository textures: geometry, cameras and damage placement are unchanged."""
     height = max(1, round(width * config.render.height / config.render.width))
-    return replace(config, render=replace(config.render, width=width, height=height, msaa=0))
+    return replace(config,
+                   render=replace(config.render, width=width, height=height, msaa=0),
+                   damage=replace(config.damage, resolution=min(256, config.damage.resolution)),
+                   materials=replace(config.materials,
+                                     texture_size=min(256, config.materials.texture_size)))
 
 
 def describe_output(output: RenderOutput) -> str:

@@ -2,9 +2,11 @@
 metallic-roughness material. Nothing here touches GL; glsynth.gl draws it.
 
 pyrender 0.1.45 is pinned and used only as the scene graph (Scene, Node, Mesh, Primitive,
-MetallicRoughnessMaterial, Texture). Its renderer is not used (glsynth.gl draws faster and
-exactly, see the README), and its bounds/centroid helpers use np.infty, which numpy 2 removed:
-glsynth never calls them.
+MetallicRoughnessMaterial with its factors). Its renderer is not used (glsynth.gl draws faster
+and exactly, see the README), and its bounds/centroid helpers use np.infty, which numpy 2
+removed: glsynth never calls them. Texture maps stay in glsynth's Material beside the node:
+pyrender.Texture copies and converts every source array on construction, which cost seconds
+per environment and defeated sharing one repository image between parts.
 """
 
 from collections.abc import Mapping
@@ -19,35 +21,25 @@ from glsynth.materials import Material, plain_material
 
 
 @dataclass(frozen=True)
-class PartLabel:
-    """What the label pass needs beyond the pyrender node."""
+class PartInfo:
+    """What the passes need beyond the pyrender node: component id and the full material."""
 
     component: Component
-    damage_mask: np.ndarray | None
+    material: Material
 
 
 @dataclass(frozen=True)
 class RenderScene:
     scene: pyrender.Scene
-    labels: Mapping[str, PartLabel]
+    parts: Mapping[str, PartInfo]
     """By node name."""
 
 
-def _texture(array: np.ndarray | None, *, srgb: bool = False) -> pyrender.Texture | None:
-    if array is None:
-        return None
-    sampler = pyrender.Sampler(magFilter=0x2601, minFilter=0x2703)  # linear, trilinear mipmaps
-    return pyrender.Texture(source=array, source_channels="RGB", sampler=sampler)
-
-
 def pyrender_material(material: Material) -> pyrender.MetallicRoughnessMaterial:
+    """The material's factors, for anyone viewing the scene graph with pyrender itself."""
     return pyrender.MetallicRoughnessMaterial(
         baseColorFactor=material.base_color, metallicFactor=material.metallic,
-        roughnessFactor=material.roughness, emissiveFactor=material.emissive,
-        baseColorTexture=_texture(material.base_color_map),
-        metallicRoughnessTexture=_texture(material.metallic_roughness_map),
-        emissiveTexture=_texture(material.emissive_map),
-        normalTexture=_texture(material.normal_map))
+        roughnessFactor=material.roughness, emissiveFactor=material.emissive)
 
 
 def part_node(part: Part, material: Material) -> pyrender.Node:
@@ -70,11 +62,11 @@ def build_scene(parts: list[Part] | tuple[Part, ...], materials: Mapping[str, Ma
                 ) -> RenderScene:
     """A pyrender Scene of ``parts``; each part needs a material under its name."""
     scene = pyrender.Scene()
-    labels = {}
+    infos = {}
     for part in parts:
         if part.name not in materials:
             raise ValueError(f"part {part.name!r} has no material")
         material = materials[part.name]
         scene.add_node(part_node(part, material))
-        labels[part.name] = PartLabel(part.component, material.damage_mask)
-    return RenderScene(scene, labels)
+        infos[part.name] = PartInfo(part.component, material)
+    return RenderScene(scene, infos)

@@ -16,6 +16,8 @@ class Stream(IntEnum):
     DAMAGE = 2
     CAMERAS = 3
     PLATES = 4
+    DAMAGE_BANK = 5
+    """Damage textures of the bank: shared by all environments of a root seed (env = 0)."""
 
 
 def make_rng(root_seed: int, env: int, stream: Stream, item: int = 0) -> np.random.Generator:

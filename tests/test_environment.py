@@ -150,3 +150,17 @@ def test_panels_stand_at_the_configured_distance(env0):
             xy = part.world_vertices()[:, :2]
             dist = np.min(np.linalg.norm(xy[:, None] - centre[None, :, :2], axis=2), axis=1)
             assert np.allclose(dist, 30.0, atol=0.05), part.name
+
+
+def test_box_uvs_run_up_the_side_faces():
+    from glsynth.meshes import box
+
+    b = box((0.6, 0.8, 5.0))
+    uv, normals = b.visual.uv, b.face_normals
+    for f, n in enumerate(normals):
+        if abs(n[2]) < 0.5:  # side face: v grows with z, u runs along the face in metres
+            verts = b.faces[f]
+            dv = np.diff(uv[verts, 1])
+            dz = np.diff(b.vertices[verts, 2])
+            assert np.allclose(dv, dz)
+    assert b.volume > 0 and np.isclose(b.volume, 0.6 * 0.8 * 5.0)

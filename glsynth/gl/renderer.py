@@ -19,6 +19,7 @@ from glsynth.config import RenderConfig
 from glsynth.gl.context import create_context
 from glsynth.gl.programs import compile_programs
 from glsynth.labels import Component, Damage
+from glsynth.materials import Material
 from glsynth.scene import RenderScene
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
@@ -42,7 +43,7 @@ class _Draw:
     name: str
     pose: np.ndarray
     vaos: dict[str, moderngl.VertexArray]
-    material: object  # pyrender.MetallicRoughnessMaterial
+    material: Material
     textures: dict[str, moderngl.Texture]
     component: float
     damage_mask: moderngl.Texture | None
@@ -59,7 +60,9 @@ class Renderer:
         self.programs = compile_programs(self.ctx)
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
-        self._textures: dict[int, moderngl.Texture] = {}
+        # Uploaded textures by the id of their source array; the array is kept with it so that
+        # the id cannot be reused by another array while the entry exists.
+        self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
         self._defaults = {
             "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
@@ -80,7 +83,8 @@ class Renderer:
     def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
         key = id(array)
         if key in self._textures:
-            return self._textures[key]
+            return self._textures[key][1]
+        source = array
         array = np.ascontiguousarray(array)
         h, w = array.shape[:2]
         channels = 1 if array.ndim == 2 else array.shape[2]
@@ -95,7 +99,7 @@ class Renderer:
             tex.build_mipmaps()
             tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         tex.repeat_x = tex.repeat_y = True
-        self._textures[key] = tex
+        self._textures[key] = (source, tex)
         return tex
 
     def load(self, render_scene: RenderScene) -> None:
@@ -103,7 +107,8 @@ class Renderer:
         self.release_scene()
         scene = render_scene.scene
         for node in sorted(scene.mesh_nodes, key=lambda n: n.name):
-            label = render_scene.labels[node.name]
+            info = render_scene.parts[node.name]
+            mat = info.material
             for primitive in node.mesh.primitives:
                 data = np.hstack([primitive.positions, primitive.normals,
                                   primitive.texcoord_0]).astype(np.float32)
@@ -117,28 +122,24 @@ class Renderer:
                         self.programs["labels"],
                         [(vbo, "3f 12x 2f", "in_position", "in_uv")], ibo, 4),
                 }
-                mat = primitive.material
-                textures = {}
-                for slot, tex in (("base", mat.baseColorTexture),
-                                  ("mr", mat.metallicRoughnessTexture),
-                                  ("emissive", mat.emissiveTexture),
-                                  ("normal", mat.normalTexture)):
-                    if tex is not None:
-                        textures[slot] = self._upload_texture(tex.source)
-                mask = (self._upload_texture(label.damage_mask, integer=True)
-                        if label.damage_mask is not None else None)
+                textures = {slot: self._upload_texture(array) for slot, array in (
+                    ("base", mat.base_color_map), ("mr", mat.metallic_roughness_map),
+                    ("emissive", mat.emissive_map), ("normal", mat.normal_map))
+                    if array is not None}
+                mask = (self._upload_texture(mat.damage_mask, integer=True)
+                        if mat.damage_mask is not None else None)
                 pose = scene.get_pose(node)
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
                 self._draws.append(_Draw(node.name, pose, vaos, mat, textures,
-                                         float(label.component), mask, center))
+                                         float(info.component), mask, center))
 
     def release_scene(self) -> None:
         defaults = {id(t) for t in self._defaults.values()}
         for draw in self._draws:
             for vao in draw.vaos.values():
                 vao.release()
-        for key, tex in list(self._textures.items()):
+        for key, (_, tex) in list(self._textures.items()):
             if id(tex) not in defaults:
                 tex.release()
                 del self._textures[key]
@@ -187,10 +188,10 @@ class Renderer:
             prog["u_modelview"].write(modelview)
             prog["u_normal_matrix"].write(normal)
             mat = draw.material
-            prog["u_base_color"].value = tuple(float(c) for c in mat.baseColorFactor)
-            prog["u_metallic"].value = float(mat.metallicFactor)
-            prog["u_roughness"].value = float(mat.roughnessFactor)
-            prog["u_emissive"].value = tuple(float(c) for c in mat.emissiveFactor)
+            prog["u_base_color"].value = tuple(float(c) for c in mat.base_color)
+            prog["u_metallic"].value = float(mat.metallic)
+            prog["u_roughness"].value = float(mat.roughness)
+            prog["u_emissive"].value = tuple(float(c) for c in mat.emissive)
             prog["u_has_normal_map"].value = "normal" in draw.textures
             tex = draw.textures
             tex.get("base", self._defaults["white"]).use(0)
