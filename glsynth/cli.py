@@ -93,6 +93,15 @@ def cmd_preview(args: argparse.Namespace) -> None:
           f"-> {args.out}")
 
 
+def cmd_textures(args: argparse.Namespace) -> None:
+    from glsynth.repository import generate_repository
+
+    t0 = time.perf_counter()
+    root = generate_repository(args.out, args.seed, args.count, args.size)
+    print(f"procedural texture repository ({args.count} per category, {args.size} px) in "
+          f"{time.perf_counter() - t0:.1f} s -> {root}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -129,6 +138,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--width", type=int, default=384, help="width of each tile in pixels")
     p.add_argument("--out", required=True, help="output .png")
     p.set_defaults(func=cmd_preview)
+
+    p = sub.add_parser("textures", help="generate a procedural texture repository folder")
+    p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
+    p.add_argument("--seed", type=_seed, default=0)
+    p.add_argument("--count", type=int, default=12, help="images per category")
+    p.add_argument("--size", type=int, default=512, help="image size in pixels")
+    p.set_defaults(func=cmd_textures)
     return parser
 
 

@@ -118,7 +118,9 @@ def rebar_depth(size: int, params: DamageParams, cfg: DamageConfig,
         r = along[:, None] if vertical else along[None, :]
         inside = rho < r
         half_chord = np.sqrt(np.where(inside, r * r - rho * rho, 0.0))
-        depth = np.float32(cover + radius * px_m) - half_chord * np.float32(px_m)
+        # Cover is measured to the outermost rib: the bar axis lies at cover + r (1 + ripple).
+        axis = cover + radius * (1.0 + cfg.ripple) * px_m
+        depth = np.float32(axis) - half_chord * np.float32(px_m)
         np.minimum(out, np.where(inside, depth, np.inf), out=out)
     return out
 

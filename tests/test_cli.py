@@ -51,3 +51,10 @@ def test_console_script_entry_point(tmp_path):
                            "--env", "0", "--out", str(tmp_path / "s.glb")],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "must be an integer >= 0" in proc.stderr
+
+
+def test_textures_command(tmp_path):
+    out = tmp_path / "repo"
+    assert main(["textures", "--out", str(out), "--count", "1", "--size", "16"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["concrete", "ground", "painted", "scene",
+                                                      "steel", "wood"]

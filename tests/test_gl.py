@@ -187,3 +187,31 @@ def test_egl_and_osmesa_render_the_same(env0):
     e, o = outs["egl"], outs["osmesa"]
     assert np.array_equal(e.component, o.component) and np.array_equal(e.depth, o.depth)
     assert np.abs(e.color.astype(int) - o.color.astype(int)).max() <= 1
+
+
+def test_rendered_damage_plate_shows_ids_exactly_where_the_mask_says(tmp_path):
+    """A real bank texture (64 px) on a plate that maps texels to pixels one to one."""
+    from glsynth.config import DamageConfig, MaterialsConfig
+    from glsynth.damage_bank import DamageBank, damage_material
+    from glsynth.repository import TextureRepository, generate_repository
+
+    repo = TextureRepository(generate_repository(tmp_path / "r", 0, 2, 16), 16)
+    cfg = DamageConfig(resolution=64)
+    entry = DamageBank(cfg, 0, cache_dir=tmp_path).entry("severe", 3, repo)
+    material = damage_material(entry, repo, cfg, scale=1.0)
+    assert MaterialsConfig()  # defaults valid
+    r = Renderer(render_config(64, 64))
+    cam = camera(64, 64)
+    k, d = cam.K, 4.0
+    lo, hi = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
+    plate = quad([[lo, -hi, -d], [hi, -hi, -d], [hi, hi, -d], [lo, hi, -d]])
+    r.load(scene_of(("column_plate", Component.COLUMN, plate, material)))
+    out = r.render(cam)
+    assert r.ctx.error == "GL_NO_ERROR"
+    r.release()
+    assert (entry.maps.mask != 1).any() and (entry.maps.mask == 3).any()
+    assert np.array_equal(out.damage, entry.maps.mask)
+    assert np.all(out.component == Component.COLUMN)
+    # Exposed rebar is metallic steel, concrete damage shows the second concrete image.
+    assert not np.array_equal(out.color[entry.maps.mask == 3].mean(0),
+                              out.color[entry.maps.mask == 1].mean(0))

@@ -1,0 +1,120 @@
+import dataclasses
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from glsynth.appearance import dress, open_repository
+from glsynth.config import Config, DamageConfig, MaterialsConfig
+from glsynth.damage_bank import DamageBank
+from glsynth.environment import build_environment
+from glsynth.labels import Damage
+from glsynth.materials import part_kind
+
+CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=64),
+                             materials=MaterialsConfig(texture_size=32, images_per_category=4))
+
+
+@pytest.fixture(scope="module")
+def dressed():
+    repo = open_repository(CONFIG)
+    envs = [build_environment(CONFIG, 0, e) for e in range(3)]
+    out = []
+    for env in envs:
+        bank = DamageBank(CONFIG.damage, 0)
+        columns = {p.name for p in env.parts if p.name.startswith("column")}
+        out.append((env, dress(env, CONFIG, repo, bank, columns), bank))
+    return out
+
+
+def test_section_3_2_rules(dressed):
+    sleeper_by_viaduct = {}
+    for env, d, _ in dressed:
+        for part in env.parts:
+            a, m = d.assignments[part.name], d.materials[part.name]
+            kind = part_kind(part.name)
+            if kind in ("slab", "beam") or (kind == "column" and not a.damage["damaged"]):
+                assert (a.category, a.metallic, a.roughness) == ("concrete", 0.0, 1.0)
+                assert 0.1 <= a.scale <= 1.0 and m.uv_scale == a.scale
+            elif kind in ("rail", "wire"):
+                assert a.category == "steel" and a.metallic == 1.0 and 0 <= a.roughness <= 1
+            elif kind == "painted":
+                assert a.category == "painted" and 0 <= a.metallic <= 1 and 0 <= a.roughness <= 1
+            elif kind == "ground":
+                assert a.category == "ground" and 0.0 <= a.scale <= 0.1
+                assert (a.metallic, a.roughness) == (0.0, 1.0)
+            elif kind == "scene":
+                assert m.base_color[:3] == (0.0, 0.0, 0.0) and m.emissive == (0.5, 0.5, 0.5)
+                assert m.emissive_map is not None
+            elif kind == "sleeper":
+                key = (env.env_index, part.viaduct)
+                sleeper_by_viaduct.setdefault(key, set()).add((a.category, a.image, a.scale))
+                if a.category == "steel":
+                    assert a.metallic == 1.0 and 0 <= a.roughness <= 1
+                else:
+                    assert (a.metallic, a.roughness) == (0.0, 1.0)
+            assert m.base_color_map is not None or m.emissive_map is not None
+    # One sleeper material per viaduct (both tracks), drawn from all three categories.
+    assert all(len(v) == 1 for v in sleeper_by_viaduct.values())
+    kinds = Counter(next(iter(v))[0] for v in sleeper_by_viaduct.values())
+    assert set(kinds) == {"concrete", "steel", "wood"}
+
+
+def test_column_damage_assignment(dressed):
+    records = [d.assignments[p.name].damage for env, d, _ in dressed for p in env.parts
+               if p.name.startswith("column")]
+    n = len(records)
+    undamaged = sum(not r["damaged"] for r in records)
+    assert abs(undamaged / n - 0.1) < 4 * np.sqrt(0.09 / n)
+    severities = Counter(r["severity"] for r in records if r["damaged"])
+    assert set(severities) == {"slight", "medium", "severe"}
+    assert all(0.2 <= r["scale"] <= 1.0 for r in records if r["damaged"])
+    for env, d, _ in dressed:
+        for p in env.parts:
+            r = d.assignments[p.name].damage
+            m = d.materials[p.name]
+            if r and r["damaged"]:
+                assert m.damage_mask is not None and m.normal_map is not None
+                assert m.uv_scale == pytest.approx(r["scale"])
+                assert set(np.unique(m.damage_mask)) <= {1, 2, 3}
+                rebar = m.damage_mask == Damage.REBAR
+                assert np.array_equal(m.metallic_roughness_map[..., 2] == 255, rebar)
+
+
+def test_damage_textures_only_for_visible_columns_and_cached(tmp_path):
+    repo = open_repository(CONFIG)
+    env = build_environment(CONFIG, 1, 0)
+    bank = DamageBank(CONFIG.damage, 1, cache_dir=tmp_path)
+    d = dress(env, CONFIG, repo, bank, visible=set())
+    assert bank.generated == 0 and bank.loaded == 0
+    assert all(d.materials[p.name].damage_mask is None for p in env.parts)
+    assert any(d.assignments[p.name].damage["damaged"] for p in env.parts
+               if p.name.startswith("column"))
+    some = {p.name for p in env.parts if p.name.startswith("column_v00")}
+    first = dress(env, CONFIG, repo, bank, visible=some)
+    made = bank.generated
+    assert 0 < made <= len(some) and len(list(tmp_path.rglob("*.npz"))) == made
+    second = dress(env, CONFIG, repo, DamageBank(CONFIG.damage, 1, cache_dir=tmp_path), some)
+    for name in some:
+        a, b = first.materials[name], second.materials[name]
+        if a.damage_mask is not None:
+            assert a.damage_mask.tobytes() == b.damage_mask.tobytes()
+            assert a.base_color_map.tobytes() == b.base_color_map.tobytes()
+            assert a.normal_map.tobytes() == b.normal_map.tobytes()
+
+
+def test_dressing_is_reproducible_and_independent_of_visibility():
+    repo = open_repository(CONFIG)
+    env = build_environment(CONFIG, 2, 1)
+    all_columns = {p.name for p in env.parts if p.name.startswith("column")}
+    a = dress(env, CONFIG, repo, DamageBank(CONFIG.damage, 2), all_columns)
+    b = dress(env, CONFIG, repo, DamageBank(CONFIG.damage, 2), set())
+    for p in env.parts:
+        x, y = a.assignments[p.name], b.assignments[p.name]
+        assert (x.category, x.image, x.scale, x.metallic) == (y.category, y.image, y.scale,
+                                                             y.metallic)
+        if x.damage:
+            assert {k: v for k, v in x.damage.items() if k in ("damaged", "severity",
+                                                               "bank_index", "scale")} == \
+                {k: v for k, v in y.damage.items() if k in ("damaged", "severity",
+                                                           "bank_index", "scale")}

@@ -1,0 +1,73 @@
+import numpy as np
+import pytest
+from PIL import Image
+
+from glsynth.repository import TextureRepository, generate_repository
+from glsynth.seeding import Stream, make_rng
+from glsynth.texgen import CATEGORIES
+
+
+@pytest.fixture()
+def repo_dir(tmp_path):
+    return generate_repository(tmp_path / "repo", seed=3, per_category=2, size=32)
+
+
+def test_generated_repository_has_every_category_and_is_deterministic(repo_dir, tmp_path):
+    again = generate_repository(tmp_path / "again", seed=3, per_category=2, size=32)
+    for category in CATEGORIES:
+        files = sorted((repo_dir / category).glob("*.png"))
+        assert len(files) == 2
+        for f in files:
+            assert f.read_bytes() == (again / category / f.name).read_bytes()
+    other = generate_repository(tmp_path / "other", seed=4, per_category=1, size=32)
+    assert (other / "concrete" / "concrete_0000.png").read_bytes() != \
+        (repo_dir / "concrete" / "concrete_0000.png").read_bytes()
+
+
+def test_images_are_resized_rgb_and_shared(repo_dir):
+    repo = TextureRepository(repo_dir, 16)
+    image = repo.image("wood", 1)
+    assert image.shape == (16, 16, 3) and image.dtype == np.uint8
+    assert repo.image("wood", 1) is image  # loaded once, then shared
+    assert repo.image("wood", 3) is image  # indices wrap
+    index, picked = repo.pick("steel", make_rng(0, 0, Stream.MATERIALS, 0))
+    assert 0 <= index < 2 and picked.shape == (16, 16, 3)
+
+
+def test_unreadable_image_is_skipped_with_a_warning_naming_it(repo_dir):
+    bad = repo_dir / "steel" / "steel_0000.png"
+    bad.write_bytes(b"not a png")
+    repo = TextureRepository(repo_dir, 16)
+    with pytest.warns(UserWarning, match="steel_0000.png"):
+        image = repo.image("steel", 0)
+    good = np.asarray(Image.open(repo_dir / "steel" / "steel_0001.png").convert("RGB")
+                      .resize((16, 16), Image.Resampling.LANCZOS))
+    assert np.array_equal(image, good)
+
+
+def test_category_with_no_readable_image_is_a_clear_error(repo_dir):
+    for f in (repo_dir / "ground").glob("*.png"):
+        f.write_bytes(b"broken")
+    repo = TextureRepository(repo_dir, 16)
+    with pytest.warns(UserWarning), pytest.raises(ValueError, match="no readable image in "
+                                                                     "category 'ground'"):
+        repo.image("ground", 0)
+
+
+def test_missing_category_or_folder_says_how_to_fix(repo_dir, tmp_path):
+    for f in (repo_dir / "scene").glob("*"):
+        f.unlink()
+    with pytest.raises(ValueError, match="category folder 'scene' is missing.*glsynth textures"):
+        TextureRepository(repo_dir, 16)
+    with pytest.raises(ValueError, match="is not a folder"):
+        TextureRepository(tmp_path / "nowhere", 16)
+
+
+def test_user_photos_in_other_formats_are_found(repo_dir):
+    Image.new("RGB", (40, 20), (200, 10, 10)).save(repo_dir / "painted" / "photo.JPG",
+                                                   format="JPEG")
+    repo = TextureRepository(repo_dir, 8)
+    assert repo.count("painted") == 3
+    names = [p.name for p in repo.files["painted"]]
+    red = repo.image("painted", names.index("photo.JPG"))
+    assert red[..., 0].mean() > 150 and red[..., 1].mean() < 60

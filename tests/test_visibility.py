@@ -1,0 +1,45 @@
+import numpy as np
+import pytest
+from glhelpers import camera
+
+from glsynth.environment import Part
+from glsynth.labels import Component
+from glsynth.meshes import box, pose
+from glsynth.visibility import visible_parts
+
+
+def part(name, xyz, size=1.0):
+    return Part(name, Component.COLUMN, None, box((size, size, size)), pose(0.3, xyz))
+
+
+@pytest.mark.parametrize("name, xyz, seen", [
+    ("ahead", (0, 0, -10), True),
+    ("behind", (0, 0, 10), False),
+    ("far_left", (-30, 0, -10), False),
+    ("far_right", (30, 0, -10), False),
+    ("far_up", (0, 30, -10), False),
+    ("far_down", (0, -30, -10), False),
+    ("straddles_near_plane", (0, 0, 0.2), True),
+    ("just_inside_left_edge", (-5.5, 0, -10), True),
+])
+def test_frustum_cases(name, xyz, seen):
+    # fx = width: the view spans x in [-d/2, d/2] at depth d.
+    assert (name in visible_parts([part(name, xyz)], [camera()])) == seen
+
+
+def test_union_over_cameras_and_environment_columns(env0):
+    from glsynth.cameras import environment_camera
+    from glsynth.config import Config
+
+    cfg = Config()
+    cams = [environment_camera(env0.trajectory, cfg.cameras, cfg.render, 0, 0, i).camera
+            for i in range(100)]
+    seen = visible_parts(env0.parts, cams)
+    columns = [p.name for p in env0.parts if p.name.startswith("column")]
+    assert 0 < len(seen & set(columns)) <= len(columns)
+    one = visible_parts(env0.parts, cams[:1])
+    assert one <= seen and len(one) < len(seen)
+    turned = np.eye(4)
+    turned[:3, :3] = [[1, 0, 0], [0, -1, 0], [0, 0, -1]]  # looking up the +z axis into the sky
+    turned[:3, 3] = [0, 0, 500.0]
+    assert visible_parts(env0.parts, [camera(pose=turned)]) == set()
