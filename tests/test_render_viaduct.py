@@ -106,7 +106,8 @@ def test_only_requested_passes_are_returned(env0, loaded):
 
 def test_render_command_writes_the_documented_files(tmp_path):
     cfg = tmp_path / "small.toml"
-    cfg.write_text("[render]\nwidth = 192\nheight = 108\n")
+    cfg.write_text("[render]\nwidth = 192\nheight = 108\n[damage]\nresolution = 128\n"
+                   "[materials]\ntexture_size = 64\nimages_per_category = 3\n")
     out = tmp_path / "r"
     assert main(["render", "--seed", "0", "--env", "1", "--camera", "57", "--config", str(cfg),
                  "--out", str(out)]) == 0
