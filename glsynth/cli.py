@@ -17,6 +17,11 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", metavar="TOML", help="TOML file overlaid on the preset")
 
 
+def _add_env_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=_seed, required=True, help="root seed")
+    p.add_argument("--env", type=_seed, required=True, help="environment index")
+
+
 def _seed(text: str) -> int:
     value = int(text)
     if value < 0:
@@ -108,8 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("export", help="write one environment as .glb plus scene.json")
     _add_config_args(p)
-    p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--env", type=_seed, required=True, help="environment index")
+    _add_env_args(p)
     p.add_argument("--out", required=True, help="output .glb path (scene.json goes beside it)")
     p.set_defaults(func=cmd_export)
 
@@ -123,8 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("render", help="render cameras of one environment at full resolution")
     _add_config_args(p)
-    p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--env", type=_seed, required=True, help="environment index")
+    _add_env_args(p)
     p.add_argument("--camera", type=_seed, nargs="+", required=True,
                    help="camera index (0-49 regular, 50-99 close-up); several make subfolders")
     p.add_argument("--out", required=True, help="output folder")
@@ -132,8 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("preview", help="low-resolution contact sheet of one environment")
     _add_config_args(p)
-    p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--env", type=_seed, required=True, help="environment index")
+    _add_env_args(p)
     p.add_argument("--cameras", type=int, default=6, help="how many cameras (spread evenly)")
     p.add_argument("--width", type=int, default=384, help="width of each tile in pixels")
     p.add_argument("--out", required=True, help="output .png")
