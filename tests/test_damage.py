@@ -58,9 +58,8 @@ def test_zero_depth_or_zero_area_is_finite_and_undamaged(area, depth):
 def test_profile_follows_equations_1_and_2():
     noise = perlin(SIZE, 40, 60, 8, rng(3))
     profile, t = concrete_profile(noise, 0.2, 0.07)
-    expected = 0.07 * (t - np.minimum(t, np.abs(noise)))
-    expected /= (t - np.minimum(t, np.abs(noise))).max() / 1.0 * 1.0
-    assert np.allclose(profile, expected * 1.0, atol=1e-7)
+    gap = t - np.minimum(t, np.abs(noise))  # t - P-
+    assert np.allclose(profile, 0.07 * gap / gap.max(), atol=1e-7)
     assert profile.max() == pytest.approx(0.07)
     assert np.array_equal(profile > 0, np.abs(noise) < t)
 
