@@ -1,0 +1,151 @@
+"""The released Tokaido dataset layout (IC-SHM 2021), written by glsynth and read back.
+
+    <root>/files_train.csv, files_test.csv, files_puretex_train.csv, files_puretex_test.csv
+    <root>/img_syn_raw/{train,test}/image_case{E}_frame{C}_Scene.png     RGB 1920x1080
+    <root>/synthetic/{train,test}/labcmp/image_case{E}_frame{C}.bmp      component ids, 640x360
+    <root>/synthetic/{train,test}/labdmg/image_case{E}_frame{C}.bmp      damage ids, 640x360
+    <root>/synthetic/{train,test}/depth/image_case{E}_frame{C}.png       uint16 depth, 640x360
+    <root>/images_puretex/image_{N}.png, <root>/synthetic_puretex/labdmg/image_{N}.bmp
+
+Manifests have no header. files_{train,test}.csv: image, component label, damage label, depth,
+focal length [mm], regular-image flag, damage-in-RRDR flag ('True'/'False'). Puretex manifests:
+image, damage label. Paths are relative to the root; readers accept / and \\ separators.
+Depth: uint16, linear from 0.5 m (0) to 30 m (65535), clipped; no geometry is 65535.
+"""
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath, PureWindowsPath
+
+import numpy as np
+
+DEPTH_NEAR_M = 0.5
+DEPTH_FAR_M = 30.0
+DEPTH_MAX_CODE = 65535
+LABEL_STRIDE = 3  # 1920x1080 -> 640x360
+
+
+def frame_paths(split: str, env: int, camera: int) -> dict[str, str]:
+    """Root-relative paths (with /) of one regular or close-up image and its maps."""
+    _check_split(split)
+    stem = f"image_case{env}_frame{camera}"
+    return {"image": f"img_syn_raw/{split}/{stem}_Scene.png",
+            "component": f"synthetic/{split}/labcmp/{stem}.bmp",
+            "damage": f"synthetic/{split}/labdmg/{stem}.bmp",
+            "depth": f"synthetic/{split}/depth/{stem}.png"}
+
+
+def puretex_paths(index: int) -> dict[str, str]:
+    return {"image": f"images_puretex/image_{index}.png",
+            "damage": f"synthetic_puretex/labdmg/image_{index}.bmp"}
+
+
+def _check_split(split: str) -> None:
+    if split not in ("train", "test"):
+        raise ValueError(f"split = {split!r}: must be 'train' or 'test'")
+
+
+def encode_depth(depth_m: np.ndarray) -> np.ndarray:
+    """Linear uint16 code: 0.5 m -> 0, 30 m -> 65535, clipped outside; NaN counts as far."""
+    d = np.nan_to_num(np.asarray(depth_m, dtype=np.float64), nan=DEPTH_FAR_M)
+    code = np.rint((d - DEPTH_NEAR_M) / (DEPTH_FAR_M - DEPTH_NEAR_M) * DEPTH_MAX_CODE)
+    return np.clip(code, 0, DEPTH_MAX_CODE).astype(np.uint16)
+
+
+def decode_depth(code: np.ndarray) -> np.ndarray:
+    """value / 65535 * 29.5 + 0.5 metres, float32."""
+    c = np.asarray(code, dtype=np.float64)
+    return (c / DEPTH_MAX_CODE * (DEPTH_FAR_M - DEPTH_NEAR_M) + DEPTH_NEAR_M).astype(np.float32)
+
+
+def downsample_labels(labels: np.ndarray, stride: int = LABEL_STRIDE) -> np.ndarray:
+    """Nearest sampling at the centre pixel of each stride x stride block."""
+    h, w = labels.shape[:2]
+    if h % stride or w % stride:
+        raise ValueError(f"label map {w}x{h}: width and height must be multiples of {stride}")
+    return np.ascontiguousarray(labels[stride // 2::stride, stride // 2::stride])
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    image: str
+    component: str
+    damage: str
+    depth: str
+    focal_mm: float | None
+    """None where the manifest leaves it empty."""
+    regular: bool
+    damage_in_rrdr: bool
+
+
+@dataclass(frozen=True)
+class PuretexRecord:
+    image: str
+    damage: str
+
+
+def _flag(text: str, where: str) -> bool:
+    if text == "True":
+        return True
+    if text == "False":
+        return False
+    raise ValueError(f"{where}: flag {text!r} must be 'True' or 'False'")
+
+
+def manifest_text(rows: list[FrameRecord] | list[PuretexRecord]) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    for r in rows:
+        if isinstance(r, FrameRecord):
+            focal = "" if r.focal_mm is None else repr(float(r.focal_mm))
+            writer.writerow([r.image, r.component, r.damage, r.depth, focal, str(r.regular),
+                             str(r.damage_in_rrdr)])
+        else:
+            writer.writerow([r.image, r.damage])
+    return buf.getvalue()
+
+
+def safe_path(root: Path, relative: str, where: str) -> Path:
+    """root / relative, accepting / or \\ separators; refuses paths that leave the root."""
+    parts = PureWindowsPath(relative).parts if "\\" in relative else PurePosixPath(relative).parts
+    if not parts or PurePosixPath(relative).is_absolute() or PureWindowsPath(relative).drive:
+        raise ValueError(f"{where}: path {relative!r} must be relative to the dataset root")
+    path = root.joinpath(*parts).resolve()
+    if not path.is_relative_to(root.resolve()):
+        raise ValueError(f"{where}: path {relative!r} escapes the dataset root {str(root)!r}")
+    return path
+
+
+def read_manifest(root: str | Path, name: str) -> list[FrameRecord] | list[PuretexRecord]:
+    """Rows of files_{train,test}.csv (7 columns) or files_puretex_*.csv (2 columns)."""
+    root = Path(root)
+    path = root / name
+    if not path.is_file():
+        raise ValueError(f"manifest {str(path)!r} does not exist; is {str(root)!r} a "
+                         "Tokaido-layout dataset root?")
+    rows = []
+    with path.open(newline="", encoding="utf-8") as f:
+        for line_no, row in enumerate(csv.reader(f), start=1):
+            where = f"{name} line {line_no}"
+            if not row:
+                continue
+            if len(row) == 7:
+                for col in row[:4]:
+                    safe_path(root, col, where)
+                focal = float(row[4]) if row[4].strip() else None
+                rows.append(FrameRecord(*(_norm(c) for c in row[:4]), focal,
+                                        _flag(row[5], where), _flag(row[6], where)))
+            elif len(row) == 2:
+                for col in row:
+                    safe_path(root, col, where)
+                rows.append(PuretexRecord(_norm(row[0]), _norm(row[1])))
+            else:
+                raise ValueError(f"{where}: {len(row)} columns; frame manifests have 7, "
+                                 "puretex manifests 2")
+    return rows
+
+
+def _norm(relative: str) -> str:
+    """Root-relative path with / separators."""
+    return relative.replace("\\", "/")
