@@ -1,0 +1,52 @@
+import dataclasses
+
+import numpy as np
+import pytest
+from glhelpers import render_config
+
+from glsynth.config import Config, DamageConfig
+from glsynth.damage_bank import DamageBank
+from glsynth.gl.renderer import Renderer
+from glsynth.labels import Component
+from glsynth.plates import plate_shot
+from glsynth.repository import TextureRepository, generate_repository
+
+CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=128),
+                             render=render_config(96, 54))
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("plates")
+    repo = TextureRepository(generate_repository(tmp / "r", 0, 2, 32), 32)
+    renderer = Renderer(CONFIG.render)
+    yield repo, DamageBank(CONFIG.damage, 0, cache_dir=tmp), renderer
+    renderer.release()
+
+
+def shoot(setup, index):
+    repo, bank, renderer = setup
+    shot = plate_shot(CONFIG, 0, index, repo, bank)
+    renderer.load(shot.scene)
+    return shot, renderer.render(shot.camera)
+
+
+def test_a_plate_image_builds_only_the_plate_and_shows_its_damage(setup):
+    for index in range(6):
+        shot, out = shoot(setup, index)
+        assert len(shot.scene.scene.mesh_nodes) == 1
+        assert set(np.unique(out.damage)) <= {1, 2, 3}
+        plate = out.component == Component.COLUMN
+        assert plate.mean() > 0.8  # the plate nearly fills the frame
+        assert shot.meta["severity"] in ("slight", "medium", "severe")
+        assert 0 <= shot.meta["tilt_rad"] <= np.radians(35)
+        area = shot.meta["damage_params"]["area"]
+        seen = float((out.damage[plate] != 1).mean())
+        assert abs(seen - area) < 0.1  # a projected sample of the texture's damaged share
+
+
+def test_plate_images_are_reproducible_from_their_index(setup):
+    a = shoot(setup, 3)[1]
+    shoot(setup, 4)
+    b = shoot(setup, 3)[1]
+    assert a.color.tobytes() == b.color.tobytes() and a.damage.tobytes() == b.damage.tobytes()
