@@ -107,6 +107,42 @@ def cmd_textures(args: argparse.Namespace) -> None:
           f"{time.perf_counter() - t0:.1f} s -> {root}")
 
 
+def cmd_generate(args: argparse.Namespace) -> None:
+    from tqdm import tqdm
+
+    from glsynth.dataset import check_format, execute, merge, plan, prepare_output
+    from glsynth.fileio import atomic_write_bytes, atomic_write_json, png_bytes
+    from glsynth.report import contact_sheet
+
+    config = _config(args)
+    check_format(config)
+    out = Path(args.out)
+    prepare_output(out, config, args.seed)
+    tasks = plan(config)
+    t0 = time.perf_counter()
+    images, seconds = 0, 0.0
+    with tqdm(total=len(tasks), unit="unit", desc="glsynth generate") as bar:
+        bar.update(sum((out / t.marker).exists() for t in tasks))
+        for result in execute(config, args.seed, out, args.workers):
+            images += len(result["rows"]) if result["kind"] == "env" else \
+                sum(len(v) for v in result["rows"].values())
+            seconds += result["seconds"]
+            bar.update(1)
+    wall = time.perf_counter() - t0
+    summary = merge(config, out)
+    summary.update(workers=args.workers, wall_s=round(wall, 2),
+                   images_written_this_run=images,
+                   images_per_s=round(images / wall, 3) if wall > 0 and images else None)
+    atomic_write_json(out / "report.json", summary)
+    atomic_write_bytes(out / "contact_sheet.png", png_bytes(contact_sheet(out)))
+    removed = ", ".join(f"{k} {v}" for k, v in summary["removed"].items())
+    dmg = summary["damage_fraction"]
+    print(f"kept {summary['kept']} views (removed: {removed}), {summary['plates']} plates; "
+          f"concrete damage {100 * dmg['concrete']:.1f} %, exposed rebar "
+          f"{100 * dmg['rebar']:.2f} % of damage-task pixels; "
+          f"{summary['images_per_s'] or 0:.2f} images/s -> {out}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -140,6 +176,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--width", type=int, default=384, help="width of each tile in pixels")
     p.add_argument("--out", required=True, help="output .png")
     p.set_defaults(func=cmd_preview)
+
+    p = sub.add_parser("generate", help="render a dataset in the released Tokaido layout")
+    _add_config_args(p)
+    p.add_argument("--seed", type=_seed, required=True, help="root seed")
+    p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
+    p.add_argument("--workers", type=int, default=1, help="local processes, one GL context each")
+    p.set_defaults(func=cmd_generate)
 
     p = sub.add_parser("textures", help="generate a procedural texture repository folder")
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")

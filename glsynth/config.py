@@ -264,11 +264,22 @@ class DatasetConfig:
     """Paper: 200 environments."""
     n_test_environments: int = 25
     """The last ones are the test split (paper: 25 of 200)."""
+    n_plates: int = 3000
+    """Pure-texture plate images (paper: 3,000)."""
+    n_test_plates: int = 300
+    """The last ones are the test split (paper: 300)."""
+    plates_per_task: int = 50
+    """Plates per unit of work (a unit is resumed or redone as a whole)."""
 
     def __post_init__(self) -> None:
         check_number("dataset", "n_environments", self.n_environments, 1, 10**6, integer=True)
         check_number("dataset", "n_test_environments", self.n_test_environments,
-                      0, self.n_environments, integer=True)
+                     0, self.n_environments, integer=True)
+        check_number("dataset", "n_plates", self.n_plates, 0, 10**7, integer=True)
+        check_number("dataset", "n_test_plates", self.n_test_plates, 0, self.n_plates,
+                     integer=True)
+        check_number("dataset", "plates_per_task", self.plates_per_task, 1, 10**6,
+                     integer=True)
 
 
 @dataclass(frozen=True)
@@ -292,7 +303,10 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
     "paper": {"damage": {"resolution": 2048}},
     # A small but complete run for the README's main job and for tests.
-    "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1}},
+    "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
+                         "n_test_plates": 2, "plates_per_task": 6},
+             "cameras": {"n_regular": 6, "n_closeup": 6},
+             "damage": {"resolution": 512}},
 }
 
 _SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,

@@ -1,0 +1,147 @@
+"""Dataset generation end to end at the Tokaido format size (1920x1080 images, 640x360 maps)
+on a tiny configuration: format compliance, resume after a kill, worker-count independence."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from glsynth.cli import main
+from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.tokaido import read_manifest
+
+SMALL = """
+[dataset]
+n_environments = 2
+n_test_environments = 1
+n_plates = 3
+n_test_plates = 1
+plates_per_task = 2
+[cameras]
+n_regular = 3
+n_closeup = 2
+[damage]
+resolution = 64
+[materials]
+texture_size = 32
+images_per_category = 3
+"""
+
+
+@pytest.fixture(scope="module")
+def small_config(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cfg") / "small.toml"
+    path.write_text(SMALL)
+    return path
+
+
+def generate(config, out, *extra) -> int:
+    return main(["generate", "--preset", "demo", "--config", str(config), "--seed", "5",
+                 "--out", str(out), *extra])
+
+
+def dataset_files(root: Path) -> dict[str, bytes]:
+    """Everything that makes up the dataset (report.json holds timings and is left out)."""
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file() and p.name != "report.json"}
+
+
+@pytest.fixture(scope="module")
+def reference(small_config, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ref") / "ds"
+    assert generate(small_config, out) == 0
+    return out
+
+
+def test_format_compliance(reference):
+    root = reference
+    train = read_manifest(root, "files_train.csv")
+    test = read_manifest(root, "files_test.csv")
+    assert train and test
+    assert all("case0_" in r.image for r in train) and all("case1_" in r.image for r in test)
+    for r in train + test:
+        image = np.asarray(Image.open(root / r.image))
+        assert image.shape == (1080, 1920, 3) and image.dtype == np.uint8
+        comp = np.asarray(Image.open(root / r.component))
+        dmg = np.asarray(Image.open(root / r.damage))
+        depth_im = Image.open(root / r.depth)
+        assert comp.shape == dmg.shape == (360, 640) and comp.dtype == dmg.dtype == np.uint8
+        assert depth_im.mode in ("I;16", "I;16B") and depth_im.size == (640, 360)
+        assert set(np.unique(comp)) <= COMPONENT_IDS - {0, 8}
+        assert set(np.unique(dmg)) <= DAMAGE_IDS
+        assert 15.0 <= r.focal_mm <= 55.0
+        assert r.damage_in_rrdr == bool(np.isin(dmg, [2, 3]).any())
+        index = int(r.image.rsplit("_frame", 1)[1].split("_")[0])
+        assert r.regular == (index < 3)
+        meta = json.loads((root / "meta" / ("train" if r in train else "test")
+                           / Path(r.image).name.replace("_Scene.png", ".json")).read_text())
+        assert meta["root_seed"] == 5 and len(meta["camera"]["K"]) == 3
+    for line in (root / "files_train.csv").read_text().splitlines():
+        assert len(line.split(",")) == 7
+    pure = read_manifest(root, "files_puretex_train.csv") + read_manifest(
+        root, "files_puretex_test.csv")
+    assert len(pure) == 3 and len(read_manifest(root, "files_puretex_test.csv")) == 1
+    for r in pure:
+        assert np.asarray(Image.open(root / r.damage)).shape == (360, 640)
+    report = json.loads((root / "report.json").read_text())
+    assert report["kept"] == len(train) + len(test)
+    assert report["kept"] + sum(report["removed"].values()) == 2 * 5
+    assert abs(sum(report["damage_fraction"].values()) - 1.0) < 1e-9
+    assert (root / "contact_sheet.png").stat().st_size > 1000
+
+
+def test_same_dataset_with_two_workers(small_config, reference, tmp_path):
+    out = tmp_path / "ds"
+    assert generate(small_config, out, "--workers", "2") == 0
+    assert dataset_files(out) == dataset_files(reference)
+
+
+def test_resume_after_a_kill_gives_the_same_bytes(small_config, reference, tmp_path):
+    out = tmp_path / "ds"
+    cmd = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
+           str(small_config), "--seed", "5", "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    # Kill it in the middle of the second environment: after its first image is written.
+    while time.time() < deadline and not list((out / "img_syn_raw" / "test").glob("*.png")):
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "files_train.csv").exists()
+    assert generate(small_config, out) == 0
+    assert dataset_files(out) == dataset_files(reference)
+    assert not list(out.rglob(".*.tmp"))
+
+
+def test_a_finished_run_does_no_work_twice(small_config, reference, tmp_path, capsys):
+    import shutil
+
+    out = tmp_path / "ds"
+    shutil.copytree(reference, out)
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*.png")}
+    assert generate(small_config, out) == 0
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*.png")
+            if p.name != "contact_sheet.png"} == {p: t for p, t in before.items()
+                                                   if p.name != "contact_sheet.png"}
+
+
+def test_bad_outputs_are_clear_errors(small_config, reference, tmp_path, capsys):
+    other = tmp_path / "full"
+    other.mkdir()
+    (other / "x.txt").write_text("x")
+    assert generate(small_config, other) == 2
+    assert "is not empty and holds no glsynth run" in capsys.readouterr().err
+    assert main(["generate", "--preset", "demo", "--config", str(small_config), "--seed", "6",
+                 "--out", str(reference)]) == 2
+    assert "holds a run with other settings" in capsys.readouterr().err
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert generate(small_config, blocker / "ds") == 2
+    assert "Choose a writable --out" in capsys.readouterr().err
