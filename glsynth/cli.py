@@ -165,7 +165,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(p)
     _add_env_args(p)
     p.add_argument("--camera", type=_seed, nargs="+", required=True,
-                   help="camera index (0-49 regular, 50-99 close-up); several make subfolders")
+                   help="camera index: the [cameras] n_regular regular ones first, then the "
+                        "close-ups (paper preset: 0-49, 50-99); several make subfolders")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_render)
 

@@ -109,7 +109,7 @@ def test_render_command_writes_the_documented_files(tmp_path):
     cfg.write_text("[render]\nwidth = 192\nheight = 108\n[damage]\nresolution = 128\n"
                    "[materials]\ntexture_size = 64\nimages_per_category = 3\n")
     out = tmp_path / "r"
-    assert main(["render", "--seed", "0", "--env", "1", "--camera", "57", "--config", str(cfg),
+    assert main(["render", "--seed", "0", "--env", "1", "--camera", "7", "--config", str(cfg),
                  "--out", str(out)]) == 0
     image = np.array(Image.open(out / "image.png"))
     comp = np.array(Image.open(out / "component.png"))
