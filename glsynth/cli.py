@@ -120,19 +120,21 @@ def cmd_generate(args: argparse.Namespace) -> None:
     prepare_output(out, config, args.seed)
     tasks = plan(config)
     t0 = time.perf_counter()
-    images, seconds = 0, 0.0
+    images, timings = 0, {}
     with tqdm(total=len(tasks), unit="unit", desc="glsynth generate") as bar:
         bar.update(sum((out / t.marker).exists() for t in tasks))
         for result in execute(config, args.seed, out, args.workers):
             images += len(result["rows"]) if result["kind"] == "env" else \
                 sum(len(v) for v in result["rows"].values())
-            seconds += result["seconds"]
+            for phase, seconds in result["timings"].items():
+                timings[phase] = timings.get(phase, 0.0) + seconds
             bar.update(1)
     wall = time.perf_counter() - t0
     summary = merge(config, out)
     summary.update(workers=args.workers, wall_s=round(wall, 2),
                    images_written_this_run=images,
-                   images_per_s=round(images / wall, 3) if wall > 0 and images else None)
+                   images_per_s=round(images / wall, 3) if wall > 0 and images else None,
+                   worker_seconds_by_phase={k: round(v, 2) for k, v in timings.items()})
     atomic_write_json(out / "report.json", summary)
     atomic_write_bytes(out / "contact_sheet.png", png_bytes(contact_sheet(out)))
     removed = ", ".join(f"{k} {v}" for k, v in summary["removed"].items())

@@ -98,7 +98,9 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     from glsynth.render import EnvironmentView
     from glsynth.visibility import visible_parts
 
+    clock = _Clock()
     view = EnvironmentView.open(config, root_seed, env, renderer)
+    clock.lap("environment, materials and damage textures")
     split = environment_split(config, env)
     cams = config.cameras
     rows, removed = [], dict.fromkeys(REASONS, 0)
@@ -106,9 +108,11 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
     for index in range(cams.n_regular + cams.n_closeup):
         placement, output = view.render(index)
+        clock.lap("render and read back")
         reason = removal_reason(output.color, output.component, output.depth)
         if reason is not None:
             removed[reason] += 1
+            clock.lap("filters, RRDR and labels")
             continue
         camera = placement.camera
         reliable = rrdr(output.depth, camera.fx)
@@ -116,6 +120,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
         paths = frame_paths(split, env, index)
         component = downsample_labels(output.component)
         damage = downsample_labels(masked.labels)
+        clock.lap("filters, RRDR and labels")
         atomic_write_bytes(out / paths["image"], png_bytes(output.color))
         atomic_write_bytes(out / paths["component"], _bmp_bytes(component))
         atomic_write_bytes(out / paths["damage"], _bmp_bytes(damage))
@@ -138,9 +143,11 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
         comp_px = [a + b for a, b in zip(comp_px, _counts(component, len(Component)))]
         if masked.damage_in_rrdr:
             dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]
+        clock.lap("encode and write files")
     atomic_write_json(out / "meta" / f"env_{env}.json", _env_description(view))
+    clock.lap("encode and write files")
     return {"kind": "env", "env": env, "split": split, "rows": rows, "removed": removed,
-            "component_pixels": comp_px, "damage_pixels": dmg_px}
+            "component_pixels": comp_px, "damage_pixels": dmg_px, "timings": clock.totals}
 
 
 def _env_description(view) -> dict:
@@ -169,6 +176,7 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
     from glsynth.damage_bank import DamageBank
     from glsynth.plates import plate_shot
 
+    clock = _Clock()
     repository = open_repository(config)
     bank = DamageBank(config.damage, root_seed)
     rows = {"train": [], "test": []}
@@ -176,7 +184,9 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
     for index in range(task.first, task.first + task.count):
         shot = plate_shot(config, root_seed, index, repository, bank)
         renderer.load(shot.scene)
+        clock.lap("plate damage textures")
         output = renderer.render(shot.camera, {"color", "damage"})
+        clock.lap("render and read back")
         paths = puretex_paths(index)
         damage = downsample_labels(output.damage)
         atomic_write_bytes(out / paths["image"], png_bytes(output.color))
@@ -186,17 +196,34 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
                            "camera": shot.camera.to_json()})
         rows[plate_split(config, index)].append([paths["image"], paths["damage"]])
         dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]
-    return {"kind": "plates", "first": task.first, "rows": rows, "damage_pixels": dmg_px}
+        clock.lap("encode and write files")
+    return {"kind": "plates", "first": task.first, "rows": rows, "damage_pixels": dmg_px,
+            "timings": clock.totals}
+
+
+class _Clock:
+    """Seconds spent per named phase (reported, never written into the dataset)."""
+
+    def __init__(self) -> None:
+        self.totals: dict[str, float] = {}
+        self.last = time.perf_counter()
+
+    def lap(self, phase: str) -> None:
+        now = time.perf_counter()
+        self.totals[phase] = self.totals.get(phase, 0.0) + now - self.last
+        self.last = now
 
 
 def run_task(config: Config, root_seed: int, task: Task, out: Path, renderer) -> dict:
+    """Run one unit and write its marker; the returned result adds its timings."""
     t0 = time.perf_counter()
     if task.kind == "env":
         result = run_environment(config, root_seed, task.first, out, renderer)
     else:
         result = run_plates(config, root_seed, task, out, renderer)
+    timings = result.pop("timings")
     atomic_write_json(out / task.marker, result)
-    return {**result, "seconds": time.perf_counter() - t0}
+    return {**result, "timings": timings, "seconds": time.perf_counter() - t0}
 
 
 # --- worker processes -----------------------------------------------------------------------

@@ -145,3 +145,29 @@ def test_bad_outputs_are_clear_errors(small_config, reference, tmp_path, capsys)
     blocker.write_text("x")
     assert generate(small_config, blocker / "ds") == 2
     assert "Choose a writable --out" in capsys.readouterr().err
+
+
+def test_pytorch_dataset_reads_the_generated_layout(reference):
+    import torch
+
+    from glsynth.model.data import TokaidoDataset
+
+    comp = TokaidoDataset(reference, "train", "component", image_size=(960, 540))
+    assert len(comp) == sum(r.regular for r in read_manifest(reference, "files_train.csv"))
+    image, target = comp[0]
+    assert image.shape == (3, 540, 960) and image.dtype == torch.float32
+    assert 0.0 <= float(image.min()) and float(image.max()) <= 1.0
+    assert target.shape == (180, 320) and target.dtype == torch.int64
+    depth = TokaidoDataset(reference, "test", "depth")
+    _, d = depth[0]
+    assert d.shape == (360, 640) and d.dtype == torch.float32
+    assert 0.5 <= float(d.min()) and float(d.max()) <= 30.0
+    dmg = TokaidoDataset(reference, "train", "damage", puretex=True)
+    flagged = [r for r in read_manifest(reference, "files_train.csv") if r.damage_in_rrdr]
+    assert len(dmg) == len(flagged) + 2
+    _, labels = dmg[len(dmg) - 1]  # a plate
+    assert set(labels.unique().tolist()) <= {1, 2, 3}
+    with pytest.raises(ValueError, match="multiples of 3"):
+        TokaidoDataset(reference, image_size=(100, 100))
+    with pytest.raises(ValueError, match="puretex"):
+        TokaidoDataset(reference, task="depth", puretex=True)
