@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.config import Config, config_to_dict
-from glsynth.fileio import atomic_write_bytes, atomic_write_json, png_bytes
+from glsynth.fileio import (atomic_write_bytes, atomic_write_json, image_bytes, jsonable,
+                            png_bytes)
 from glsynth.filters import mask_damage, removal_reason, rrdr
 from glsynth.labels import Component, Damage
 from glsynth.tokaido import (LABEL_STRIDE, FrameRecord, PuretexRecord, downsample_labels,
@@ -28,26 +29,6 @@ from glsynth.tokaido import (LABEL_STRIDE, FrameRecord, PuretexRecord, downsampl
 
 RUN_FILE = "glsynth_run.json"
 REASONS = ("dark", "single_component", "too_close")
-
-
-def _bmp_bytes(array: np.ndarray) -> bytes:
-    import io
-
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(array).save(buf, format="BMP")
-    return buf.getvalue()
-
-
-def _png16_bytes(array: np.ndarray) -> bytes:
-    import io
-
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(array.astype(np.uint16)).save(buf, format="PNG")
-    return buf.getvalue()
 
 
 def check_format(config: Config) -> None:
@@ -122,10 +103,10 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
         damage = downsample_labels(masked.labels)
         clock.lap("filters, RRDR and labels")
         atomic_write_bytes(out / paths["image"], png_bytes(output.color))
-        atomic_write_bytes(out / paths["component"], _bmp_bytes(component))
-        atomic_write_bytes(out / paths["damage"], _bmp_bytes(damage))
+        atomic_write_bytes(out / paths["component"], image_bytes(component, "BMP"))
+        atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
         atomic_write_bytes(out / paths["depth"],
-                           _png16_bytes(downsample_labels(encode_depth(output.depth))))
+                           png_bytes(downsample_labels(encode_depth(output.depth))))
         seen = visible_parts(columns, [camera])
         meta = {"root_seed": root_seed, "env": env, "camera_index": index,
                 "kind": placement.kind, "split": split, "camera": camera.to_json(),
@@ -134,7 +115,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
                               "height_above_ground_m": placement.height_above_ground_m,
                               "euler_xyz_rad": list(placement.euler_xyz_rad)},
                 "damage_in_rrdr": masked.damage_in_rrdr,
-                "columns_in_view": {n: _jsonable(view.dressing.assignments[n].damage)
+                "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
                                     for n in sorted(seen)}}
         atomic_write_json(out / "meta" / split / f"image_case{env}_frame{index}.json", meta)
         rows.append(dataclasses.asdict(FrameRecord(
@@ -154,21 +135,9 @@ def _env_description(view) -> dict:
     from glsynth.export import describe
 
     info = describe(view.environment)
-    info["materials"] = {n: _jsonable(dataclasses.asdict(a))
+    info["materials"] = {n: jsonable(a)
                          for n, a in view.dressing.assignments.items()}
     return info
-
-
-def _jsonable(value):
-    if dataclasses.is_dataclass(value):
-        return _jsonable(dataclasses.asdict(value))
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) -> dict:
@@ -190,9 +159,9 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
         paths = puretex_paths(index)
         damage = downsample_labels(output.damage)
         atomic_write_bytes(out / paths["image"], png_bytes(output.color))
-        atomic_write_bytes(out / paths["damage"], _bmp_bytes(damage))
+        atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
         atomic_write_json(out / "meta" / "puretex" / f"image_{index}.json",
-                          {"root_seed": root_seed, **_jsonable(shot.meta),
+                          {"root_seed": root_seed, **jsonable(shot.meta),
                            "camera": shot.camera.to_json()})
         rows[plate_split(config, index)].append([paths["image"], paths["damage"]])
         dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]

@@ -4,6 +4,7 @@ Data goes to a temporary file in the destination folder, is flushed to disk, and
 over the destination (atomic on POSIX within one file system).
 """
 
+import dataclasses
 import io
 import json
 import math
@@ -47,26 +48,36 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
         raise
 
 
-def _jsonable(value: Any) -> Any:
-    """Non-finite floats become None: strict JSON has no Infinity or NaN."""
+def jsonable(value: Any) -> Any:
+    """Plain JSON data: dataclasses become dicts, numpy scalars Python numbers, and non-finite
+    floats None (strict JSON has no Infinity or NaN)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return jsonable(dataclasses.asdict(value))
+    if isinstance(value, np.generic):
+        value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
+        return {k: jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     return value
 
 
 def atomic_write_json(path: str | Path, data: Any) -> None:
-    text = json.dumps(_jsonable(data), indent=2, allow_nan=False) + "\n"
+    text = json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n"
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def png_bytes(array: np.ndarray) -> bytes:
+def image_bytes(array: np.ndarray, format: str = "PNG") -> bytes:
+    """Encode uint8 (H, W) or (H, W, 3), or uint16 (H, W) as a 16-bit PNG, to file bytes."""
     buf = io.BytesIO()
-    Image.fromarray(array).save(buf, format="PNG")
+    Image.fromarray(array).save(buf, format=format)
     return buf.getvalue()
+
+
+def png_bytes(array: np.ndarray) -> bytes:
+    return image_bytes(array, "PNG")
 
 
 def npy_bytes(array: np.ndarray) -> bytes:
