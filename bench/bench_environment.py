@@ -25,11 +25,11 @@ def main() -> None:
     build, export, triangles, parts = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for env in range(args.envs):
-            build += time_calls(lambda: build_environment(config, 0, env), args.repeats)
+            build += time_calls(lambda env=env: build_environment(config, 0, env), args.repeats)
             built = build_environment(config, 0, env)
             triangles.append(sum(len(p.mesh.faces) for p in built.parts))
             parts.append(len(built.parts))
-            export += time_calls(lambda: export_environment(built, Path(tmp) / "s.glb"),
+            export += time_calls(lambda built=built: export_environment(built, Path(tmp) / "s.glb"),
                                  args.repeats, warmup=0)
     write_results("environment", {
         "build_environment": summary(build), "export_glb_and_json": summary(export),

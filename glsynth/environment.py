@@ -75,7 +75,7 @@ class Environment:
     parts: tuple[Part, ...]
 
 
-def _samples(s0: float, s1: float, step: float, breaks: np.ndarray = np.empty(0)) -> np.ndarray:
+def _samples(s0: float, s1: float, step: float, breaks: np.ndarray) -> np.ndarray:
     """Arc lengths from s0 to s1 at most ``step`` apart, including any breakpoints inside."""
     n = max(1, int(np.ceil((s1 - s0) / step - 1e-9)))
     s = np.linspace(s0, s1, n + 1)

@@ -15,7 +15,6 @@ import trimesh
 from trimesh.visual import TextureVisuals
 from trimesh.visual.material import PBRMaterial
 
-from glsynth.config import config_to_dict
 from glsynth.environment import Environment
 from glsynth.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.labels import Component
@@ -83,7 +82,7 @@ def describe(env: Environment) -> dict[str, Any]:
                    "component_id": int(p.component), "viaduct": p.viaduct,
                    "triangles": len(p.mesh.faces)} for p in env.parts],
         "config": {"environment": dataclasses.asdict(env.config.environment),
-                   "design": config_to_dict(env.config)["design"]},
+                   "design": dataclasses.asdict(env.config.design)},
     }
 
 

@@ -26,7 +26,7 @@ def test_noise_has_a_rectangular_spectrum_below_the_cutoff():
 
 
 def test_table4_and_radius_range_hold_over_many_seeds():
-    heights, slopes, radii, first = [], [], [], []
+    heights, slopes, first = [], [], []
     for env in range(400):
         t = trajectory(env)
         assert np.all(np.isfinite(t.curvature)) and np.all(np.isfinite(t.deck_m))

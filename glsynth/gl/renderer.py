@@ -156,8 +156,8 @@ class Renderer:
         return sorted(self._draws, key=lambda d: float(np.sum((d.center - eye) ** 2)))
 
     @staticmethod
-    def _matrices(camera: Camera, pose: np.ndarray) -> tuple[bytes, bytes]:
-        modelview = camera.view() @ pose  # float64, then float32 for GL
+    def _matrices(view: np.ndarray, pose: np.ndarray) -> tuple[bytes, bytes]:
+        modelview = view @ pose  # float64, then float32 for GL
         normal = np.linalg.inv(modelview[:3, :3]).T
         return (modelview.astype("f4").T.tobytes(), normal.astype("f4").T.tobytes())
 
@@ -170,7 +170,8 @@ class Renderer:
                                               1 - math.exp(-sky[2]))), 1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
-        view3 = camera.view()[:3, :3]
+        view = camera.view()
+        view3 = view[:3, :3]
         el, az = math.radians(cfg.sun_elevation_deg), math.radians(cfg.sun_azimuth_deg)
         sun = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
@@ -184,7 +185,7 @@ class Renderer:
                                      "u_emissive_map", "u_normal_map")):
             prog[name].value = unit
         for draw in draws:
-            modelview, normal = self._matrices(camera, draw.pose)
+            modelview, normal = self._matrices(view, draw.pose)
             prog["u_modelview"].write(modelview)
             prog["u_normal_matrix"].write(normal)
             mat = draw.material
@@ -213,8 +214,9 @@ class Renderer:
         self.ctx.disable(moderngl.CULL_FACE)
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
         prog["u_damage_mask"].value = 0
+        view = camera.view()
         for draw in draws:
-            modelview, _ = self._matrices(camera, draw.pose)
+            modelview, _ = self._matrices(view, draw.pose)
             prog["u_modelview"].write(modelview)
             prog["u_component"].value = draw.component
             prog["u_has_damage_mask"].value = draw.damage_mask is not None
