@@ -110,12 +110,14 @@ def cmd_textures(args: argparse.Namespace) -> None:
 def cmd_generate(args: argparse.Namespace) -> None:
     from tqdm import tqdm
 
-    from glsynth.dataset import check_format, execute, merge, plan, prepare_output
+    from glsynth.dataset import check_format, merge, plan, prepare_output
+    from glsynth.engines import check_engine, execute
     from glsynth.fileio import atomic_write_bytes, atomic_write_json, png_bytes
     from glsynth.report import contact_sheet
 
     config = _config(args)
     check_format(config)
+    check_engine(args.engine, args.workers, args.address)
     out = Path(args.out)
     prepare_output(out, config, args.seed)
     tasks = plan(config)
@@ -123,7 +125,7 @@ def cmd_generate(args: argparse.Namespace) -> None:
     images, timings = 0, {}
     with tqdm(total=len(tasks), unit="unit", desc="glsynth generate") as bar:
         bar.update(sum((out / t.marker).exists() for t in tasks))
-        for result in execute(config, args.seed, out, args.workers):
+        for result in execute(config, args.seed, out, args.workers, args.engine, args.address):
             images += len(result["rows"]) if result["kind"] == "env" else \
                 sum(len(v) for v in result["rows"].values())
             for phase, seconds in result["timings"].items():
@@ -131,7 +133,7 @@ def cmd_generate(args: argparse.Namespace) -> None:
             bar.update(1)
     wall = time.perf_counter() - t0
     summary = merge(config, out)
-    summary.update(workers=args.workers, wall_s=round(wall, 2),
+    summary.update(engine=args.engine, workers=args.workers, wall_s=round(wall, 2),
                    images_written_this_run=images,
                    images_per_s=round(images / wall, 3) if wall > 0 and images else None,
                    worker_seconds_by_phase={k: round(v, 2) for k, v in timings.items()})
@@ -143,6 +145,47 @@ def cmd_generate(args: argparse.Namespace) -> None:
           f"concrete damage {100 * dmg['concrete']:.1f} %, exposed rebar "
           f"{100 * dmg['rebar']:.2f} % of damage-task pixels; "
           f"{summary['images_per_s'] or 0:.2f} images/s -> {out}")
+
+
+def cmd_train(args: argparse.Namespace) -> None:
+    from glsynth.model.data import parse_size
+    from glsynth.model.train import TrainSettings, parse_schedule, train
+
+    settings = TrainSettings(
+        task=args.task, data=str(Path(args.data).resolve()),
+        extra=tuple(str(Path(e).resolve()) for e in args.extra),
+        image_size=parse_size(args.image_size), batch_size=args.batch_size,
+        schedule=parse_schedule(args.schedule), weight_decay=args.weight_decay,
+        val_count=args.val_count, puretex=not args.no_puretex, seed=args.seed,
+        precision=args.precision, channels_last=not args.no_channels_last,
+        loader_workers=args.loader_workers, views=args.views, device=args.device,
+        time_budget_s=args.time_budget_min * 60 if args.time_budget_min else None)
+    last = train(settings, args.out)
+    print(f"trained {args.task} for {last.get('epoch', 0)} epochs -> {args.out}/model.pt")
+
+
+def cmd_evaluate(args: argparse.Namespace) -> None:
+    from glsynth.model.inference import evaluate
+
+    out = args.out or str(Path(args.run) / f"eval_{args.split}")
+    m = evaluate(args.run, args.data, args.split, out, args.examples,
+                 puretex=not args.no_puretex, device=args.device)
+    if m["task"] == "depth":
+        d = m["depth"]
+        print(f"depth on {m['images']} {args.split} images: MAE {d['mae_m']:.3f} m, RMSE "
+              f"{d['rmse_m']:.3f} m, ARD {100 * d['ard']:.2f} % -> {out}")
+    else:
+        scores = ", ".join(f"{k} {100 * v['iou']:.1f}" for k, v in m["per_class"].items()
+                           if v["iou"] is not None)
+        print(f"{m['task']} on {m['images']} {args.split} images: mean IoU "
+              f"{100 * (m['mean']['iou'] or 0):.1f} % ({scores}) -> {out}")
+
+
+def cmd_predict(args: argparse.Namespace) -> None:
+    from glsynth.model.inference import predict_files
+
+    written = predict_files(args.run, args.images, args.out, args.device)
+    print(f"{len(written)} predictions -> {args.out}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -184,8 +227,58 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(p)
     p.add_argument("--seed", type=_seed, required=True, help="root seed")
     p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
-    p.add_argument("--workers", type=int, default=1, help="local processes, one GL context each")
+    p.add_argument("--workers", type=int, default=1,
+                   help="worker processes (local) or Ray actors, one GL context each")
+    p.add_argument("--engine", choices=("local", "ray"), default="local",
+                   help="local processes, or Ray actors sharded by environment")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster address ('auto', 'host:6379', 'ray://host:10001'); "
+                        "default starts a local Ray. --out must be shared by all nodes")
     p.set_defaults(func=cmd_generate)
+
+    p = sub.add_parser("train", help="train FCN58 on a Tokaido-layout dataset (needs torch)")
+    p.add_argument("--task", required=True, choices=("component", "damage", "depth"))
+    p.add_argument("--data", required=True, help="dataset root (glsynth's or the released)")
+    p.add_argument("--out", required=True, help="run folder (new, or a run to resume)")
+    p.add_argument("--extra", action="append", default=[], metavar="DIR",
+                   help="real labelled photos to mix in: DIR/images/* and DIR/labels/<stem>."
+                        "png (repeatable)")
+    p.add_argument("--image-size", default="1920x1080", help="WxH input size (default "
+                   "1920x1080; outputs are a third)")
+    p.add_argument("--batch-size", type=int, default=8)
+    p.add_argument("--schedule", default="1e-3:200,1e-4:50,1e-5:10",
+                   help="LR:EPOCHS stages (paper Section 4.3)")
+    p.add_argument("--weight-decay", type=float, default=1e-4)
+    p.add_argument("--val-count", type=int, default=300,
+                   help="training images held out for validation (at most a fifth)")
+    p.add_argument("--views", choices=("regular", "closeup", "all"), default=None,
+                   help="default: regular for component/depth, all for damage")
+    p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
+    p.add_argument("--seed", type=_seed, default=0)
+    p.add_argument("--precision", choices=("bf16", "fp32"), default="bf16")
+    p.add_argument("--no-channels-last", action="store_true")
+    p.add_argument("--loader-workers", type=int, default=1)
+    p.add_argument("--time-budget-min", type=float, default=None,
+                   help="stop after this many minutes of training (validate and save first)")
+    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("evaluate", help="metrics of a trained run on a dataset split")
+    p.add_argument("--run", required=True)
+    p.add_argument("--data", required=True)
+    p.add_argument("--split", choices=("train", "test"), default="test")
+    p.add_argument("--out", default=None, help="default: RUN/eval_<split>")
+    p.add_argument("--examples", type=int, default=6, help="example overlays to write")
+    p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
+    p.add_argument("--device", default="auto")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("predict", help="run a trained network on photos")
+    p.add_argument("--run", required=True)
+    p.add_argument("images", nargs="+")
+    p.add_argument("--out", required=True)
+    p.add_argument("--device", default="auto")
+    p.set_defaults(func=cmd_predict)
 
     p = sub.add_parser("textures", help="generate a procedural texture repository folder")
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")

@@ -5,7 +5,7 @@ files atomically and then a marker under ``progress/`` holding its manifest rows
 run that is stopped and started again skips the units with markers and redoes the others,
 rewriting identical bytes. The manifests are merged from the markers at the end, sorted, so
 the dataset is the same whatever the number of workers or the order units finished in.
-Each worker process owns one GL context.
+How units are run (one process, a local pool, Ray) is in glsynth/engines.py.
 """
 
 import dataclasses
@@ -13,7 +13,6 @@ import hashlib
 import json
 import shutil
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -195,27 +194,27 @@ def run_task(config: Config, root_seed: int, task: Task, out: Path, renderer) ->
     return {**result, "timings": timings, "seconds": time.perf_counter() - t0}
 
 
-# --- worker processes -----------------------------------------------------------------------
-_WORKER: dict = {}
-
-
-def _init_worker(config: Config, root_seed: int, out: str) -> None:
-    from glsynth.gl.renderer import Renderer
-
-    _WORKER.update(config=config, root_seed=root_seed, out=Path(out),
-                   renderer=Renderer(config.render))
-
-
-def _work(task: Task) -> dict:
-    return run_task(_WORKER["config"], _WORKER["root_seed"], task, _WORKER["out"],
-                    _WORKER["renderer"])
-
-
 def run_identity(config: Config, root_seed: int) -> dict:
     settings = config_to_dict(config)
     digest = hashlib.sha256(json.dumps([root_seed, settings], sort_keys=True,
                                        default=str).encode()).hexdigest()
     return {"root_seed": root_seed, "config_sha256": digest}
+
+
+def pending_tasks(config: Config, out: Path) -> list[Task]:
+    return [t for t in plan(config) if not (out / t.marker).exists()]
+
+
+def check_run_folder(out: Path, config: Config, root_seed: int) -> None:
+    """A worker's check that it sees the driver's output folder (a shared path on a cluster)."""
+    run_file = out / RUN_FILE
+    if not run_file.exists():
+        raise FileNotFoundError(
+            f"{str(run_file)!r} is not visible to this worker: with several machines --out "
+            "must be a shared filesystem mounted at the same path on every node")
+    recorded = json.loads(run_file.read_text())
+    if recorded.get("config_sha256") != run_identity(config, root_seed)["config_sha256"]:
+        raise ValueError(f"{str(run_file)!r} belongs to another run than this worker's")
 
 
 def prepare_output(out: Path, config: Config, root_seed: int) -> None:
@@ -243,28 +242,6 @@ def prepare_output(out: Path, config: Config, root_seed: int) -> None:
         raise OSError(f"only {free / 2**20:.0f} MiB free under {str(out)!r}; the dataset "
                       "needs more (about 4 MB per kept image): free space or choose another "
                       "--out")
-
-
-def execute(config: Config, root_seed: int, out: Path, workers: int) -> Iterator[dict]:
-    """Run the units without a marker; yields each finished unit's result."""
-    pending = [t for t in plan(config) if not (out / t.marker).exists()]
-    if not pending:
-        return
-    if workers <= 1:
-        from glsynth.gl.renderer import Renderer
-
-        renderer = Renderer(config.render)
-        try:
-            for task in pending:
-                yield run_task(config, root_seed, task, out, renderer)
-        finally:
-            renderer.release()
-        return
-    import multiprocessing
-
-    ctx = multiprocessing.get_context("spawn")  # fork and GL contexts do not mix
-    with ctx.Pool(workers, _init_worker, (config, root_seed, str(out))) as pool:
-        yield from pool.imap_unordered(_work, pending)
 
 
 def merge(config: Config, out: Path) -> dict:

@@ -2,8 +2,9 @@
 
 Tasks (paper Section 4.2): "component" and "depth" use regular views by default; "damage" uses
 regular and close-up views whose damage lies in the RRDR, and can add the pure-texture plates.
-Images come as float32 (3, H, W) in [0, 1]; targets at a third of the image size (FCN58's output):
-int64 ids (0 = ignore) for the label tasks, float32 metres for depth.
+Images come as float32 (3, H, W) in [0, 1]; targets at FCN58's output size, ceil(H/3) x
+ceil(W/3): int64 ids (0 = ignore) for the label tasks, float32 metres for depth.
+``ImageFolder`` adds real labelled photos (images/ + labels/ with the same stems).
 """
 
 from pathlib import Path
@@ -16,6 +17,44 @@ from torch.utils.data import Dataset
 from glsynth.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
 
 TASKS = ("component", "damage", "depth")
+N_OUTPUTS = {"component": 8, "damage": 3, "depth": 1}
+"""Network output channels per task: ids 1..8 (components), 1..3 (damage), metres (depth)."""
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+
+
+def target_size(image_size: tuple[int, int]) -> tuple[int, int]:
+    """(width, height) of FCN58's output and of the targets: a third, rounded up."""
+    return (-(-image_size[0] // 3), -(-image_size[1] // 3))
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H), for command-line options."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"image size {text!r}: write it as WIDTHxHEIGHT, e.g. 1920x1080") \
+            from None
+    if min(w, h) < 96:
+        raise ValueError(f"image size {text!r}: FCN58 needs at least 96 px per side")
+    return w, h
+
+
+def load_image(path: Path, size: tuple[int, int]) -> torch.Tensor:
+    """RGB float32 (3, H, W) in [0, 1], resized bilinearly to size = (W, H)."""
+    with Image.open(path) as im:
+        im = im.convert("RGB")
+        if im.size != size:
+            im = im.resize(size, Image.Resampling.BILINEAR)
+        array = np.asarray(im, dtype=np.float32) / 255.0
+    return torch.from_numpy(array).permute(2, 0, 1).contiguous()
+
+
+def load_map(path: Path, size: tuple[int, int]) -> np.ndarray:
+    """A label or depth-code map resized by nearest sampling (ids never blend)."""
+    with Image.open(path) as im:
+        if im.size != size:
+            im = im.resize(size, Image.Resampling.NEAREST)
+        return np.asarray(im)
 
 
 class TokaidoDataset(Dataset):
@@ -23,14 +62,11 @@ class TokaidoDataset(Dataset):
                  views: str | None = None, puretex: bool = False,
                  image_size: tuple[int, int] = (1920, 1080)) -> None:
         """views: "regular", "closeup" or "all" (default: regular for component/depth, all
-        for damage). image_size: (width, height), a multiple of 3 in each direction."""
+        for damage). image_size: (width, height) the images are resized to."""
         if task not in TASKS:
             raise ValueError(f"task = {task!r}: choose one of {TASKS}")
         if split not in ("train", "test"):
             raise ValueError(f"split = {split!r}: choose 'train' or 'test'")
-        if image_size[0] % 3 or image_size[1] % 3:
-            raise ValueError(f"image_size = {image_size}: width and height must be multiples "
-                             "of 3 (the targets are a third of the image)")
         if puretex and task != "damage":
             raise ValueError("puretex = True: plate images have only damage labels; use "
                              "task='damage'")
@@ -49,26 +85,47 @@ class TokaidoDataset(Dataset):
     def __len__(self) -> int:
         return len(self.items)
 
-    def _image(self, rel: str) -> torch.Tensor:
-        with Image.open(self.root / rel) as im:
-            im = im.convert("RGB")
-            if im.size != self.size:
-                im = im.resize(self.size, Image.Resampling.BILINEAR)
-            array = np.asarray(im, dtype=np.float32) / 255.0
-        return torch.from_numpy(array).permute(2, 0, 1).contiguous()
-
-    def _map(self, rel: str) -> np.ndarray:
-        target = (self.size[0] // 3, self.size[1] // 3)
-        with Image.open(self.root / rel) as im:
-            if im.size != target:
-                im = im.resize(target, Image.Resampling.NEAREST)
-            return np.asarray(im)
-
     def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
         item = self.items[index]
-        image = self._image(item.image)
+        image = load_image(self.root / item.image, self.size)
+        size = target_size(self.size)
         if self.task == "depth":
-            depth = decode_depth(self._map(item.depth))
-            return image, torch.from_numpy(depth)
+            return image, torch.from_numpy(decode_depth(load_map(self.root / item.depth, size)))
         rel = item.component if self.task == "component" else item.damage
-        return image, torch.from_numpy(self._map(rel).astype(np.int64))
+        return image, torch.from_numpy(load_map(self.root / rel, size).astype(np.int64))
+
+
+class ImageFolder(Dataset):
+    """Real labelled photos: DIR/images/<stem>.{png,jpg,jpeg,bmp} with DIR/labels/<stem>.{png,
+    bmp} holding the task's ids (0 = unlabelled). Images are resized to image_size."""
+
+    def __init__(self, root: str | Path, task: str,
+                 image_size: tuple[int, int] = (1920, 1080)) -> None:
+        if task not in ("component", "damage"):
+            raise ValueError(f"extra image folders carry labels; task {task!r} has none "
+                             "(use them for component or damage)")
+        self.root, self.task, self.size = Path(root), task, image_size
+        images = sorted(p for p in (self.root / "images").glob("*")
+                        if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not images:
+            raise ValueError(f"extra data {str(root)!r}: no images in {str(self.root)!r}/images;"
+                             " put photos in images/ and id maps with the same stems in labels/")
+        self.items = []
+        for image in images:
+            labels = [self.root / "labels" / f"{image.stem}{s}" for s in (".png", ".bmp")]
+            found = [p for p in labels if p.exists()]
+            if not found:
+                raise ValueError(f"extra data: no label map for {str(image)!r}; expected "
+                                 f"{str(labels[0])!r} or .bmp")
+            self.items.append((image, found[0]))
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
+        image, labels = self.items[index]
+        ids = load_map(labels, target_size(self.size))
+        if ids.ndim != 2 or ids.max(initial=0) > N_OUTPUTS[self.task]:
+            raise ValueError(f"{str(labels)!r}: expected one channel of ids 0..."
+                             f"{N_OUTPUTS[self.task]} for task {self.task!r}")
+        return load_image(image, self.size), torch.from_numpy(ids.astype(np.int64))

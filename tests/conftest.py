@@ -28,3 +28,40 @@ def isolated_cache(tmp_path_factory):
         os.environ.pop("GLSYNTH_CACHE", None)
     else:
         os.environ["GLSYNTH_CACHE"] = previous
+
+
+SMALL = """
+[dataset]
+n_environments = 2
+n_test_environments = 1
+n_plates = 3
+n_test_plates = 1
+plates_per_task = 2
+[cameras]
+n_regular = 3
+n_closeup = 2
+[damage]
+resolution = 64
+[materials]
+texture_size = 32
+images_per_category = 3
+"""
+
+
+@pytest.fixture(scope="session")
+def small_config(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cfg") / "small.toml"
+    path.write_text(SMALL)
+    return path
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(small_config, tmp_path_factory):
+    """A generated Tokaido-format dataset: 2 environments x 5 cameras at 1920x1080, 3 plates
+    (seed 5). Tests read it and never write into it."""
+    from glsynth.cli import main
+
+    out = tmp_path_factory.mktemp("tiny") / "ds"
+    assert main(["generate", "--preset", "demo", "--config", str(small_config), "--seed", "5",
+                 "--out", str(out)]) == 0
+    return out

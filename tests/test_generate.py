@@ -17,31 +17,6 @@ from glsynth.cli import main
 from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS
 from glsynth.tokaido import read_manifest
 
-SMALL = """
-[dataset]
-n_environments = 2
-n_test_environments = 1
-n_plates = 3
-n_test_plates = 1
-plates_per_task = 2
-[cameras]
-n_regular = 3
-n_closeup = 2
-[damage]
-resolution = 64
-[materials]
-texture_size = 32
-images_per_category = 3
-"""
-
-
-@pytest.fixture(scope="module")
-def small_config(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cfg") / "small.toml"
-    path.write_text(SMALL)
-    return path
-
-
 def generate(config, out, *extra) -> int:
     return main(["generate", "--preset", "demo", "--config", str(config), "--seed", "5",
                  "--out", str(out), *extra])
@@ -54,10 +29,8 @@ def dataset_files(root: Path) -> dict[str, bytes]:
 
 
 @pytest.fixture(scope="module")
-def reference(small_config, tmp_path_factory):
-    out = tmp_path_factory.mktemp("ref") / "ds"
-    assert generate(small_config, out) == 0
-    return out
+def reference(tiny_dataset):
+    return tiny_dataset
 
 
 def test_format_compliance(reference):
@@ -101,6 +74,30 @@ def test_same_dataset_with_two_workers(small_config, reference, tmp_path):
     out = tmp_path / "ds"
     assert generate(small_config, out, "--workers", "2") == 0
     assert dataset_files(out) == dataset_files(reference)
+
+
+def test_ray_engine_locally_gives_the_same_dataset(small_config, reference, tmp_path):
+    pytest.importorskip("ray")
+    out = tmp_path / "ds"
+    assert generate(small_config, out, "--engine", "ray", "--workers", "2") == 0
+    assert dataset_files(out) == dataset_files(reference)
+    assert json.loads((out / "report.json").read_text())["engine"] == "ray"
+
+
+def test_ray_worker_that_cannot_see_the_output_says_so(small_config, tmp_path):
+    from glsynth.config import load_config
+    from glsynth.engines import GenerationWorker
+
+    config = load_config("demo", small_config)
+    with pytest.raises(FileNotFoundError, match="shared filesystem"):
+        GenerationWorker(config, 5, str(tmp_path / "elsewhere"))
+
+
+def test_engine_arguments_are_checked(small_config, tmp_path, capsys):
+    assert generate(small_config, tmp_path / "a", "--address", "auto") == 2
+    assert "--address is for --engine ray" in capsys.readouterr().err
+    assert generate(small_config, tmp_path / "b", "--workers", "0") == 2
+    assert "--workers 0" in capsys.readouterr().err
 
 
 def test_resume_after_a_kill_gives_the_same_bytes(small_config, reference, tmp_path):
@@ -167,7 +164,7 @@ def test_pytorch_dataset_reads_the_generated_layout(reference):
     assert len(dmg) == len(flagged) + 2
     _, labels = dmg[len(dmg) - 1]  # a plate
     assert set(labels.unique().tolist()) <= {1, 2, 3}
-    with pytest.raises(ValueError, match="multiples of 3"):
-        TokaidoDataset(reference, image_size=(100, 100))
+    odd = TokaidoDataset(reference, "train", "component", image_size=(640, 360))
+    assert odd[0][1].shape == (120, 214)  # FCN58's ceil(H/3) x ceil(W/3)
     with pytest.raises(ValueError, match="puretex"):
         TokaidoDataset(reference, task="depth", puretex=True)

@@ -1,0 +1,172 @@
+"""Trained FCN58 runs in use: prediction on photos and evaluation on a Tokaido-layout split
+(paper Sections 4.4-4.6). Works on glsynth's data and on the released Tokaido dataset.
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+
+from glsynth.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
+from glsynth.model.data import TokaidoDataset, load_image
+from glsynth.model.fcn58 import FCN58
+from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
+from glsynth.model.train import CLASS_NAMES, load_torch, pick_device, predict_ids
+from glsynth.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+
+
+@dataclass
+class Predictor:
+    task: str
+    model: FCN58
+    image_size: tuple[int, int]
+    weights: torch.Tensor | None
+    device: torch.device
+
+    @torch.no_grad()
+    def __call__(self, images: torch.Tensor) -> torch.Tensor:
+        """(N, 3, H, W) in [0, 1] at image_size -> (N, h, w) ids 1..K (int64) or metres
+        (float32) at a third of the size, rounded up."""
+        images = images.to(self.device).contiguous(memory_format=torch.channels_last)
+        with torch.autocast(self.device.type, dtype=torch.bfloat16):
+            output = self.model(images)
+        if self.task == "depth":
+            return output[:, 0].float().cpu()
+        return predict_ids(self.task, output, self.weights).cpu()
+
+    def photo(self, path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+        """(RGB uint8 at the photo's own size, prediction at a third of image_size)."""
+        with Image.open(path) as im:
+            rgb = np.asarray(im.convert("RGB"))
+        return rgb, self(load_image(Path(path), self.image_size)[None])[0].numpy()
+
+
+def load_predictor(run: str | Path, device: str = "auto") -> Predictor:
+    path = Path(run) / "model.pt"
+    if not path.exists():
+        raise FileNotFoundError(f"run {str(run)!r} has no model.pt: train it first "
+                                "(glsynth train ... --out RUN) or check the path")
+    data = load_torch(path)
+    model = FCN58(int(data["out_channels"]))
+    model.load_state_dict(data["state_dict"])
+    dev = pick_device(device)
+    model = model.to(memory_format=torch.channels_last).to(dev).eval()
+    weights = data["mfb_weights"]
+    return Predictor(data["task"], model, tuple(data["image_size"]),
+                     weights.to(dev) if weights is not None else None, dev)
+
+
+def resize_map(values: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """A prediction map brought to (width, height): nearest for ids, bilinear for depth."""
+    if values.shape[::-1] == tuple(size):
+        return values
+    resample = Image.Resampling.BILINEAR if values.dtype.kind == "f" else \
+        Image.Resampling.NEAREST
+    mode_values = values.astype(np.float32) if values.dtype.kind == "f" else \
+        values.astype(np.uint8)
+    return np.asarray(Image.fromarray(mode_values).resize(size, resample))
+
+
+def picture(task: str, rgb: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """A prediction over its photo: ids as a palette overlay, depth colour-mapped."""
+    values = resize_map(values, (rgb.shape[1], rgb.shape[0]))
+    if task == "depth":
+        return depth_rgb(values)
+    palette = COMPONENT_RGB if task == "component" else DAMAGE_RGB
+    return overlay(rgb, values, palette, skip=(0, 1) if task == "damage" else (0,))
+
+
+def predict_files(run: str | Path, images: list[str], out: str | Path,
+                  device: str = "auto") -> list[Path]:
+    """Per photo: <stem>_<task>.png (ids, or uint16 depth in the Tokaido code) and .npy depth,
+    at a third of the run's image size, plus <stem>_<task>_overlay.png at the photo's size."""
+    predictor = load_predictor(run, device)
+    out = Path(out)
+    written = []
+    for path in images:
+        rgb, values = predictor.photo(path)
+        stem = f"{Path(path).stem}_{predictor.task}"
+        if predictor.task == "depth":
+            atomic_write_bytes(out / f"{stem}.npy", npy_bytes(values.astype(np.float32)))
+        else:
+            atomic_write_bytes(out / f"{stem}.png", png_bytes(values.astype(np.uint8)))
+        atomic_write_bytes(out / f"{stem}_overlay.png",
+                           png_bytes(picture(predictor.task, rgb, values)))
+        written.append(out / f"{stem}_overlay.png")
+    return written
+
+
+def evaluate(run: str | Path, data: str | Path, split: str = "test",
+             out: str | Path | None = None, examples: int = 6, puretex: bool = True,
+             device: str = "auto") -> dict:
+    """Metrics of a run on a split: per-class precision/recall/IoU and means (components,
+    damage), or MAE/RMSE/ARD within [0.5, 30) m (depth); per-image damage IoU and damage pixel
+    ratio for the Fig. 18 plot. Writes metrics.json, confusion.png and example overlays."""
+    predictor = load_predictor(run, device)
+    task = predictor.task
+    dataset = TokaidoDataset(data, split, task, image_size=predictor.image_size,
+                             puretex=puretex and task == "damage")
+    if len(dataset) == 0:
+        raise ValueError(f"--data {str(data)!r} has no {split} images for task {task!r}")
+    out = Path(out) if out is not None else Path(run) / f"eval_{split}"
+    n = predictor.model.out_channels
+    matrix = np.zeros((n, n), np.int64)
+    sums, per_image = [], []
+    for index in range(len(dataset)):
+        image, target = dataset[index]
+        predicted = predictor(image[None])[0].numpy()
+        truth = target.numpy()
+        if task == "depth":
+            sums.append(depth_errors(predicted, truth))
+        else:
+            m = confusion(truth, predicted, n)
+            matrix += m
+            per_image.append({"image": dataset.items[index].image,
+                              **image_scores(task, m, truth)})
+        if index < examples:
+            rgb = (image.permute(1, 2, 0).numpy() * 255).round().astype(np.uint8)
+            row = [rgb, picture(task, rgb, truth), picture(task, rgb, predicted)]
+            atomic_write_bytes(out / "examples" / f"example_{index}.png",
+                               png_bytes(np.concatenate(row, axis=1)))
+    metrics = {"task": task, "split": split, "images": len(dataset), "data": str(data)}
+    if task == "depth":
+        metrics["depth"] = pooled_depth(sums)
+    else:
+        metrics.update(segmentation_scores(matrix, CLASS_NAMES[task]))
+        metrics["confusion"] = matrix.tolist()
+        metrics["per_image"] = per_image
+        plot_confusion(matrix, CLASS_NAMES[task], out / "confusion.png")
+    atomic_write_json(out / "metrics.json", metrics)
+    return metrics
+
+
+def image_scores(task: str, matrix: np.ndarray, truth: np.ndarray) -> dict:
+    """Per image: damage IoU (classes 2-3 together) and damage pixel ratio, or mean IoU."""
+    if task == "damage":
+        tp = matrix[1:, 1:].sum()
+        fp, fn = matrix[0, 1:].sum(), matrix[1:, 0].sum()
+        labelled = int((truth > 0).sum())
+        return {"damage_iou": float(tp / (tp + fp + fn)) if tp + fp + fn else None,
+                "damage_pixel_ratio": float((truth >= 2).sum() / labelled) if labelled else 0.0}
+    return {"miou": segmentation_scores(matrix, CLASS_NAMES[task])["mean"]["iou"]}
+
+
+def plot_confusion(matrix: np.ndarray, names: list[str], path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    from glsynth.plots import save_figure
+
+    rows = matrix.sum(1, keepdims=True)
+    share = np.divide(matrix, rows, out=np.zeros(matrix.shape), where=rows > 0)
+    fig, ax = plt.subplots(figsize=(1.0 + 0.8 * len(names), 0.8 + 0.7 * len(names)))
+    ax.imshow(share, vmin=0, vmax=1, cmap="Blues")
+    for (i, j), v in np.ndenumerate(share):
+        ax.text(j, i, f"{100 * v:.0f}", ha="center", va="center",
+                color="white" if v > 0.5 else "black", fontsize=8)
+    ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
+    ax.set_yticks(range(len(names)), names)
+    ax.set_xlabel("predicted"), ax.set_ylabel("truth")
+    ax.set_title("confusion [% of truth row]")
+    save_figure(fig, path)
