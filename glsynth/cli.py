@@ -188,6 +188,59 @@ def cmd_predict(args: argparse.Namespace) -> None:
     print(f"{len(written)} predictions -> {args.out}")
 
 
+def _depth_range(text: str) -> tuple[float, float]:
+    try:
+        near, far = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: write NEAR,FAR in metres, e.g. 0.5,20")
+    return near, far
+
+
+def cmd_assess(args: argparse.Namespace) -> int:
+    from glsynth.assessment import AssessSettings, assess_photos, oracle_photos
+
+    settings = AssessSettings(args.min_px_per_cm, args.depth_range)
+    out = Path(args.out)
+    if (args.runs is None) == (args.oracle is None):
+        raise ValueError("give either --runs component=R1,damage=R2,depth=R3 or --oracle DATA")
+    if args.oracle is not None:
+        if args.images:
+            raise ValueError("--oracle takes its images from the dataset; drop IMAGES")
+        photos = oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit)
+    else:
+        from glsynth.model.pipeline import (evaluate_rrdr, load_predictors, network_photos,
+                                            parse_runs)
+
+        if bool(args.images) == bool(args.data):
+            raise ValueError("with --runs give IMAGES to assess, or --data DIR to assess and "
+                             "evaluate a labelled split")
+        predictors = load_predictors(parse_runs(args.runs), args.device)
+        images, focals = list(args.images), [args.focal_mm] * len(args.images)
+        if args.data:
+            from glsynth.tokaido import read_manifest
+
+            result = evaluate_rrdr(predictors, Path(args.data), out / "evaluation", settings,
+                                   args.split, use_focal=not args.ignore_focal,
+                                   sensor_mm=args.sensor_mm)
+            b, a = result["before"]["per_class"], result["after"]["per_class"]
+            for name in ("concrete", "rebar"):
+                print(f"{name}: " + "; ".join(
+                    f"{when} P/R/IoU " + "/".join(
+                        "-" if s[k] is None else f"{100 * s[k]:.1f}"
+                        for k in ("precision", "recall", "iou"))
+                    for when, s in (("before", b[name]), ("after RRDR", a[name]))))
+            rows = read_manifest(Path(args.data), f"files_{args.split}.csv")[:args.limit]
+            images = [str(Path(args.data) / r.image) for r in rows]
+            focals = [None if args.ignore_focal else r.focal_mm for r in rows]
+        photos = network_photos(predictors, images, focals, args.sensor_mm)
+    summary = assess_photos(photos, out, settings)
+    for failure in summary["failed"]:
+        print(f"glsynth assess: {failure['image']}: {failure['error']}", file=sys.stderr)
+    print(f"assessed {len(summary['assessed'])} images, {len(summary['failed'])} failed -> "
+          f"{out}")
+    return 1 if summary["failed"] else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -280,6 +333,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="auto")
     p.set_defaults(func=cmd_predict)
 
+    p = sub.add_parser("assess", help="condition assessment: damage x RRDR x component")
+    p.add_argument("images", nargs="*", help="photos to assess (with --runs)")
+    p.add_argument("--runs", default=None, metavar="component=R1,damage=R2,depth=R3")
+    p.add_argument("--oracle", default=None, metavar="DATA",
+                   help="use a dataset's ground-truth maps instead of networks")
+    p.add_argument("--data", default=None,
+                   help="with --runs: assess a labelled split and evaluate before/after RRDR")
+    p.add_argument("--split", choices=("train", "test"), default="test")
+    p.add_argument("--limit", type=int, default=None, help="at most this many dataset images")
+    p.add_argument("--focal-mm", type=float, default=None,
+                   help="focal length of the photos; unknown: RRDR from the depth range")
+    p.add_argument("--ignore-focal", action="store_true",
+                   help="with --data: RRDR from the depth range, as the paper's Table 13")
+    p.add_argument("--sensor-mm", type=float, default=36.0, help="sensor width [mm]")
+    p.add_argument("--min-px-per-cm", type=float, default=1.5)
+    p.add_argument("--depth-range", type=_depth_range, default=(0.5, 20.0),
+                   metavar="NEAR,FAR", help="RRDR without a focal length [m] (default 0.5,20)")
+    p.add_argument("--device", default="auto")
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_assess)
+
     p = sub.add_parser("textures", help="generate a procedural texture repository folder")
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
     p.add_argument("--seed", type=_seed, default=0)
@@ -292,11 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        return args.func(args) or 0
     except (ValueError, TypeError, OSError) as err:
         print(f"glsynth {args.command}: error: {err}", file=sys.stderr)
         return 2
-    return 0
 
 
 if __name__ == "__main__":

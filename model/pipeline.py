@@ -1,0 +1,163 @@
+"""The three trained networks feeding the condition assessment (paper Section 4.7), and its
+evaluation on a labelled split: damage scores before and after the RRDR post-processing
+(Table 10 against Table 13) and image-wise IoU against damage pixel ratio (Fig. 18).
+"""
+
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from glsynth.assessment import AssessSettings, Maps, Photo, read_rgb
+from glsynth.filters import rrdr
+from glsynth.model.data import load_image
+from glsynth.model.inference import Predictor, load_predictor
+from glsynth.model.metrics import confusion, segmentation_scores
+from glsynth.model.train import CLASS_NAMES
+
+TASK_NAMES = ("component", "damage", "depth")
+
+
+def parse_runs(text: str) -> dict[str, str]:
+    """'component=RUN1,damage=RUN2,depth=RUN3' -> {task: run}."""
+    runs = {}
+    for part in text.split(","):
+        task, _, run = part.partition("=")
+        if task not in TASK_NAMES or not run:
+            raise ValueError(f"--runs {text!r}: write component=RUN1,damage=RUN2,depth=RUN3")
+        runs[task] = run
+    missing = set(TASK_NAMES) - set(runs)
+    if missing:
+        raise ValueError(f"--runs {text!r}: missing {', '.join(sorted(missing))}; give all "
+                         "three trained runs")
+    return runs
+
+
+def load_predictors(runs: dict[str, str], device: str = "auto") -> dict[str, Predictor]:
+    predictors = {}
+    for task, run in runs.items():
+        predictor = load_predictor(run, device)
+        if predictor.task != task:
+            raise ValueError(f"--runs {task}={run}: that run was trained for "
+                             f"{predictor.task!r}, not {task!r}")
+        predictors[task] = predictor
+    return predictors
+
+
+def predicted_maps(predictors: dict[str, Predictor], path: Path,
+                   focal_mm: float | None, sensor_mm: float) -> tuple[np.ndarray, Maps]:
+    """Photo and the networks' maps at a third of their input size. The focal length is in
+    pixels of the photo; a map pixel spans photo width / map width photo pixels (the photo is
+    resized, not cropped)."""
+    rgb = read_rgb(path)
+    outputs = {}
+    for task, predictor in predictors.items():
+        image = load_image(path, predictor.image_size)[None]
+        outputs[task] = predictor(image)[0].numpy()
+    shapes = {v.shape for v in outputs.values()}
+    if len(shapes) != 1:
+        raise ValueError(f"the runs were trained at different image sizes ({shapes}); train "
+                         "the three at one --image-size")
+    focal_px = None if focal_mm is None else focal_mm / sensor_mm * rgb.shape[1]
+    return rgb, Maps(outputs["component"].astype(np.uint8), outputs["damage"].astype(np.uint8),
+                     outputs["depth"].astype(np.float32), focal_px,
+                     rgb.shape[1] / outputs["component"].shape[1])
+
+
+def network_photos(predictors: dict[str, Predictor], images: list[str],
+                   focals_mm: list[float | None], sensor_mm: float = 36.0) -> list[Photo]:
+    """One Photo per image path, with its focal length in mm (None: unknown)."""
+    def loader(path: Path, focal_mm: float | None):
+        return lambda: predicted_maps(predictors, path, focal_mm, sensor_mm)
+
+    names = [Path(p).stem for p in images]
+    stems = [n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names)]
+    return [Photo(stem, loader(Path(p), f)) for stem, p, f in zip(stems, images, focals_mm)]
+
+
+def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
+                  settings: AssessSettings = AssessSettings(), split: str = "test",
+                  use_focal: bool = True, sensor_mm: float = 36.0) -> dict:
+    """Damage precision/recall/IoU on the split's damage images before and after keeping only
+    pixels inside the RRDR of the predicted depth (px/cm with the manifest's focal length, or
+    the depth range with use_focal False, as the paper's Table 13 does for real photos)."""
+    from glsynth.fileio import atomic_write_json
+    from glsynth.model.data import TokaidoDataset
+
+    dataset = TokaidoDataset(root, split, "damage",
+                             image_size=predictors["damage"].image_size)
+    if len(dataset) == 0:
+        raise ValueError(f"--data {str(root)!r}: no {split} images with damage in the RRDR")
+    before, after = np.zeros((3, 3), np.int64), np.zeros((3, 3), np.int64)
+    images = []
+    for index, record in enumerate(dataset.items):
+        image, target = dataset[index]
+        truth = target.numpy()
+        damage = predictors["damage"](image[None])[0].numpy()
+        depth = predictors["depth"](load_image(root / record.image,
+                                               predictors["depth"].image_size)[None])[0].numpy()
+        if depth.shape != truth.shape:
+            depth = np.asarray(_resize_float(depth, truth.shape))
+        focal_px = None
+        if use_focal:  # px/cm is the photo's resolution, whatever size the networks saw
+            with Image.open(root / record.image) as im:
+                focal_px = record.focal_mm / sensor_mm * im.size[0]
+        reliable = rrdr(depth, focal_px, min_px_per_cm=settings.min_px_per_cm,
+                        depth_range_m=settings.depth_range_m)
+        m_before = confusion(truth, damage, 3)
+        m_after = confusion(np.where(reliable, truth, 0), damage, 3)
+        before += m_before
+        after += m_after
+        labelled = int((truth > 0).sum())
+        images.append({"image": record.image,
+                       "concrete_pixel_ratio": float((truth == 2).sum() / truth.size),
+                       "labelled_pixels": labelled,
+                       "concrete_iou_before": _class_iou(m_before, 1),
+                       "concrete_iou_after": _class_iou(m_after, 1)})
+    result = {"split": split, "images": len(images), "rrdr": "px/cm" if use_focal else
+              "depth range", "settings": {"min_px_per_cm": settings.min_px_per_cm,
+                                          "depth_range_m": list(settings.depth_range_m)},
+              "before": segmentation_scores(before, CLASS_NAMES["damage"]),
+              "after": segmentation_scores(after, CLASS_NAMES["damage"]),
+              "per_image": images}
+    atomic_write_json(out / "rrdr_evaluation.json", result)
+    plot_iou_against_ratio(images, out / "fig18_iou_vs_pixel_ratio.png")
+    return result
+
+
+def _class_iou(matrix: np.ndarray, k: int) -> float | None:
+    tp = matrix[k, k]
+    union = matrix[k, :].sum() + matrix[:, k].sum() - tp
+    return float(tp / union) if union else None
+
+
+def _resize_float(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    from glsynth.model.inference import resize_map
+
+    return resize_map(values.astype(np.float32), (shape[1], shape[0]))
+
+
+def plot_iou_against_ratio(images: list[dict], path: Path) -> None:
+    """Fig. 18: image-wise concrete-damage IoU against its pixel ratio, before and after the
+    RRDR post-processing, over a histogram of the ratios."""
+    import matplotlib.pyplot as plt
+
+    from glsynth.plots import save_figure
+
+    ratio = np.array([r["concrete_pixel_ratio"] for r in images])
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    bins = np.linspace(0, max(0.05, float(ratio.max(initial=0)) * 1.05), 11)
+    for ax, key, title in ((axes[0], "concrete_iou_before", "(a) before"),
+                           (axes[1], "concrete_iou_after", "(b) after RRDR")):
+        keep = [i for i, r in enumerate(images) if r[key] is not None]
+        hist = ax.twinx()
+        hist.hist(ratio, bins=bins, weights=np.full(ratio.size, 1 / max(1, ratio.size)),
+                  color="0.85")
+        hist.set_ylabel("share of images")
+        ax.set_zorder(hist.get_zorder() + 1)
+        ax.patch.set_visible(False)
+        ax.scatter(ratio[keep], [images[i][key] for i in keep], s=14, color="C3")
+        ax.set_xlabel("concrete damage pixel ratio"), ax.set_title(title)
+        ax.set_ylim(0, 1)
+    axes[0].set_ylabel("image-wise IoU (concrete damage)")
+    save_figure(fig, path)
