@@ -24,7 +24,7 @@ JEMALLOC_CONF = "oversize_threshold:0,background_thread:true,dirty_decay_ms:-1,m
 SIZES = ((642, 360), (1920, 1080))  # 642: a multiple of 3 near 640, so targets are exact
 
 
-def bare_steps(size: tuple[int, int], steps: int) -> float:
+def bare_steps(size: tuple[int, int], steps: int, bf16: bool) -> float:
     """Median seconds per image of forward + backward + Adam on a fixed batch of 8."""
     import torch
 
@@ -39,7 +39,7 @@ def bare_steps(size: tuple[int, int], steps: int) -> float:
     times = []
     for i in range(steps + 1):
         t0 = time.perf_counter()
-        with torch.autocast("cpu", dtype=torch.bfloat16):
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             out = model(images)
         loss = weighted_cross_entropy(out, labels, torch.ones(8))
         optimizer.zero_grad()
@@ -75,14 +75,23 @@ def main() -> None:
     data = Path(args.data)
     if not (data / "files_train.csv").exists():
         sys.exit(f"--data {data}: no dataset there; run bash scripts/setup.sh first")
+    import torch
+
+    from glsynth.model.train import bf16_helps
+
+    native = bf16_helps(torch.device("cpu"))
     results = {"allocator": "jemalloc" if JEMALLOC in os.environ.get("LD_PRELOAD", "")
-               else "glibc", "batch": 8, "precision": "bf16 autocast, channels_last"}
+               else "glibc", "batch": 8, "channels_last": True,
+               "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+               "native_bf16": native, "loop_precision": "bf16" if native else "fp32"}
     for size in SIZES:
-        step = bare_steps(size, args.steps)
+        step = bare_steps(size, args.steps, native)
         rate, images = loop_rate(data, size)
         results[f"{size[0]}x{size[1]}"] = {
             "training_images_per_epoch": images,
             "bare_step_s_per_image": round(step, 4),
+            "bare_step_bf16_emulated_s_per_image": None if native else
+            round(bare_steps(size, 2, True), 4) if size[0] < 1000 else None,
             "training_loop_images_per_s": rate,
             "training_loop_s_per_image": round(1 / rate, 4),
             "loop_over_bare": round(1 / rate / step, 2)}

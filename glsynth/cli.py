@@ -308,7 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="default: regular for component/depth, all for damage")
     p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
     p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--precision", choices=("bf16", "fp32"), default="bf16")
+    p.add_argument("--precision", choices=("auto", "bf16", "fp32"), default="auto",
+                   help="auto: bf16 autocast where the GPU/CPU runs it natively, else fp32")
     p.add_argument("--no-channels-last", action="store_true")
     p.add_argument("--loader-workers", type=int, default=1)
     p.add_argument("--time-budget-min", type=float, default=None,

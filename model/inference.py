@@ -13,7 +13,8 @@ from glsynth.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png
 from glsynth.model.data import TokaidoDataset, load_image
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
-from glsynth.model.train import CLASS_NAMES, load_torch, pick_device, predict_ids
+from glsynth.model.train import (CLASS_NAMES, bf16_helps, load_torch, pick_device,
+                                 predict_ids)
 from glsynth.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 
 
@@ -30,7 +31,8 @@ class Predictor:
         """(N, 3, H, W) in [0, 1] at image_size -> (N, h, w) ids 1..K (int64) or metres
         (float32) at a third of the size, rounded up."""
         images = images.to(self.device).contiguous(memory_format=torch.channels_last)
-        with torch.autocast(self.device.type, dtype=torch.bfloat16):
+        with torch.autocast(self.device.type, dtype=torch.bfloat16,
+                            enabled=bf16_helps(self.device)):
             output = self.model(images)
         if self.task == "depth":
             return output[:, 0].float().cpu()

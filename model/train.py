@@ -57,8 +57,8 @@ class TrainSettings:
     puretex: bool = True
     """Damage task: add the pure-texture plates to training."""
     seed: int = 0
-    precision: str = "bf16"
-    """'bf16' (autocast) or 'fp32'."""
+    precision: str = "auto"
+    """'bf16' (autocast), 'fp32', or 'auto': bf16 where the hardware has it (see bf16_helps)."""
     channels_last: bool = True
     loader_workers: int = 1
     time_budget_s: float | None = None
@@ -75,8 +75,8 @@ class TrainSettings:
         if not self.schedule or any(lr <= 0 or n < 1 for lr, n in self.schedule):
             raise ValueError(f"--schedule {self.schedule}: give LR:EPOCHS stages with LR > 0 "
                              "and EPOCHS >= 1, e.g. 1e-3:200,1e-4:50,1e-5:10")
-        if self.precision not in ("bf16", "fp32"):
-            raise ValueError(f"--precision {self.precision!r}: choose bf16 or fp32")
+        if self.precision not in ("auto", "bf16", "fp32"):
+            raise ValueError(f"--precision {self.precision!r}: choose auto, bf16 or fp32")
         if self.extra and self.task == "depth":
             raise ValueError("--extra: real image folders carry labels, not depth; drop it "
                              "for --task depth")
@@ -112,6 +112,22 @@ def pick_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     return torch.device(name)
+
+
+def bf16_helps(device: torch.device) -> bool:
+    """Whether bf16 autocast runs natively. On a CPU without AVX512-BF16 or AMX it is emulated
+    and FCN58 ran 10x slower than fp32 (measured here on an AVX2 EPYC; bench/bench_train.py)."""
+    if device.type == "cuda":
+        return torch.cuda.is_bf16_supported()
+    try:
+        flags = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return False
+    return "avx512_bf16" in flags or "amx_bf16" in flags
+
+
+def use_bf16(precision: str, device: torch.device) -> bool:
+    return precision == "bf16" or (precision == "auto" and bf16_helps(device))
 
 
 # --- data ------------------------------------------------------------------------------------
@@ -301,10 +317,10 @@ def train(settings: TrainSettings, run: str | Path, log=print) -> dict:
         if checkpoint.get("stopped_by_budget"):
             start_epoch = settings.epochs  # the budget ended this run
     net = torch.nn.parallel.DistributedDataParallel(model) if world > 1 else model
-    use_bf16 = settings.precision == "bf16"
+    bf16 = use_bf16(settings.precision, device)
 
     def autocast():
-        return torch.autocast(device.type, dtype=torch.bfloat16, enabled=use_bf16)
+        return torch.autocast(device.type, dtype=torch.bfloat16, enabled=bf16)
 
     loader_options = dict(batch_size=settings.batch_size, num_workers=settings.loader_workers,
                           pin_memory=device.type == "cuda",
@@ -346,6 +362,7 @@ def train(settings: TrainSettings, run: str | Path, log=print) -> dict:
                 break
         seconds = time.perf_counter() - t0
         entry = {"epoch": epoch + 1, "lr": settings.learning_rate(epoch),
+                 "precision": "bf16" if bf16 else "fp32",
                  "train_loss": float(np.mean(losses)) if losses else None,
                  "images": images_seen * world, "seconds": round(seconds, 3),
                  "images_per_s": round(images_seen * world / seconds, 3) if seconds else None}
