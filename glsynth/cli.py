@@ -17,6 +17,14 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", metavar="TOML", help="TOML file overlaid on the preset")
 
 
+def _add_quality_arg(p: argparse.ArgumentParser) -> None:
+    from glsynth.quality import QUALITY
+
+    p.add_argument("--quality", choices=list(QUALITY), default=None,
+                   help="quality preset overriding resolution, MSAA, textures, octaves, "
+                        "tessellation (README: Quality presets)")
+
+
 def _add_env_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=_seed, required=True, help="root seed")
     p.add_argument("--env", type=_seed, required=True, help="environment index")
@@ -30,7 +38,12 @@ def _seed(text: str) -> int:
 
 
 def _config(args: argparse.Namespace) -> Config:
-    return load_config(args.preset, args.config)
+    config = load_config(args.preset, args.config)
+    if getattr(args, "quality", None):
+        from glsynth.quality import apply_quality
+
+        config = apply_quality(config, args.quality)
+    return config
 
 
 def cmd_export(args: argparse.Namespace) -> None:
@@ -241,6 +254,24 @@ def cmd_assess(args: argparse.Namespace) -> int:
     return 1 if summary["failed"] else 0
 
 
+def cmd_bench_quality(args: argparse.Namespace) -> None:
+    from glsynth.quality import QUALITY, bench_quality
+
+    presets = args.presets.split(",") if args.presets else list(QUALITY)
+    unknown = set(presets) - set(QUALITY)
+    if unknown:
+        raise ValueError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
+    total = load_config(args.preset, args.config).cameras
+    n = total.n_regular + total.n_closeup
+    cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1)) for i in range(args.cameras)})
+    result = bench_quality(load_config(args.preset, args.config), args.seed, args.env, cameras,
+                           Path(args.out), presets)
+    from glsynth.quality import quality_table
+
+    print(quality_table(result), end="")
+    print(f"-> {args.out}/quality.md, quality.png, quality.json")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -262,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render cameras of one environment at full resolution")
     _add_config_args(p)
     _add_env_args(p)
+    _add_quality_arg(p)
     p.add_argument("--camera", type=_seed, nargs="+", required=True,
                    help="camera index: the [cameras] n_regular regular ones first, then the "
                         "close-ups (paper preset: 0-49, 50-99); several make subfolders")
@@ -354,6 +386,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="auto")
     p.add_argument("--out", required=True)
     p.set_defaults(func=cmd_assess)
+
+    p = sub.add_parser("bench", help="measurements: 'quality' (speed against accuracy)")
+    bench = p.add_subparsers(dest="bench", required=True)
+    q = bench.add_parser("quality", help="render fixed views under each quality preset")
+    _add_config_args(q)
+    q.add_argument("--seed", type=_seed, default=0)
+    q.add_argument("--env", type=_seed, default=0)
+    q.add_argument("--cameras", type=int, default=6, help="views spread over the environment")
+    q.add_argument("--presets", default=None, help="comma-separated (default: all)")
+    q.add_argument("--out", required=True)
+    q.set_defaults(func=cmd_bench_quality)
 
     p = sub.add_parser("textures", help="generate a procedural texture repository folder")
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")

@@ -34,10 +34,11 @@ class EnvironmentView:
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
-             renderer: Renderer | None = None) -> "EnvironmentView":
-        """Build, dress and upload environment ``env_index``. Damage textures are made for the
-        columns that some camera of the environment (all of them, not only those rendered now)
-        can see, so a camera renders the same bytes alone or in a batch."""
+             renderer: Renderer | None = None, cull: bool = True) -> "EnvironmentView":
+        """Build, dress and upload environment ``env_index``. Only parts that some camera of
+        the environment (all of them, not only those rendered now) can see are uploaded, and
+        only their columns get damage textures, so a camera renders the same bytes alone or in
+        a batch, and the same as with ``cull=False`` (everything uploaded; for measuring)."""
         env = build_environment(config, root_seed, env_index)
         n_cameras = config.cameras.n_regular + config.cameras.n_closeup
         cameras = [environment_camera(env.trajectory, config.cameras, config.render,
@@ -45,7 +46,8 @@ class EnvironmentView:
         visible = visible_parts(env.parts, cameras)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
-        scene = build_scene(env.parts, dressing.materials)
+        parts = [p for p in env.parts if p.name in visible] if cull else env.parts
+        scene = build_scene(parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
         renderer.load(scene)
         return cls(config, env, dressing, scene, renderer)

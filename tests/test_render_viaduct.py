@@ -134,3 +134,26 @@ def test_preview_command(tmp_path):
     assert main(["preview", "--seed", "0", "--env", "0", "--cameras", "2", "--width", "96",
                  "--out", str(out)]) == 0
     assert Image.open(out).size == (4 * 96, 2 * 54)
+
+
+def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
+    import dataclasses
+
+    from glsynth.render import EnvironmentView, preview_config
+
+    config = preview_config(Config(), 160)
+    config = dataclasses.replace(config, cameras=dataclasses.replace(
+        config.cameras, n_regular=3, n_closeup=3))
+    culled = EnvironmentView.open(config, 0, 1)
+    full = EnvironmentView.open(config, 0, 1, renderer=culled.renderer, cull=False)
+    try:
+        assert len(culled.scene.parts) < len(full.scene.parts) == len(full.environment.parts)
+        outputs = {}
+        for view in (culled, full):
+            view.renderer.load(view.scene)
+            outputs[view is culled] = [view.render(i)[1] for i in range(6)]
+        for a, b in zip(outputs[True], outputs[False]):
+            for name in ("color", "component", "damage", "depth"):
+                assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    finally:
+        culled.renderer.release()

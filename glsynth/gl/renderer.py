@@ -74,6 +74,10 @@ class Renderer:
         ctx, size, samples = self.ctx, self.size, self.config.msaa
         self.color_target = ctx.renderbuffer(size, 4)
         self.color_fbo = ctx.framebuffer([self.color_target], ctx.depth_renderbuffer(size))
+        if samples > ctx.max_samples:
+            raise ValueError(f"[render] msaa = {samples}: this GL ({self.platform}) supports at "
+                             f"most {ctx.max_samples} samples; set msaa to {ctx.max_samples} "
+                             "or less")
         if samples:
             self.msaa_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4, samples=samples)],
                                             ctx.depth_renderbuffer(size, samples=samples))

@@ -1,0 +1,173 @@
+"""Quality presets, from ``preview`` to ``reference``, and the measured trade between speed and
+accuracy (``glsynth bench quality``).
+
+A preset sets these knobs of a config (each documented in README.md):
+- render resolution, as a scale of 1920x1080 (the Tokaido format needs 1.0);
+- MSAA samples for colour (labels and depth are never multisampled);
+- texture resolution of repository materials, and of damage textures;
+- noise octaves of the damage textures;
+- tessellation of cylinders (poles and wires; rebar lives in the damage textures).
+Shadows are not modelled by the renderer, so no preset has a shadow knob.
+"""
+
+import dataclasses
+import statistics
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from glsynth.config import Config
+
+
+@dataclass(frozen=True)
+class Quality:
+    render_scale: float
+    msaa: int
+    texture_size: int
+    damage_resolution: int
+    octaves: int
+    cylinder_segments: int
+
+
+QUALITY = {
+    "preview": Quality(0.25, 0, 128, 256, 4, 6),
+    "fast": Quality(0.5, 0, 256, 512, 6, 8),
+    "balanced": Quality(1.0, 0, 512, 1024, 8, 12),
+    "default": Quality(1.0, 4, 512, 1024, 8, 12),
+    "high": Quality(1.0, 4, 512, 2048, 8, 12),
+    "reference": Quality(1.0, 4, 1024, 2048, 8, 24),
+}
+"""'default' is Config()'s own setting; 'high' matches the paper preset's 2048 px damage.
+'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has)."""
+
+
+def apply_quality(config: Config, name: str) -> Config:
+    if name not in QUALITY:
+        raise ValueError(f"quality {name!r}: choose one of {', '.join(QUALITY)}")
+    q = QUALITY[name]
+    width, height = round(1920 * q.render_scale), round(1080 * q.render_scale)
+    return dataclasses.replace(
+        config,
+        render=dataclasses.replace(config.render, width=width, height=height, msaa=q.msaa),
+        materials=dataclasses.replace(config.materials, texture_size=q.texture_size),
+        damage=dataclasses.replace(config.damage, resolution=q.damage_resolution,
+                                   octaves=q.octaves),
+        environment=dataclasses.replace(config.environment,
+                                        cylinder_segments=q.cylinder_segments))
+
+
+def _upsample(values: np.ndarray, shape: tuple[int, int], nearest: bool) -> np.ndarray:
+    """To the reference size: nearest for ids and depth edges, bilinear for colour."""
+    if values.shape[:2] == shape:
+        return values
+    from PIL import Image
+
+    if nearest:
+        rows = np.arange(shape[0]) * values.shape[0] // shape[0]
+        cols = np.arange(shape[1]) * values.shape[1] // shape[1]
+        return values[rows[:, None], cols[None, :]]
+    return np.asarray(Image.fromarray(values).resize((shape[1], shape[0]),
+                                                     Image.Resampling.BILINEAR))
+
+
+def compare(output, reference, zfar: float) -> dict:
+    """Colour PSNR/SSIM, component and damage label agreement, depth error and damaged-area
+    error of one view against the reference preset's view."""
+    from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+    shape = reference.component.shape
+    color = _upsample(output.color, shape, nearest=False)
+    comp = _upsample(output.component, shape, nearest=True)
+    dmg = _upsample(output.damage, shape, nearest=True)
+    depth = _upsample(output.depth, shape, nearest=True)
+    hit = (reference.depth < zfar) & (depth < zfar)
+    rel = np.abs(depth[hit] - reference.depth[hit]) / reference.depth[hit]
+    psnr = peak_signal_noise_ratio(reference.color, color, data_range=255)
+    return {"psnr_db": float(min(psnr, 99.0)),  # identical images give inf
+            "ssim": float(structural_similarity(reference.color, color, channel_axis=2,
+                                                data_range=255)),
+            "component_agreement": float((comp == reference.component).mean()),
+            "damage_agreement": float((dmg == reference.damage).mean()),
+            "depth_median_rel_error": float(np.median(rel)) if rel.size else 0.0,
+            "damaged_area_error_pp": float(100 * abs((dmg >= 2).mean() -
+                                                     (reference.damage >= 2).mean()))}
+
+
+def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
+                  out: Path, presets: list[str] | None = None) -> dict:
+    """Render the same views under each preset; time them and compare with 'reference'."""
+    from glsynth.fileio import atomic_write_bytes, atomic_write_json
+    from glsynth.render import EnvironmentView
+
+    presets = presets or list(QUALITY)
+    order = ["reference"] + [p for p in presets if p != "reference"]
+    outputs, rows = {}, {}
+    for name in order:
+        cfg = apply_quality(config, name)
+        t0 = time.perf_counter()
+        view = EnvironmentView.open(cfg, root_seed, env)
+        opened = time.perf_counter() - t0
+        renders, times = [], []
+        try:
+            for index in cameras:
+                t = time.perf_counter()
+                renders.append(view.render(index)[1])
+                times.append(time.perf_counter() - t)
+        finally:
+            view.renderer.release()
+        outputs[name] = renders
+        n_cameras = cfg.cameras.n_regular + cfg.cameras.n_closeup
+        render_s = statistics.median(times)
+        rows[name] = {**dataclasses.asdict(QUALITY[name]),
+                      "width": cfg.render.width, "height": cfg.render.height,
+                      "render_s": render_s, "open_s": opened,
+                      "time_per_sample_s": render_s + opened / n_cameras}
+    zfar = config.render.zfar_m
+    for name in order:
+        scores = [compare(o, r, zfar) for o, r in zip(outputs[name], outputs["reference"])]
+        rows[name].update({k: statistics.median(s[k] for s in scores) for k in scores[0]})
+    result = {"root_seed": root_seed, "env": env, "cameras": cameras,
+              "note": "time_per_sample_s = median render + environment opening / cameras "
+                      "per environment", "presets": {p: rows[p] for p in presets}}
+    atomic_write_json(out / "quality.json", result)
+    atomic_write_bytes(out / "quality.md", quality_table(result).encode())
+    plot_trade_curve(result, out / "quality.png")
+    return result
+
+
+def quality_table(result: dict) -> str:
+    head = ("| preset | size | msaa | textures | damage px | octaves | segments | time/sample "
+            "| PSNR | SSIM | component agree | damage agree | depth rel err | area err |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+    lines = [f"| {name} | {r['width']}x{r['height']} | {r['msaa']} | {r['texture_size']} | "
+             f"{r['damage_resolution']} | {r['octaves']} | {r['cylinder_segments']} | "
+             f"{r['time_per_sample_s']:.3f} s | {r['psnr_db']:.1f} dB | {r['ssim']:.3f} | "
+             f"{100 * r['component_agreement']:.2f} % | {100 * r['damage_agreement']:.2f} % | "
+             f"{r['depth_median_rel_error']:.1e} | {r['damaged_area_error_pp']:.3f} pp |"
+             for name, r in result["presets"].items()]
+    return head + "\n".join(lines) + "\n"
+
+
+def plot_trade_curve(result: dict, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    from glsynth.plots import save_figure
+
+    names = list(result["presets"])
+    rows = [result["presets"][n] for n in names]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8))
+    x = [r["time_per_sample_s"] for r in rows]
+    a.plot(x, [r["psnr_db"] for r in rows], "o-")
+    b.plot(x, [100 * r["component_agreement"] for r in rows], "o-", label="components")
+    b.plot(x, [100 * r["damage_agreement"] for r in rows], "s-", label="damage")
+    for name, xi, r in zip(names, x, rows):
+        a.annotate(name, (xi, r["psnr_db"]), textcoords="offset points", xytext=(4, 4))
+        b.annotate(name, (xi, 100 * r["component_agreement"]), textcoords="offset points",
+                   xytext=(4, 4))
+    a.set_xlabel("time per sample [s]"), a.set_ylabel("colour PSNR vs reference [dB]")
+    b.set_xlabel("time per sample [s]"), b.set_ylabel("label agreement vs reference [%]")
+    b.legend()
+    fig.suptitle("glsynth quality presets: speed against accuracy")
+    save_figure(fig, path)
