@@ -84,8 +84,9 @@ def compare(output, reference, zfar: float) -> dict:
     depth = _upsample(output.depth, shape, nearest=True)
     hit = (reference.depth < zfar) & (depth < zfar)
     rel = np.abs(depth[hit] - reference.depth[hit]) / reference.depth[hit]
-    psnr = peak_signal_noise_ratio(reference.color, color, data_range=255)
-    return {"psnr_db": float(min(psnr, 99.0)),  # identical images give inf
+    identical = np.array_equal(reference.color, color)  # PSNR is infinite: report 99 dB
+    psnr = 99.0 if identical else peak_signal_noise_ratio(reference.color, color, data_range=255)
+    return {"psnr_db": float(min(psnr, 99.0)),
             "ssim": float(structural_similarity(reference.color, color, channel_axis=2,
                                                 data_range=255)),
             "component_agreement": float((comp == reference.component).mean()),
@@ -128,7 +129,10 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
     for name in order:
         scores = [compare(o, r, zfar) for o, r in zip(outputs[name], outputs["reference"])]
         rows[name].update({k: statistics.median(s[k] for s in scores) for k in scores[0]})
-    result = {"root_seed": root_seed, "env": env, "cameras": cameras,
+    import sys
+
+    result = {"command": " ".join(["glsynth", *sys.argv[1:]]), "root_seed": root_seed,
+              "env": env, "cameras": cameras,
               "note": "time_per_sample_s = median render + environment opening / cameras "
                       "per environment", "presets": {p: rows[p] for p in presets}}
     atomic_write_json(out / "quality.json", result)

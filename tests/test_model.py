@@ -81,7 +81,7 @@ def test_berhu_with_zero_error_has_finite_gradients():
     prediction = torch.full((2, 5, 7), 4.0, requires_grad=True)
     loss = berhu(prediction, torch.full((2, 5, 7), 4.0))
     loss.backward()
-    assert float(loss) == 0.0
+    assert loss.item() == 0.0
     assert torch.isfinite(prediction.grad).all() and float(prediction.grad.abs().max()) == 0.0
     empty = berhu(prediction, prediction.detach(), valid=torch.zeros(2, 5, 7, dtype=torch.bool))
     assert float(empty) == 0.0
