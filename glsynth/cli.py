@@ -310,6 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("generate", help="render a dataset in the released Tokaido layout")
     _add_config_args(p)
+    _add_quality_arg(p)
     p.add_argument("--seed", type=_seed, required=True, help="root seed")
     p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
     p.add_argument("--workers", type=int, default=1,

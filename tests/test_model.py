@@ -277,3 +277,20 @@ def test_missing_run_is_a_clear_error(tmp_path, capsys):
     assert main(["predict", "--run", str(tmp_path / "nope"), "x.png", "--out",
                  str(tmp_path)]) == 2
     assert "has no model.pt" in capsys.readouterr().err
+
+
+def test_torchrun_two_processes_train_with_distributed_data_parallel(tiny_dataset, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    run = tmp_path / "ddp"
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    subprocess.run([sys.executable, "-m", "torch.distributed.run", "--standalone",
+                    "--nproc_per_node", "2", "-m", "glsynth.cli", "train", "--task", "depth",
+                    "--data", str(tiny_dataset), "--out", str(run), "--image-size", "192x108",
+                    "--batch-size", "2", "--schedule", "1e-3:1", "--loader-workers", "0"],
+                   check=True, env=env, capture_output=True, timeout=300)
+    history = json.loads((run / "history.json").read_text())
+    assert len(history) == 1 and math.isfinite(history[0]["train_loss"])
+    assert (run / "model.pt").is_file()
