@@ -84,7 +84,7 @@ def test_berhu_with_zero_error_has_finite_gradients():
     assert loss.item() == 0.0
     assert torch.isfinite(prediction.grad).all() and float(prediction.grad.abs().max()) == 0.0
     empty = berhu(prediction, prediction.detach(), valid=torch.zeros(2, 5, 7, dtype=torch.bool))
-    assert float(empty) == 0.0
+    assert empty.item() == 0.0
 
 
 def test_median_frequency_weights_with_an_absent_class():
