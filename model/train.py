@@ -116,7 +116,7 @@ def pick_device(name: str) -> torch.device:
 
 def bf16_helps(device: torch.device) -> bool:
     """Whether bf16 autocast runs natively. On a CPU without AVX512-BF16 or AMX it is emulated
-    and FCN58 ran 10x slower than fp32 (measured here on an AVX2 EPYC; bench/bench_train.py)."""
+    and an FCN58 training step ran 16x slower than fp32 (AVX2 EPYC; bench/bench_train.py)."""
     if device.type == "cuda":
         return torch.cuda.is_bf16_supported()
     try:
