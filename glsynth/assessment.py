@@ -123,22 +123,26 @@ def assess(maps: Maps, settings: AssessSettings = AssessSettings()) -> Assessmen
 
 def assessment_picture(rgb: np.ndarray, component: np.ndarray,
                        result: Assessment) -> np.ndarray:
-    """Fig. 17: components tinted, kept damage coloured by class over them, and far or
-    non-bridge regions greyed out. All at the maps' size."""
-    if rgb.shape[:2] != result.damage.shape or component.shape != result.damage.shape:
-        raise ValueError(f"image {rgb.shape[:2]}, components {component.shape} and maps "
-                         f"{result.damage.shape} differ in size")
+    """Fig. 17 at the photo's size: components tinted, kept damage coloured by class over
+    them, and far or non-bridge regions greyed out. Maps are brought to the photo's size by
+    nearest sampling."""
+    shape = rgb.shape[:2]
+    component = nearest_resize(component, shape)
+    damage = nearest_resize(result.damage, shape)
+    considered = nearest_resize(result.considered, shape)
     tinted = overlay(rgb, component, COMPONENT_RGB, 0.3, skip=(0,))
-    picture = overlay(tinted, result.damage, DAMAGE_RGB, 0.85,
+    picture = overlay(tinted, damage, DAMAGE_RGB, 0.85,
                       skip=(Damage.UNLABELLED, Damage.NO_DAMAGE))
     grey = rgb.astype(np.float32).mean(axis=2, keepdims=True) * 0.45 + 90
-    return np.where(result.considered[..., None], picture, grey).round().astype(np.uint8)
+    return np.where(considered[..., None], picture, grey).round().astype(np.uint8)
 
 
 def nearest_resize(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """A map brought to (rows, cols) by nearest sampling (ids and masks never blend)."""
-    rows = (np.arange(shape[0]) * values.shape[0] // shape[0])
-    cols = (np.arange(shape[1]) * values.shape[1] // shape[1])
+    if values.shape[:2] == tuple(shape):
+        return values
+    rows = np.arange(shape[0]) * values.shape[0] // shape[0]
+    cols = np.arange(shape[1]) * values.shape[1] // shape[1]
     return values[rows[:, None], cols[None, :]]
 
 
@@ -163,11 +167,7 @@ def assess_photos(photos: Iterable[Photo], out: Path,
         try:
             rgb, maps = photo.load()
             result = assess(maps, settings)
-            shape = rgb.shape[:2]
-            full = Assessment(nearest_resize(result.reliable, shape),
-                              nearest_resize(result.considered, shape),
-                              nearest_resize(result.damage, shape))
-            picture = assessment_picture(rgb, nearest_resize(maps.component, shape), full)
+            picture = assessment_picture(rgb, maps.component, result)
         except (ValueError, OSError) as err:
             failed.append({"image": photo.name, "error": str(err)})
             continue

@@ -255,19 +255,16 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_quality(args: argparse.Namespace) -> None:
-    from glsynth.quality import QUALITY, bench_quality
+    from glsynth.quality import QUALITY, bench_quality, quality_table
 
     presets = args.presets.split(",") if args.presets else list(QUALITY)
     unknown = set(presets) - set(QUALITY)
     if unknown:
         raise ValueError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
-    total = load_config(args.preset, args.config).cameras
-    n = total.n_regular + total.n_closeup
+    config = load_config(args.preset, args.config)
+    n = config.cameras.n_regular + config.cameras.n_closeup
     cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1)) for i in range(args.cameras)})
-    result = bench_quality(load_config(args.preset, args.config), args.seed, args.env, cameras,
-                           Path(args.out), presets)
-    from glsynth.quality import quality_table
-
+    result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets)
     print(quality_table(result), end="")
     print(f"-> {args.out}/quality.md, quality.png, quality.json")
 

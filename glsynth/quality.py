@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glsynth.assessment import nearest_resize
 from glsynth.config import Config
 
 
@@ -60,14 +61,10 @@ def apply_quality(config: Config, name: str) -> Config:
 
 def _upsample(values: np.ndarray, shape: tuple[int, int], nearest: bool) -> np.ndarray:
     """To the reference size: nearest for ids and depth edges, bilinear for colour."""
-    if values.shape[:2] == shape:
-        return values
+    if nearest or values.shape[:2] == shape:
+        return nearest_resize(values, shape)
     from PIL import Image
 
-    if nearest:
-        rows = np.arange(shape[0]) * values.shape[0] // shape[0]
-        cols = np.arange(shape[1]) * values.shape[1] // shape[1]
-        return values[rows[:, None], cols[None, :]]
     return np.asarray(Image.fromarray(values).resize((shape[1], shape[0]),
                                                      Image.Resampling.BILINEAR))
 

@@ -14,6 +14,7 @@ import torch
 from PIL import Image
 from torch.utils.data import Dataset
 
+from glsynth.model.fcn58 import MIN_SIDE
 from glsynth.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
 
 TASKS = ("component", "damage", "depth")
@@ -34,19 +35,24 @@ def parse_size(text: str) -> tuple[int, int]:
     except ValueError:
         raise ValueError(f"image size {text!r}: write it as WIDTHxHEIGHT, e.g. 1920x1080") \
             from None
-    if min(w, h) < 96:
-        raise ValueError(f"image size {text!r}: FCN58 needs at least 96 px per side")
+    if min(w, h) < MIN_SIDE:
+        raise ValueError(f"image size {text!r}: FCN58 needs at least {MIN_SIDE} px per side")
     return w, h
 
 
-def load_image(path: Path, size: tuple[int, int]) -> torch.Tensor:
+def image_tensor(image: Image.Image | np.ndarray, size: tuple[int, int]) -> torch.Tensor:
     """RGB float32 (3, H, W) in [0, 1], resized bilinearly to size = (W, H)."""
-    with Image.open(path) as im:
-        im = im.convert("RGB")
-        if im.size != size:
-            im = im.resize(size, Image.Resampling.BILINEAR)
-        array = np.asarray(im, dtype=np.float32) / 255.0
+    im = image if isinstance(image, Image.Image) else Image.fromarray(image)
+    im = im.convert("RGB")
+    if im.size != size:
+        im = im.resize(size, Image.Resampling.BILINEAR)
+    array = np.asarray(im, dtype=np.float32) / 255.0
     return torch.from_numpy(array).permute(2, 0, 1).contiguous()
+
+
+def load_image(path: Path, size: tuple[int, int]) -> torch.Tensor:
+    with Image.open(path) as im:
+        return image_tensor(im, size)
 
 
 def load_map(path: Path, size: tuple[int, int]) -> np.ndarray:
@@ -85,14 +91,16 @@ class TokaidoDataset(Dataset):
     def __len__(self) -> int:
         return len(self.items)
 
-    def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
-        item = self.items[index]
-        image = load_image(self.root / item.image, self.size)
-        size = target_size(self.size)
+    def target(self, index: int) -> torch.Tensor:
+        """The target alone (class statistics need no image decoding)."""
+        item, size = self.items[index], target_size(self.size)
         if self.task == "depth":
-            return image, torch.from_numpy(decode_depth(load_map(self.root / item.depth, size)))
+            return torch.from_numpy(decode_depth(load_map(self.root / item.depth, size)))
         rel = item.component if self.task == "component" else item.damage
-        return image, torch.from_numpy(load_map(self.root / rel, size).astype(np.int64))
+        return torch.from_numpy(load_map(self.root / rel, size).astype(np.int64))
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
+        return load_image(self.root / self.items[index].image, self.size), self.target(index)
 
 
 class ImageFolder(Dataset):
@@ -122,10 +130,13 @@ class ImageFolder(Dataset):
     def __len__(self) -> int:
         return len(self.items)
 
-    def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
-        image, labels = self.items[index]
+    def target(self, index: int) -> torch.Tensor:
+        labels = self.items[index][1]
         ids = load_map(labels, target_size(self.size))
         if ids.ndim != 2 or ids.max(initial=0) > N_OUTPUTS[self.task]:
             raise ValueError(f"{str(labels)!r}: expected one channel of ids 0..."
                              f"{N_OUTPUTS[self.task]} for task {self.task!r}")
-        return load_image(image, self.size), torch.from_numpy(ids.astype(np.int64))
+        return torch.from_numpy(ids.astype(np.int64))
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
+        return load_image(self.items[index][0], self.size), self.target(index)

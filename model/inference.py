@@ -10,7 +10,8 @@ import torch
 from PIL import Image
 
 from glsynth.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
-from glsynth.model.data import TokaidoDataset, load_image
+from glsynth.assessment import read_rgb
+from glsynth.model.data import TokaidoDataset, image_tensor
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
 from glsynth.model.train import (CLASS_NAMES, bf16_helps, load_torch, pick_device,
@@ -40,9 +41,8 @@ class Predictor:
 
     def photo(self, path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         """(RGB uint8 at the photo's own size, prediction at a third of image_size)."""
-        with Image.open(path) as im:
-            rgb = np.asarray(im.convert("RGB"))
-        return rgb, self(load_image(Path(path), self.image_size)[None])[0].numpy()
+        rgb = read_rgb(Path(path))
+        return rgb, self(image_tensor(rgb, self.image_size)[None])[0].numpy()
 
 
 def load_predictor(run: str | Path, device: str = "auto") -> Predictor:

@@ -6,12 +6,13 @@ evaluation on a labelled split: damage scores before and after the RRDR post-pro
 from pathlib import Path
 
 import numpy as np
+import torch
 from PIL import Image
 
 from glsynth.assessment import AssessSettings, Maps, Photo, read_rgb
 from glsynth.filters import rrdr
-from glsynth.model.data import load_image
-from glsynth.model.inference import Predictor, load_predictor
+from glsynth.model.data import image_tensor
+from glsynth.model.inference import Predictor, load_predictor, resize_map
 from glsynth.model.metrics import confusion, segmentation_scores
 from glsynth.model.train import CLASS_NAMES
 
@@ -50,10 +51,13 @@ def predicted_maps(predictors: dict[str, Predictor], path: Path,
     pixels of the photo; a map pixel spans photo width / map width photo pixels (the photo is
     resized, not cropped)."""
     rgb = read_rgb(path)
+    inputs: dict[tuple[int, int], torch.Tensor] = {}  # one resize per input size
     outputs = {}
     for task, predictor in predictors.items():
-        image = load_image(path, predictor.image_size)[None]
-        outputs[task] = predictor(image)[0].numpy()
+        size = predictor.image_size
+        if size not in inputs:
+            inputs[size] = image_tensor(rgb, size)[None]
+        outputs[task] = predictor(inputs[size])[0].numpy()
     shapes = {v.shape for v in outputs.values()}
     if len(shapes) != 1:
         raise ValueError(f"the runs were trained at different image sizes ({shapes}); train "
@@ -91,17 +95,17 @@ def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
     before, after = np.zeros((3, 3), np.int64), np.zeros((3, 3), np.int64)
     images = []
     for index, record in enumerate(dataset.items):
-        image, target = dataset[index]
-        truth = target.numpy()
-        damage = predictors["damage"](image[None])[0].numpy()
-        depth = predictors["depth"](load_image(root / record.image,
-                                               predictors["depth"].image_size)[None])[0].numpy()
+        truth = dataset.target(index).numpy()
+        with Image.open(root / record.image) as im:
+            photo = im.convert("RGB")
+        inputs = {size: image_tensor(photo, size)[None]
+                  for size in {p.image_size for p in predictors.values()}}
+        damage = predictors["damage"](inputs[predictors["damage"].image_size])[0].numpy()
+        depth = predictors["depth"](inputs[predictors["depth"].image_size])[0].numpy()
         if depth.shape != truth.shape:
-            depth = np.asarray(_resize_float(depth, truth.shape))
-        focal_px = None
-        if use_focal:  # px/cm is the photo's resolution, whatever size the networks saw
-            with Image.open(root / record.image) as im:
-                focal_px = record.focal_mm / sensor_mm * im.size[0]
+            depth = resize_map(depth.astype(np.float32), truth.shape[::-1])
+        # px/cm is the photo's resolution, whatever size the networks saw.
+        focal_px = record.focal_mm / sensor_mm * photo.size[0] if use_focal else None
         reliable = rrdr(depth, focal_px, min_px_per_cm=settings.min_px_per_cm,
                         depth_range_m=settings.depth_range_m)
         m_before = confusion(truth, damage, 3)
@@ -129,12 +133,6 @@ def _class_iou(matrix: np.ndarray, k: int) -> float | None:
     tp = matrix[k, k]
     union = matrix[k, :].sum() + matrix[:, k].sum() - tp
     return float(tp / union) if union else None
-
-
-def _resize_float(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    from glsynth.model.inference import resize_map
-
-    return resize_map(values.astype(np.float32), (shape[1], shape[0]))
 
 
 def plot_iou_against_ratio(images: list[dict], path: Path) -> None:

@@ -13,6 +13,7 @@ Shuffling and flips come from generators seeded by (seed, epoch), so a resumed r
 batches as an uninterrupted one.
 """
 
+import bisect
 import dataclasses
 import io
 import json
@@ -27,7 +28,7 @@ import torch
 from torch.utils.data import ConcatDataset, DataLoader, Dataset, Subset
 
 from glsynth.fileio import atomic_write_bytes, atomic_write_json
-from glsynth.tokaido import PuretexRecord
+from glsynth.tokaido import FrameRecord
 from glsynth.model.data import N_OUTPUTS, TASKS, ImageFolder, TokaidoDataset, target_size
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
@@ -132,23 +133,31 @@ def use_bf16(precision: str, device: torch.device) -> bool:
 
 # --- data ------------------------------------------------------------------------------------
 def training_sets(s: TrainSettings) -> tuple[Dataset, Dataset]:
-    """(train, validation): the training split minus a seeded random validation part, plus the
-    plates (damage) and extra real folders, which stay in training."""
-    synthetic = TokaidoDataset(s.data, "train", s.task, views=s.views, image_size=s.image_size)
-    if len(synthetic) == 0:
+    """(train, validation): the training split minus a seeded random validation part of its
+    views; the plates (damage) and extra real folders stay in training."""
+    split = TokaidoDataset(s.data, "train", s.task, views=s.views, image_size=s.image_size,
+                           puretex=s.task == "damage" and s.puretex)
+    frames = [i for i, r in enumerate(split.items) if isinstance(r, FrameRecord)]
+    if not frames:
         raise ValueError(f"--data {s.data!r} has no training images for task {s.task!r}")
-    n_val = min(s.val_count, len(synthetic) // 5)
-    order = np.random.default_rng(np.random.SeedSequence([s.seed, 1])).permutation(
-        len(synthetic))
-    val = Subset(synthetic, sorted(order[:n_val].tolist()))
-    parts: list[Dataset] = [Subset(synthetic, sorted(order[n_val:].tolist()))]
-    if s.task == "damage" and s.puretex:
-        plates = TokaidoDataset(s.data, "train", "damage", image_size=s.image_size,
-                                puretex=True)
-        plates.items = [r for r in plates.items if isinstance(r, PuretexRecord)]
-        parts.append(plates)
+    n_val = min(s.val_count, len(frames) // 5)
+    order = np.random.default_rng(np.random.SeedSequence([s.seed, 1])).permutation(len(frames))
+    held_out = {frames[i] for i in order[:n_val]}
+    val = Subset(split, sorted(held_out))
+    parts: list[Dataset] = [Subset(split, [i for i in range(len(split)) if i not in held_out])]
     parts += [ImageFolder(e, s.task, s.image_size) for e in s.extra]
     return ConcatDataset(parts), val
+
+
+def dataset_target(dataset: Dataset, index: int) -> torch.Tensor:
+    """A sample's target without decoding its image, through Subset and ConcatDataset."""
+    if isinstance(dataset, Subset):
+        return dataset_target(dataset.dataset, dataset.indices[index])
+    if isinstance(dataset, ConcatDataset):
+        part = bisect.bisect_right(dataset.cumulative_sizes, index)
+        start = dataset.cumulative_sizes[part - 1] if part else 0
+        return dataset_target(dataset.datasets[part], index - start)
+    return dataset.target(index)
 
 
 def class_statistics(dataset: Dataset, n_classes: int) -> dict:
@@ -157,8 +166,7 @@ def class_statistics(dataset: Dataset, n_classes: int) -> dict:
     pixels = np.zeros(n_classes, np.int64)
     image_pixels = np.zeros(n_classes, np.int64)
     for index in range(len(dataset)):
-        _, target = dataset[index]
-        ids = target.numpy().ravel()
+        ids = dataset_target(dataset, index).numpy().ravel()
         counts = np.bincount(ids, minlength=n_classes + 1)[1:n_classes + 1]
         pixels += counts
         image_pixels += np.where(counts > 0, int((ids > 0).sum()), 0)

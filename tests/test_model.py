@@ -157,7 +157,7 @@ def test_overfitting_one_tiny_batch_drives_the_loss_down():
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
-        losses.append(float(loss))
+        losses.append(loss.item())
     assert losses[-1] < 0.2 * losses[0]
 
 
