@@ -50,6 +50,26 @@ def time_passes(view: EnvironmentView, cameras: list[int], repeats: int) -> dict
     return result
 
 
+def time_shadow_sizes(view: EnvironmentView, cameras: list[int], repeats: int) -> dict:
+    """The colour pass (MSAA 0) with each shadow-map size; 0 is no shadows."""
+    out = {}
+    for px in (0, 1024, 2048, 4096):
+        cfg = dataclasses.replace(view.config.render, msaa=0, shadow_map_px=px)
+        renderer = Renderer(cfg, platform="egl")
+        renderer.load(view.scene)
+        times = []
+        for index in cameras:
+            camera = view.camera(index).camera
+            renderer.render(camera, {"color"})
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                renderer.render(camera, {"color"})
+                times.append(time.perf_counter() - t0)
+        out[f"shadow_map_px={px}"] = median_ms(times)
+        renderer.release()
+    return out
+
+
 def time_pyrender(view: EnvironmentView, cameras: list[int], repeats: int) -> dict:
     import numpy as np
     import pyrender
@@ -94,6 +114,9 @@ def main() -> None:
         cfg = dataclasses.replace(config, render=dataclasses.replace(config.render, msaa=msaa))
         view = EnvironmentView.open(cfg, 0, 0, Renderer(cfg.render, platform="egl"))
         results[f"glsynth msaa={msaa} (ms)"] = time_passes(view, cameras, args.repeats)
+        if msaa == 0:
+            results["colour pass by shadow map size (ms)"] = time_shadow_sizes(
+                view, cameras, args.repeats)
         view.renderer.release()
     full0 = results["glsynth msaa=0 (ms)"]["full sample"]
     full4 = results["glsynth msaa=4 (ms)"]["full sample"]

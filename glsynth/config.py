@@ -124,6 +124,11 @@ class RenderConfig:
     sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
     """Background colour where no geometry is hit (linear RGB)."""
     exposure: float = 1.0
+    shadow_map_px: int = 2048
+    """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
+    the shadowed range divided by this."""
+    shadow_distance_m: float = 60.0
+    """Shadows are drawn on surfaces nearer than this to the camera; farther ones are lit."""
 
     def __post_init__(self) -> None:
         s = "render"
@@ -140,6 +145,10 @@ class RenderConfig:
         if len(self.sky_rgb) != 3 or not all(0.0 <= c <= 1.0 for c in self.sky_rgb):
             fail(s, "sky_rgb", self.sky_rgb, "three values in [0, 1]")
         check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
+        check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
+        if 0 < self.shadow_map_px < 64:
+            fail(s, "shadow_map_px", self.shadow_map_px, "0 (no shadows) or 64 to 16384")
+        check_number(s, "shadow_distance_m", self.shadow_distance_m, 1.0, 1e5)
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,8 @@ A preset sets these knobs of a config (each documented in README.md):
 - MSAA samples for colour (labels and depth are never multisampled);
 - texture resolution of repository materials, and of damage textures;
 - noise octaves of the damage textures;
-- tessellation of cylinders (poles and wires; rebar lives in the damage textures).
-Shadows are not modelled by the renderer, so no preset has a shadow knob.
+- tessellation of cylinders (poles and wires; rebar lives in the damage textures);
+- the sun's shadow map size (0: no shadows).
 """
 
 import dataclasses
@@ -30,15 +30,16 @@ class Quality:
     damage_resolution: int
     octaves: int
     cylinder_segments: int
+    shadow_map_px: int
 
 
 QUALITY = {
-    "preview": Quality(0.25, 0, 128, 256, 4, 6),
-    "fast": Quality(0.5, 0, 256, 512, 6, 8),
-    "balanced": Quality(1.0, 0, 512, 1024, 8, 12),
-    "default": Quality(1.0, 4, 512, 1024, 8, 12),
-    "high": Quality(1.0, 4, 512, 2048, 8, 12),
-    "reference": Quality(1.0, 4, 1024, 2048, 8, 24),
+    "preview": Quality(0.25, 0, 128, 256, 4, 6, 0),
+    "fast": Quality(0.5, 0, 256, 512, 6, 8, 1024),
+    "balanced": Quality(1.0, 0, 512, 1024, 8, 12, 2048),
+    "default": Quality(1.0, 4, 512, 1024, 8, 12, 2048),
+    "high": Quality(1.0, 4, 512, 2048, 8, 12, 2048),
+    "reference": Quality(1.0, 4, 1024, 2048, 8, 24, 4096),
 }
 """'default' is Config()'s own setting; 'high' matches the paper preset's 2048 px damage.
 'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has)."""
@@ -51,7 +52,8 @@ def apply_quality(config: Config, name: str) -> Config:
     width, height = round(1920 * q.render_scale), round(1080 * q.render_scale)
     return dataclasses.replace(
         config,
-        render=dataclasses.replace(config.render, width=width, height=height, msaa=q.msaa),
+        render=dataclasses.replace(config.render, width=width, height=height, msaa=q.msaa,
+                                   shadow_map_px=q.shadow_map_px),
         materials=dataclasses.replace(config.materials, texture_size=q.texture_size),
         damage=dataclasses.replace(config.damage, resolution=q.damage_resolution,
                                    octaves=q.octaves),
@@ -139,11 +141,12 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
 
 
 def quality_table(result: dict) -> str:
-    head = ("| preset | size | msaa | textures | damage px | octaves | segments | time/sample "
-            "| PSNR | SSIM | component agree | damage agree | depth rel err | area err |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+    head = ("| preset | size | msaa | textures | damage px | octaves | segments | shadow map "
+            "| time/sample | PSNR | SSIM | component agree | damage agree | depth rel err "
+            "| area err |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
     lines = [f"| {name} | {r['width']}x{r['height']} | {r['msaa']} | {r['texture_size']} | "
              f"{r['damage_resolution']} | {r['octaves']} | {r['cylinder_segments']} | "
+             f"{r['shadow_map_px'] or 'off'} | "
              f"{r['time_per_sample_s']:.3f} s | {r['psnr_db']:.1f} dB | {r['ssim']:.3f} | "
              f"{100 * r['component_agreement']:.2f} % | {100 * r['damage_agreement']:.2f} % | "
              f"{r['depth_median_rel_error']:.1e} | {r['damaged_area_error_pp']:.3f} pp |"

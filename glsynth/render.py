@@ -19,7 +19,7 @@ from glsynth.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.appearance import Dressing, dress, open_repository
 from glsynth.damage_bank import DamageBank
 from glsynth.scene import RenderScene, build_scene
-from glsynth.visibility import visible_parts
+from glsynth.visibility import shadowing_parts, visible_parts
 
 
 @dataclass
@@ -36,9 +36,10 @@ class EnvironmentView:
     def open(cls, config: Config, root_seed: int, env_index: int,
              renderer: Renderer | None = None, cull: bool = True) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
-        the environment (all of them, not only those rendered now) can see are uploaded, and
-        only their columns get damage textures, so a camera renders the same bytes alone or in
-        a batch, and the same as with ``cull=False`` (everything uploaded; for measuring)."""
+        the environment (all of them, not only those rendered now) can see, or that can shadow
+        such a view, are uploaded, and only the seen columns get damage textures, so a camera
+        renders the same bytes alone or in a batch, and the same as with ``cull=False``
+        (everything uploaded; for measuring)."""
         env = build_environment(config, root_seed, env_index)
         n_cameras = config.cameras.n_regular + config.cameras.n_closeup
         cameras = [environment_camera(env.trajectory, config.cameras, config.render,
@@ -46,7 +47,8 @@ class EnvironmentView:
         visible = visible_parts(env.parts, cameras)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
-        parts = [p for p in env.parts if p.name in visible] if cull else env.parts
+        needed = visible | shadowing_parts(env.parts, cameras, config.render)
+        parts = [p for p in env.parts if p.name in needed] if cull else env.parts
         scene = build_scene(parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
         renderer.load(scene)

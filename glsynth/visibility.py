@@ -2,13 +2,16 @@
 
 A part is seen when its oriented bounding box is not entirely outside one of the camera's
 frustum planes (near plane and the four image edges). Occlusion is ignored, so the answer may
-include hidden parts but never misses a part that is in view.
+include hidden parts but never misses a part that is in view. With shadows, the parts that
+may shadow a view are needed as well (glsynth.sunlight).
 """
 
 import numpy as np
 
 from glsynth.cameras import Camera
+from glsynth.config import RenderConfig
 from glsynth.environment import Part
+from glsynth.sunlight import shadow_casters
 
 _CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
 
@@ -43,3 +46,12 @@ def visible_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera]) -
     for camera in cameras:
         seen |= seen_by(corners, camera)
     return {p.name for p, s in zip(parts, seen) if s}
+
+
+def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
+                    render: RenderConfig) -> set[str]:
+    """Parts that may cast the sun's shadow into some camera's view (none without shadows)."""
+    if not render.shadow_map_px:
+        return set()
+    casts = shadow_casters(np.stack([part_corners(p) for p in parts]), cameras, render)
+    return {p.name for p, c in zip(parts, casts) if c}

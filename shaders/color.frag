@@ -2,7 +2,8 @@
 // Metallic-roughness PBR: GGX specular + Lambert diffuse under one sun and a sky/ground
 // hemisphere, plus emission (scene panels are emission-only). The normal map (the damage
 // normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
-// derivatives of position and UV, so meshes need no tangent attribute.
+// derivatives of position and UV, so meshes need no tangent attribute. The sun is shadowed by
+// a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -24,6 +25,12 @@ uniform vec3 u_sky_color;
 uniform vec3 u_ground_color;
 uniform float u_exposure;
 
+uniform bool u_has_shadows;
+uniform sampler2DShadow u_shadow_map;
+uniform mat4 u_shadow_from_view;   // shadow-map texture coordinates and depth, all in [0, 1]
+uniform float u_shadow_texel;      // 1 / map size
+uniform float u_shadow_offset_m;   // lookups move this far along the normal (against acne)
+
 out vec4 f_color;
 
 const float PI = 3.14159265358979;
@@ -43,10 +50,23 @@ vec3 perturbed_normal(vec3 n, vec3 view_dir) {
     return normalize(mat3(t * inv, b * inv, n) * m);
 }
 
+float sun_visibility(vec3 n) {
+    if (!u_has_shadows) return 1.0;
+    vec4 p = u_shadow_from_view * vec4(v_view_pos + n * u_shadow_offset_m, 1.0);
+    // Outside the shadowed range (beyond shadow_distance_m): lit.
+    if (any(lessThan(p.xyz, vec3(0.0))) || any(greaterThan(p.xyz, vec3(1.0)))) return 1.0;
+    float lit = 0.0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+            lit += texture(u_shadow_map, vec3(p.xy + vec2(dx, dy) * u_shadow_texel, p.z));
+    return lit / 9.0;
+}
+
 void main() {
     vec3 view_dir = normalize(-v_view_pos);
     vec3 n = normalize(v_normal);
     if (dot(n, view_dir) < 0.0) n = -n;  // two-sided: open sheets (ground, panels)
+    float sun = sun_visibility(n);       // by the mesh normal: the normal map only shades
     if (u_has_normal_map) n = perturbed_normal(n, view_dir);
 
     vec4 base = u_base_color * vec4(srgb_to_linear(texture(u_base_color_map, v_uv).rgb), 1.0);
@@ -69,7 +89,7 @@ void main() {
     vec3 F = f0 + (1.0 - f0) * pow(1.0 - vh, 5.0);
     vec3 specular = D * G * F / max(4.0 * nl * nv, 1e-4);
     vec3 diffuse = (1.0 - F) * (1.0 - metallic) * base.rgb / PI;
-    vec3 direct = (diffuse + specular) * u_sun_color * nl;
+    vec3 direct = (diffuse + specular) * u_sun_color * nl * sun;
 
     // Hemisphere ambient: diffuse by the normal, specular by the reflected direction.
     float up_n = dot(n, u_up) * 0.5 + 0.5;

@@ -17,6 +17,7 @@ def test_presets_set_every_knob():
         assert c.render.msaa == q.msaa and c.materials.texture_size == q.texture_size
         assert c.damage.resolution == q.damage_resolution and c.damage.octaves == q.octaves
         assert c.environment.cylinder_segments == q.cylinder_segments
+        assert c.render.shadow_map_px == q.shadow_map_px
     default = apply_quality(Config(), "default")
     assert default == Config()
     with pytest.raises(ValueError, match="choose one of"):

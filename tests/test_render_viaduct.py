@@ -157,3 +157,27 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
                 assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
     finally:
         culled.renderer.release()
+
+
+def test_parts_that_only_cast_shadows_into_a_view_are_kept():
+    import dataclasses
+
+    from glsynth.render import EnvironmentView, preview_config
+    from glsynth.scene import build_scene
+    from glsynth.visibility import visible_parts
+
+    config = preview_config(Config(), 160)
+    config = dataclasses.replace(config, cameras=dataclasses.replace(
+        config.cameras, n_regular=3, n_closeup=3))
+    view = EnvironmentView.open(config, 0, 1)
+    try:
+        seen = visible_parts(view.environment.parts, [view.camera(i).camera for i in range(6)])
+        assert seen < set(view.scene.parts) < {p.name for p in view.environment.parts}
+        kept = [view.render(i)[1].color for i in range(6)]
+        view.renderer.load(build_scene([p for p in view.environment.parts if p.name in seen],
+                                       view.dressing.materials))
+        seen_only = [view.render(i)[1].color for i in range(6)]
+        # Dropping the unseen casters would lose shadows in some view.
+        assert any(not np.array_equal(a, b) for a, b in zip(kept, seen_only))
+    finally:
+        view.renderer.release()

@@ -7,7 +7,8 @@ import moderngl
 from glsynth.paths import shader_dir
 
 # Program name -> (vertex shader file, fragment shader file).
-PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag")}
+PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
+            "shadow": ("shadow.vert", "shadow.frag")}
 
 
 @cache

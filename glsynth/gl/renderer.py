@@ -1,6 +1,8 @@
 """Offscreen renderer: draws a glsynth RenderScene (a pyrender Scene) with glsynth's programs.
 
 Passes:
+- shadow (before colour, when [render] shadow_map_px > 0): depth from the sun into a depth
+  texture fitted to this camera's view (glsynth.sunlight);
 - colour: PBR into an RGBA8 target, multisampled when msaa > 0 and resolved before read-back;
 - labels: one draw per part into one RGBA32F target holding (component id, damage id, linear
   depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis.
@@ -21,9 +23,12 @@ from glsynth.gl.programs import compile_programs
 from glsynth.labels import Component, Damage
 from glsynth.materials import Material
 from glsynth.scene import RenderScene
+from glsynth.sunlight import shadow_matrix, shadow_texel_m, sun_direction
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
 _LABEL_PASSES = frozenset({"component", "damage", "depth"})
+_GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
+_CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,13 @@ class Renderer:
                                             ctx.depth_renderbuffer(size, samples=samples))
         self.label_target = ctx.renderbuffer(size, 4, dtype="f4")
         self.label_fbo = ctx.framebuffer([self.label_target], ctx.depth_renderbuffer(size))
+        # Without shadows a 1x1 map stays bound, so the shadow sampler always has a depth texture.
+        side = self.config.shadow_map_px or 1
+        self.shadow_map = ctx.depth_texture((side, side))
+        self.shadow_map.compare_func = "<="  # sampler2DShadow: the hardware compares (and
+        self.shadow_map.filter = (moderngl.LINEAR, moderngl.LINEAR)  # filters 2x2 of) results
+        self.shadow_map.repeat_x = self.shadow_map.repeat_y = False
+        self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_map)
 
     def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
         key = id(array)
@@ -125,6 +137,8 @@ class Renderer:
                     "labels": self.ctx.vertex_array(
                         self.programs["labels"],
                         [(vbo, "3f 12x 2f", "in_position", "in_uv")], ibo, 4),
+                    "shadow": self.ctx.vertex_array(
+                        self.programs["shadow"], [(vbo, "3f 20x", "in_position")], ibo, 4),
                 }
                 textures = {slot: self._upload_texture(array) for slot, array in (
                     ("base", mat.base_color_map), ("mr", mat.metallic_roughness_map),
@@ -165,8 +179,30 @@ class Renderer:
         normal = np.linalg.inv(modelview[:3, :3]).T
         return (modelview.astype("f4").T.tobytes(), normal.astype("f4").T.tobytes())
 
+    def _shadow_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray | None:
+        """Draw the sun's depth; return the shadow map's clip-from-world matrix."""
+        if not self.config.shadow_map_px or not draws:
+            return None
+        light = shadow_matrix(camera, self.config)
+        prog = self.programs["shadow"]
+        self.shadow_fbo.use()
+        self.shadow_fbo.clear(depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        # Slope-scaled offset against shadow acne on surfaces grazed by the sun; depth clamping
+        # keeps casters on the sun side of the map's range (glsynth.sunlight).
+        self.ctx.polygon_offset = (2.0, 4.0)
+        self.ctx.enable_direct(_GL_DEPTH_CLAMP)
+        for draw in draws:
+            prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
+            draw.vaos["shadow"].render()
+        self.ctx.disable_direct(_GL_DEPTH_CLAMP)
+        self.ctx.polygon_offset = (0.0, 0.0)
+        return light
+
     def _color_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
+        light = self._shadow_pass(camera, draws)
         fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
         fbo.use()
         sky = cfg.sky_rgb
@@ -176,8 +212,7 @@ class Renderer:
         self.ctx.disable(moderngl.CULL_FACE)
         view = camera.view()
         view3 = view[:3, :3]
-        el, az = math.radians(cfg.sun_elevation_deg), math.radians(cfg.sun_azimuth_deg)
-        sun = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        sun = sun_direction(cfg)
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
         prog["u_sun_dir"].value = tuple(view3 @ sun)
         prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
@@ -186,8 +221,16 @@ class Renderer:
         prog["u_ground_color"].value = tuple(cfg.ambient_intensity * 0.35 * np.array(sky))
         prog["u_exposure"].value = cfg.exposure
         for unit, name in enumerate(("u_base_color_map", "u_metallic_roughness_map",
-                                     "u_emissive_map", "u_normal_map")):
+                                     "u_emissive_map", "u_normal_map", "u_shadow_map")):
             prog[name].value = unit
+        prog["u_has_shadows"].value = light is not None
+        self.shadow_map.use(4)
+        if light is not None:
+            shadow_from_view = _CLIP_TO_TEXTURE @ light @ camera.pose
+            prog["u_shadow_from_view"].write(shadow_from_view.astype("f4").T.tobytes())
+            prog["u_shadow_texel"].value = 1.0 / cfg.shadow_map_px
+            # 1.5 texels along the normal lifts the lookup clear of the surface's own texels.
+            prog["u_shadow_offset_m"].value = 1.5 * shadow_texel_m(light, cfg.shadow_map_px)
         for draw in draws:
             modelview, normal = self._matrices(view, draw.pose)
             prog["u_modelview"].write(modelview)
