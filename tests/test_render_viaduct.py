@@ -5,16 +5,16 @@ import json
 
 import numpy as np
 import pytest
-import trimesh
 from glhelpers import render_config
 from PIL import Image
-from trimesh.ray.ray_pyembree import RayMeshIntersector
 
 from glsynth.cameras import environment_camera
 from glsynth.cli import main
 from glsynth.config import Config
 from glsynth.gl.renderer import Renderer
 from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.raycast import mask_lookup
+from glsynth.raycast import ray_cast as glsynth_ray_cast
 from glsynth.scene import build_scene, default_materials
 
 RC = render_config(160, 90)
@@ -36,22 +36,8 @@ def cam(env0, index):
 
 def ray_cast(env0, camera):
     """Nearest hit per pixel centre: (depth along the optical axis, component id), sky = inf."""
-    meshes = [trimesh.Trimesh(p.world_vertices(), p.mesh.faces, process=False)
-              for p in env0.parts]
-    face_component = np.concatenate([np.full(len(p.mesh.faces), int(p.component))
-                                     for p in env0.parts])
-    scene = trimesh.util.concatenate(meshes)
-    origin, dirs = camera.rays()
-    d = dirs.reshape(-1, 3)
-    tri, ray, loc = RayMeshIntersector(scene).intersects_id(
-        np.repeat(origin[None], len(d), 0), d, multiple_hits=False, return_locations=True)
-    depth = np.full(len(d), np.inf)
-    comp = np.ones(len(d), np.uint8)
-    # Depth along the optical axis: the ray parameter, as the directions have unit axial length.
-    depth[ray] = np.einsum("ij,ij->i", loc - origin, d[ray]) / np.einsum("ij,ij->i", d[ray], d[ray])
-    comp[ray] = face_component[tri]
-    h, w = camera.height, camera.width
-    return depth.reshape(h, w), comp.reshape(h, w)
+    truth = glsynth_ray_cast(env0.parts, default_materials(env0), camera)
+    return np.where(truth.depth < camera.zfar, truth.depth, np.inf), truth.component
 
 
 @pytest.mark.parametrize("index", [0, 55])
@@ -179,5 +165,29 @@ def test_parts_that_only_cast_shadows_into_a_view_are_kept():
         seen_only = [view.render(i)[1].color for i in range(6)]
         # Dropping the unseen casters would lose shadows in some view.
         assert any(not np.array_equal(a, b) for a, b in zip(kept, seen_only))
+    finally:
+        view.renderer.release()
+
+
+def test_mask_lookup_samples_like_gl():
+    mask = np.arange(12, dtype=np.uint8).reshape(3, 4)  # row 0 is the image's top
+    uv = np.array([[0.0, 0.0], [0.999, 0.999], [1.1, -0.1], [0.3, 0.5]])
+    assert mask_lookup(mask, uv).tolist() == [8, 3, 0, 5]  # (1.1, -0.1) wraps to the top
+
+
+def test_damage_labels_match_the_ray_cast_through_the_damage_masks():
+    from glsynth.render import EnvironmentView, preview_config
+
+    view = EnvironmentView.open(preview_config(Config(), 320), 0, 0)
+    try:
+        damaged = 0.0
+        for index in (0, 60, 75):
+            placement, out = view.render(index)
+            truth = glsynth_ray_cast(view.environment.parts, view.dressing.materials,
+                                     placement.camera)
+            assert (out.damage == truth.damage).mean() > 0.9999
+            assert (out.component == truth.component).mean() > 0.9999
+            damaged = max(damaged, float((truth.damage >= 2).mean()))
+        assert damaged > 0.05
     finally:
         view.renderer.release()
