@@ -183,14 +183,17 @@ def plot_trade_curve(result: dict, path: Path) -> None:
 
     names = list(result["presets"])
     rows = [result["presets"][n] for n in names]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8))
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
     x = [r["time_per_sample_s"] for r in rows]
-    a.plot(x, [r["psnr_db"] for r in rows], "o-")
+    # The reference against itself has no finite PSNR: left out of the colour panel.
+    colour = [(n, xi, r["psnr_db"]) for n, xi, r in zip(names, x, rows) if r["psnr_db"] < 99]
+    a.plot([c[1] for c in colour], [c[2] for c in colour], "o-")
+    for name, xi, psnr in colour:
+        a.annotate(name, (xi, psnr), textcoords="offset points", xytext=(4, 4))
     b.plot(x, [100 * r["vs_raycast"]["component_agreement"] for r in rows], "o-",
            label="components")
     b.plot(x, [100 * r["vs_raycast"]["damage_agreement"] for r in rows], "s-", label="damage")
     for name, xi, r in zip(names, x, rows):
-        a.annotate(name, (xi, r["psnr_db"]), textcoords="offset points", xytext=(4, 4))
         b.annotate(name, (xi, 100 * r["vs_raycast"]["component_agreement"]),
                    textcoords="offset points", xytext=(4, 4))
     a.set_xlabel("time per sample [s]"), a.set_ylabel("colour PSNR vs reference [dB]")
