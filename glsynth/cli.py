@@ -269,6 +269,37 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
     print(f"-> {args.out}/quality.md, quality.png, quality.json")
 
 
+def _samples(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give sample counts >= 1, comma-separated "
+                                         "(e.g. 1,16,64)")
+    return values
+
+
+def cmd_bench_blender(args: argparse.Namespace) -> int:
+    from glsynth.blender import bench_blender, blender_table, find_blender
+
+    blender = find_blender(args.blender)
+    if blender is None:
+        print("glsynth bench blender: Blender is not installed, so nothing was measured. "
+              "Install the Debian package `blender` (apt-get install blender) or pass "
+              "--blender PATH; this bench is optional.", file=sys.stderr)
+        return 0
+    config = _config(args)
+    n = config.cameras.n_regular + config.cameras.n_closeup
+    if not 0 <= args.camera < n:
+        raise ValueError(f"--camera {args.camera}: this config has cameras 0 to {n - 1}")
+    result = bench_blender(config, args.seed, args.env, args.camera, args.samples,
+                           Path(args.out), blender, args.timeout_min * 60)
+    print(blender_table(result), end="")
+    print(f"-> {args.out}/blender.md, blender.json, blender_*spp.png")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -385,7 +416,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     p.set_defaults(func=cmd_assess)
 
-    p = sub.add_parser("bench", help="measurements: 'quality' (speed against accuracy)")
+    p = sub.add_parser("bench", help="measurements: 'quality' (speed against accuracy), "
+                                     "'blender' (against Cycles, if Blender is installed)")
     bench = p.add_subparsers(dest="bench", required=True)
     q = bench.add_parser("quality", help="render fixed views under each quality preset")
     _add_config_args(q)
@@ -395,6 +427,19 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--presets", default=None, help="comma-separated (default: all)")
     q.add_argument("--out", required=True)
     q.set_defaults(func=cmd_bench_quality)
+    b = bench.add_parser("blender", help="one camera in Blender Cycles against glsynth: time, "
+                                         "component labels, depth (optional)")
+    _add_config_args(b)
+    _add_quality_arg(b)
+    b.add_argument("--seed", type=_seed, default=0)
+    b.add_argument("--env", type=_seed, default=0)
+    b.add_argument("--camera", type=int, default=0, help="camera index in the environment")
+    b.add_argument("--samples", type=_samples, default=[1, 16],
+                   help="Cycles sample counts, comma-separated (default 1,16)")
+    b.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
+    b.add_argument("--timeout-min", type=float, default=30.0)
+    b.add_argument("--out", required=True)
+    b.set_defaults(func=cmd_bench_blender)
 
     p = sub.add_parser("textures", help="generate a procedural texture repository folder")
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")

@@ -16,11 +16,19 @@ for pkg in "${system_packages[@]}"; do
     dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" \
         || missing+=("$pkg")
 done
+export DEBIAN_FRONTEND=noninteractive
 if [ ${#missing[@]} -gt 0 ]; then
     echo "installing system packages: ${missing[*]}"
-    export DEBIAN_FRONTEND=noninteractive
     apt-get update -qq
     apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+# Optional: Blender, with the numpy its glTF importer needs, for `glsynth bench blender` and its
+# test (about 90 MB). GLSYNTH_NO_BLENDER=1 skips it; if it cannot be installed, only that bench
+# and test are skipped.
+if [ -z "${GLSYNTH_NO_BLENDER:-}" ] && ! command -v blender >/dev/null; then
+    echo "installing Blender (optional; GLSYNTH_NO_BLENDER=1 skips it)"
+    { apt-get update -qq && apt-get install -y -qq --no-install-recommends blender python3-numpy; } \
+        >/dev/null 2>&1 || echo "note: could not install Blender; glsynth bench blender will skip"
 fi
 
 stamp=.venv/.glsynth-install

@@ -1,0 +1,141 @@
+"""Runs inside Blender (``blender -b --factory-startup -P blender_job.py -- job.json``), never
+imported by glsynth: renders one exported environment from one glsynth camera in Cycles.
+
+For each sample count it renders colour (the glTF's flat preview materials, glsynth's sun and
+sky) and times ``bpy.ops.render.render``. Then one label render: every material becomes an
+emission of strength = component id, 1 sample with a 0.01 px box filter (so each pixel sees its
+centre), no bounces, written with the Z pass (distance along the optical axis) to float EXR,
+and saved as raw float32 RGBA (bottom row first), as Debian's Blender has no numpy. glsynth's export keeps world coordinates through
+glTF's y-up (Blender's importer turns it back), so the camera pose is used as it is.
+"""
+
+import json
+import sys
+import time
+from array import array
+from pathlib import Path
+
+import bpy
+from mathutils import Matrix, Vector
+
+
+def patch_numpy_for_gltf_importer() -> None:
+    """Blender 3.4's glTF importer uses np.bool, which numpy 1.24-1.26 removed (numpy 2 has it
+    again); Debian pairs Blender 3.4.1 with numpy 1.24, so the import fails without this."""
+    import numpy
+
+    if "bool" not in numpy.__dict__:
+        numpy.bool = numpy.bool_
+
+
+def setup_scene(job: dict) -> bpy.types.Scene:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    patch_numpy_for_gltf_importer()
+    bpy.ops.import_scene.gltf(filepath=job["glb"])
+    scene = bpy.context.scene
+    cam = job["camera"]
+    data = bpy.data.cameras.new("glsynth")
+    data.sensor_fit = "HORIZONTAL"
+    data.sensor_width, data.lens = cam["sensor_mm"], cam["focal_mm"]
+    data.clip_start, data.clip_end = cam["znear"], cam["zfar"]
+    camera = bpy.data.objects.new("glsynth", data)
+    camera.matrix_world = Matrix(cam["pose"])  # world-from-camera, looking down -z, as Blender
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sun.data.energy = job["sun_strength"]
+    sun.rotation_euler = (-Vector(job["sun_direction"])).to_track_quat("-Z", "Y").to_euler()
+    scene.collection.objects.link(sun)
+    world = bpy.data.worlds.new("sky")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*job["sky_rgb"], 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = job["sky_strength"]
+    scene.world = world
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x, scene.render.resolution_y = cam["width"], cam["height"]
+    scene.render.resolution_percentage = 100
+    scene.render.threads_mode = "AUTO"
+    return scene
+
+
+def render_colour(scene: bpy.types.Scene, samples: int, path: Path) -> float:
+    scene.cycles.samples = samples
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = str(path)
+    t0 = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return time.perf_counter() - t0
+
+
+def label_materials(ids: dict[str, int]) -> None:
+    """Emission of strength = component id on every material; unknown materials fail. The
+    importer may suffix repeated names (column.001)."""
+    for mat in bpy.data.materials:
+        name = mat.name.split(".")[0]
+        if name not in ids:
+            raise SystemExit(f"material {mat.name!r} is not a glsynth component name")
+        mat.use_nodes = True
+        nodes = mat.node_tree.nodes
+        nodes.clear()
+        emission = nodes.new("ShaderNodeEmission")
+        emission.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        emission.inputs["Strength"].default_value = float(ids[name])
+        output = nodes.new("ShaderNodeOutputMaterial")
+        mat.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+
+
+def render_labels(scene: bpy.types.Scene, ids: dict[str, int], out: Path) -> dict:
+    label_materials(ids)
+    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    scene.cycles.samples = 1
+    scene.cycles.max_bounces = 0
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 0.01
+    scene.render.dither_intensity = 0.0
+    scene.view_settings.view_transform = "Standard"
+    scene.view_layers[0].use_pass_z = True
+    scene.use_nodes = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    files = tree.nodes.new("CompositorNodeOutputFile")
+    files.base_path = str(out)
+    files.format.file_format = "OPEN_EXR"
+    files.format.color_depth = "32"
+    files.file_slots.clear()
+    for name, socket in (("labels", "Image"), ("depth", "Depth")):
+        files.file_slots.new(name)
+        tree.links.new(layers.outputs[socket], files.inputs[name])
+    t0 = time.perf_counter()
+    bpy.ops.render.render()  # the File Output node writes the EXRs
+    elapsed = time.perf_counter() - t0
+    frame = scene.frame_current
+    sizes = {}
+    for name in ("labels", "depth"):
+        path = out / f"{name}{frame:04d}.exr"
+        image = bpy.data.images.load(str(path))
+        pixels = array("f", bytes(4 * len(image.pixels)))
+        image.pixels.foreach_get(pixels)
+        (out / f"blender_{name}.f32").write_bytes(pixels.tobytes())
+        sizes[name] = list(image.size)
+        path.unlink()
+    return {"labels_depth_s": elapsed, "sizes": sizes}
+
+
+def main() -> None:
+    job = json.loads(Path(sys.argv[sys.argv.index("--") + 1]).read_text())
+    out = Path(job["out"])
+    t0 = time.perf_counter()
+    scene = setup_scene(job)
+    times = {"import_s": time.perf_counter() - t0, "colour_s": {}}
+    for samples in job["samples"]:
+        times["colour_s"][str(samples)] = render_colour(scene, samples,
+                                                        out / f"blender_{samples}spp.png")
+    times.update(render_labels(scene, job["component_ids"], out))
+    (out / "blender_times.json").write_text(json.dumps(times))
+
+
+main()
