@@ -94,10 +94,12 @@ def preview_sheet(view: EnvironmentView, cameras: list[int]) -> np.ndarray:
 
 def preview_config(config: Config, width: int) -> Config:
     """The same scene at a preview width (same aspect), without MSAA, with 256-pixel damage
-    and repository textures: geometry, cameras and damage placement are unchanged."""
+    and repository textures and at most a 1024-pixel shadow map: geometry, cameras and damage
+    placement are unchanged."""
     height = max(1, round(width * config.render.height / config.render.width))
     return replace(config,
-                   render=replace(config.render, width=width, height=height, msaa=0),
+                   render=replace(config.render, width=width, height=height, msaa=0,
+                                  shadow_map_px=min(1024, config.render.shadow_map_px)),
                    damage=replace(config.damage, resolution=min(256, config.damage.resolution)),
                    materials=replace(config.materials,
                                      texture_size=min(256, config.materials.texture_size)))

@@ -13,6 +13,7 @@ real pipeline and checks there is no NaN or inf, no invalid id, and the document
 | px/cm at zero or huge depth | 0 (unreliable) at depth <= 0, finite large values near 0 |
 | losses at zero error / absent classes | 0 with finite gradients; absent classes weight 0 |
 | bf16 against fp32 network outputs | finite, within 5 % of the fp32 output's spread |
+| sun at the zenith, grazing, below the horizon | shadows only darken; labels, depth unchanged |
 """
 
 import dataclasses
@@ -189,3 +190,29 @@ def test_bf16_against_fp32_network_outputs():
     assert torch.isfinite(half).all()
     assert float((half - reference).abs().max()) < 0.05 * float(reference.std()) * 10
     assert float((half - reference).abs().mean()) < 0.05 * float(reference.std())
+
+
+@pytest.mark.parametrize("elevation", [90.0, 50.0, 1.0, -5.0])
+def test_shadows_only_darken_with_the_sun_anywhere(elevation):
+    config = preview_config(Config(), 160)
+    config = dataclasses.replace(
+        config, render=dataclasses.replace(config.render, sun_elevation_deg=elevation),
+        cameras=dataclasses.replace(config.cameras, n_regular=2, n_closeup=2))
+    view = EnvironmentView.open(config, 0, 0)
+    unshadowed = Renderer(dataclasses.replace(config.render, shadow_map_px=0))
+    try:
+        unshadowed.load(view.scene)
+        darker = 0
+        for index in range(4):
+            placement, out = view.render(index)
+            lit = unshadowed.render(placement.camera)
+            assert_sane(out)
+            for name in ("component", "damage", "depth"):
+                assert np.array_equal(getattr(out, name), getattr(lit, name))
+            assert np.all(out.color.astype(int) <= lit.color.astype(int) + 1)
+            darker += int((out.color.astype(int) < lit.color.astype(int) - 8).any(axis=2).sum())
+        if elevation == 50.0:  # the default sun: the deck's shadow is in these views
+            assert darker > 0
+    finally:
+        unshadowed.release()
+        view.renderer.release()
