@@ -33,39 +33,35 @@ def median_ms(values: list[float]) -> float:
     return round(statistics.median(values) * 1000, 1)
 
 
+def render_ms(renderer: Renderer, view: EnvironmentView, cameras: list[int], repeats: int,
+              passes: set[str]) -> float:
+    """Median over cameras x repeats, each camera warmed up once (first use of each state)."""
+    times = []
+    for index in cameras:
+        camera = view.camera(index).camera
+        renderer.render(camera, passes)
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            renderer.render(camera, passes)
+            times.append(time.perf_counter() - t0)
+    return median_ms(times)
+
+
 def time_passes(view: EnvironmentView, cameras: list[int], repeats: int) -> dict:
     runs = {"color": {"color"}, "labels+depth": {"component", "damage", "depth"},
             "full sample": {"color", "component", "damage", "depth"}}
-    result = {}
-    for name, passes in runs.items():
-        times = []
-        for index in cameras:
-            camera = view.camera(index).camera
-            view.renderer.render(camera, passes)  # warm-up (first use of each state)
-            for _ in range(repeats):
-                t0 = time.perf_counter()
-                view.renderer.render(camera, passes)
-                times.append(time.perf_counter() - t0)
-        result[name] = median_ms(times)
-    return result
+    return {name: render_ms(view.renderer, view, cameras, repeats, passes)
+            for name, passes in runs.items()}
 
 
 def time_shadow_sizes(view: EnvironmentView, cameras: list[int], repeats: int) -> dict:
     """The colour pass (MSAA 0) with each shadow-map size; 0 is no shadows."""
     out = {}
     for px in (0, 1024, 2048, 4096):
-        cfg = dataclasses.replace(view.config.render, msaa=0, shadow_map_px=px)
-        renderer = Renderer(cfg, platform="egl")
+        renderer = Renderer(dataclasses.replace(view.config.render, msaa=0, shadow_map_px=px),
+                            platform="egl")
         renderer.load(view.scene)
-        times = []
-        for index in cameras:
-            camera = view.camera(index).camera
-            renderer.render(camera, {"color"})
-            for _ in range(repeats):
-                t0 = time.perf_counter()
-                renderer.render(camera, {"color"})
-                times.append(time.perf_counter() - t0)
-        out[f"shadow_map_px={px}"] = median_ms(times)
+        out[f"shadow_map_px={px}"] = render_ms(renderer, view, cameras, repeats, {"color"})
         renderer.release()
     return out
 

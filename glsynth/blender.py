@@ -101,7 +101,7 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
         tail = "\n".join((done.stdout + done.stderr).splitlines()[-15:])
         raise RuntimeError(f"Blender failed (exit {done.returncode}):\n{tail}")
     blender_times = json.loads((out / "blender_times.json").read_text())
-    sizes = blender_times.pop("sizes")
+    sizes, version = blender_times.pop("sizes"), blender_times.pop("blender")
     passes = {name: read_pass(out / f"blender_{name}.f32", sizes[name])
               for name in ("labels", "depth")}
     for name in passes:
@@ -109,8 +109,6 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
     scores = compare_labels_depth(output.component, output.depth, passes["labels"],
                                   passes["depth"], render.zfar_m)
     glsynth_s = statistics.median(times)
-    version = subprocess.run([blender, "--version"], capture_output=True,
-                             text=True).stdout.splitlines()[0]
     result = {
         "command": " ".join(["glsynth", *sys.argv[1:]]), "blender": version,
         "root_seed": root_seed, "env": env, "camera": camera_index,

@@ -130,7 +130,8 @@ def main() -> None:
     out = Path(job["out"])
     t0 = time.perf_counter()
     scene = setup_scene(job)
-    times = {"import_s": time.perf_counter() - t0, "colour_s": {}}
+    times = {"blender": f"Blender {bpy.app.version_string}",
+             "import_s": time.perf_counter() - t0, "colour_s": {}}
     for samples in job["samples"]:
         times["colour_s"][str(samples)] = render_colour(scene, samples,
                                                         out / f"blender_{samples}spp.png")

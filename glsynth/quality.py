@@ -12,6 +12,7 @@ A preset sets these knobs of a config (each documented in README.md):
 
 import dataclasses
 import statistics
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -116,15 +117,17 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
         t0 = time.perf_counter()
         view = EnvironmentView.open(cfg, root_seed, env)
         opened = time.perf_counter() - t0
-        renders, times = [], []
+        renders, times, placements = [], [], []
         try:
             for index in cameras:
                 t = time.perf_counter()
-                renders.append(view.render(index)[1])
+                placement, output = view.render(index)
                 times.append(time.perf_counter() - t)
+                renders.append(output)
+                placements.append(placement)
             if name == "reference":
                 parts, materials = view.environment.parts, view.dressing.materials
-                truths = [ray_cast(parts, materials, view.camera(i).camera) for i in cameras]
+                truths = [ray_cast(parts, materials, p.camera) for p in placements]
         finally:
             view.renderer.release()
         outputs[name] = renders
@@ -140,8 +143,6 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
         rows[name].update({k: statistics.median(s[k] for s in scores) for k in scores[0]})
         truth = [label_scores(o, t, zfar) for o, t in zip(outputs[name], truths)]
         rows[name]["vs_raycast"] = {k: statistics.median(s[k] for s in truth) for k in truth[0]}
-    import sys
-
     result = {"command": " ".join(["glsynth", *sys.argv[1:]]), "root_seed": root_seed,
               "env": env, "cameras": cameras,
               "note": "time_per_sample_s = median render + environment opening / cameras "

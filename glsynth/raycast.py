@@ -38,10 +38,11 @@ def mask_lookup(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
 def ray_cast(parts: Sequence[Part], materials: Mapping[str, Material],
              camera: Camera) -> RenderOutput:
     """Component, damage and depth at every pixel centre (depth zfar where nothing is hit)."""
-    meshes = [trimesh.Trimesh(p.world_vertices(), p.mesh.faces, process=False) for p in parts]
-    owner = np.concatenate([np.full(len(p.mesh.faces), i) for i, p in enumerate(parts)])
-    first_face = np.cumsum([0] + [len(p.mesh.faces) for p in parts])
-    scene = trimesh.util.concatenate(meshes)
+    faces_per_part = [len(p.mesh.faces) for p in parts]
+    scene = trimesh.util.concatenate([trimesh.Trimesh(p.world_vertices(), p.mesh.faces,
+                                                      process=False) for p in parts])
+    owner = np.repeat(np.arange(len(parts)), faces_per_part)
+    first_face = np.concatenate([[0], np.cumsum(faces_per_part)])
     origin, dirs = camera.rays()
     d = dirs.reshape(-1, 3)
     tri, ray, loc = _intersector(scene).intersects_id(
@@ -53,18 +54,19 @@ def ray_cast(parts: Sequence[Part], materials: Mapping[str, Material],
     depth[ray] = np.einsum("ij,ij->i", loc - origin, d[ray]) / np.einsum("ij,ij->i", d[ray],
                                                                          d[ray])
     hit_part = owner[tri]
+    comp[ray] = np.array([int(p.component) for p in parts], np.uint8)[hit_part]
+    # Hits grouped by part (one sort), so each damage mask is looked up once for its hits.
+    order = np.argsort(hit_part, kind="stable")
+    bounds = np.searchsorted(hit_part[order], np.arange(len(parts) + 1))
     for i, part in enumerate(parts):
-        sel = hit_part == i
-        if not sel.any():
+        hits = order[bounds[i]:bounds[i + 1]]
+        material = materials[part.name]
+        if not hits.size or material.damage_mask is None:
             continue
-        comp[ray[sel]] = int(part.component)
-        mask = materials[part.name].damage_mask
-        if mask is None:
-            continue
-        faces = part.mesh.faces[tri[sel] - first_face[i]]
-        bary = trimesh.triangles.points_to_barycentric(part.world_vertices()[faces], loc[sel])
-        uv = np.einsum("nk,nkj->nj", bary, part.mesh.visual.uv[faces])
-        damage[ray[sel]] = mask_lookup(mask, uv * materials[part.name].uv_scale)
+        bary = trimesh.triangles.points_to_barycentric(scene.triangles[tri[hits]], loc[hits])
+        face_uv = part.mesh.visual.uv[part.mesh.faces[tri[hits] - first_face[i]]]
+        uv = np.einsum("nk,nkj->nj", bary, face_uv)
+        damage[ray[hits]] = mask_lookup(material.damage_mask, uv * material.uv_scale)
     h, w = camera.height, camera.width
     return RenderOutput(component=comp.reshape(h, w), damage=damage.reshape(h, w),
                         depth=depth.reshape(h, w).astype(np.float32))

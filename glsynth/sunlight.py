@@ -47,8 +47,10 @@ def frustum_corners(camera: Camera, distance: float) -> np.ndarray:
     return cam @ camera.pose[:3, :3].T + camera.pose[:3, 3]
 
 
-def _light_box(points: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    local = points.reshape(-1, 3) @ frame.T
+def _shadowed_box(camera: Camera, render: RenderConfig,
+                  frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Light-space bounds (lo, hi) of the camera's shadowed range."""
+    local = frustum_corners(camera, render.shadow_distance_m) @ frame.T
     return local.min(0), local.max(0)
 
 
@@ -56,7 +58,7 @@ def shadow_matrix(camera: Camera, render: RenderConfig) -> np.ndarray:
     """Clip-from-world orthographic matrix (4x4, float64) of the sun's shadow map for this
     camera. Depth -1 is the sun side of the shadowed range, +1 its far side."""
     frame = light_frame(sun_direction(render))
-    lo, hi = _light_box(frustum_corners(camera, render.shadow_distance_m), frame)
+    lo, hi = _shadowed_box(camera, render, frame)
     z_sun, z_far = hi[2] + 1.0, lo[2] - 1.0
     # Square texels: the shorter side of the footprint is widened to the longer one.
     half = max(hi[0] - lo[0], hi[1] - lo[1]) / 2 * 1.01 + 1e-3
@@ -72,7 +74,7 @@ def shadow_matrix(camera: Camera, render: RenderConfig) -> np.ndarray:
 
 def shadow_texel_m(matrix: np.ndarray, size_px: int) -> float:
     """World size of one shadow-map texel."""
-    return 2.0 / (matrix[0, :3] @ matrix[0, :3]) ** 0.5 / size_px
+    return 2.0 / float(np.linalg.norm(matrix[0, :3])) / size_px
 
 
 def shadow_casters(corners: np.ndarray, cameras: list[Camera],
@@ -85,7 +87,7 @@ def shadow_casters(corners: np.ndarray, cameras: list[Camera],
     p_lo, p_hi = local.min(1), local.max(1)
     casts = np.zeros(len(corners), bool)
     for camera in cameras:
-        lo, hi = _light_box(frustum_corners(camera, render.shadow_distance_m), frame)
+        lo, hi = _shadowed_box(camera, render, frame)
         casts |= (np.all(p_hi[:, :2] >= lo[:2], axis=1) & np.all(p_lo[:, :2] <= hi[:2], axis=1)
                   & (p_hi[:, 2] >= lo[2]))
     return casts
