@@ -21,11 +21,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_results  # noqa: E402
 
-from glsynth.config import DamageConfig  # noqa: E402
-from glsynth.damage import (SEVERITIES, compose_rgb, damage_maps, encode_normals,  # noqa: E402
+from glsynth.core.config import DamageConfig  # noqa: E402
+from glsynth.appearance.damage import (SEVERITIES, compose_rgb, damage_maps, encode_normals,  # noqa: E402
                             metallic_roughness, normal_components, sample_params)
-from glsynth.repository import TextureRepository, generate_repository  # noqa: E402
-from glsynth.seeding import Stream, make_rng  # noqa: E402
+from glsynth.appearance.repository import TextureRepository, generate_repository  # noqa: E402
+from glsynth.core.seeding import Stream, make_rng  # noqa: E402
 
 
 def full_set(cfg: DamageConfig, severity: str, item: int, images: list[np.ndarray]):

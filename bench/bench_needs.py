@@ -19,9 +19,9 @@ from common import write_results  # noqa: E402
 
 CHILD = """
 import dataclasses, json, resource, sys, time
-from glsynth.config import load_config
-from glsynth.render import EnvironmentView
-import glsynth.render as render
+from glsynth.core.config import load_config
+from glsynth.render.view import EnvironmentView
+import glsynth.render.view as render
 
 preset, env, mode, n = sys.argv[1], int(sys.argv[2]), sys.argv[3], int(sys.argv[4])
 config = load_config(preset)

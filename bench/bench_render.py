@@ -21,9 +21,9 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_results  # noqa: E402
 
-from glsynth.config import Config  # noqa: E402
-from glsynth.gl.renderer import Renderer  # noqa: E402
-from glsynth.render import EnvironmentView  # noqa: E402
+from glsynth.core.config import Config  # noqa: E402
+from glsynth.render.gl.renderer import Renderer  # noqa: E402
+from glsynth.render.view import EnvironmentView  # noqa: E402
 
 BLENDER_CYCLES_S = {"64 samples": 53.8, "16 samples": 13.6}  # ../shared/notes, same machine
 RAW_FLOOR_MS = 56 + 29 + 28  # minimal moderngl passes (textured colour, flat label, depth)

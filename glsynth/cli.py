@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glsynth.config import PRESETS, Config, load_config
+from glsynth.core.config import PRESETS, Config, load_config
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -18,7 +18,7 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_quality_arg(p: argparse.ArgumentParser) -> None:
-    from glsynth.quality import QUALITY
+    from glsynth.measure.quality import QUALITY
 
     p.add_argument("--quality", choices=list(QUALITY), default=None,
                    help="quality preset overriding resolution, MSAA, textures, octaves, "
@@ -40,15 +40,15 @@ def _seed(text: str) -> int:
 def _config(args: argparse.Namespace) -> Config:
     config = load_config(args.preset, args.config)
     if getattr(args, "quality", None):
-        from glsynth.quality import apply_quality
+        from glsynth.measure.quality import apply_quality
 
         config = apply_quality(config, args.quality)
     return config
 
 
 def cmd_export(args: argparse.Namespace) -> None:
-    from glsynth.environment import build_environment
-    from glsynth.export import export_environment
+    from glsynth.world.environment import build_environment
+    from glsynth.render.export import export_environment
 
     t0 = time.perf_counter()
     env = build_environment(_config(args), args.seed, args.env)
@@ -60,9 +60,9 @@ def cmd_export(args: argparse.Namespace) -> None:
 
 
 def cmd_histograms(args: argparse.Namespace) -> None:
-    from glsynth.plots import trajectory_histograms
-    from glsynth.seeding import Stream, make_rng
-    from glsynth.trajectory import generate_trajectory
+    from glsynth.core.plots import trajectory_histograms
+    from glsynth.core.seeding import Stream, make_rng
+    from glsynth.world.trajectory import generate_trajectory
 
     config = _config(args)
     count = args.count or config.dataset.n_environments
@@ -81,7 +81,7 @@ def cmd_histograms(args: argparse.Namespace) -> None:
 
 
 def cmd_render(args: argparse.Namespace) -> None:
-    from glsynth.render import EnvironmentView, describe_output, write_render
+    from glsynth.render.view import EnvironmentView, describe_output, write_render
 
     config = _config(args)
     view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
@@ -97,8 +97,8 @@ def cmd_render(args: argparse.Namespace) -> None:
 
 
 def cmd_preview(args: argparse.Namespace) -> None:
-    from glsynth.fileio import atomic_write_bytes, png_bytes
-    from glsynth.render import EnvironmentView, preview_config, preview_sheet
+    from glsynth.core.fileio import atomic_write_bytes, png_bytes
+    from glsynth.render.view import EnvironmentView, preview_config, preview_sheet
 
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)
@@ -112,7 +112,7 @@ def cmd_preview(args: argparse.Namespace) -> None:
 
 
 def cmd_textures(args: argparse.Namespace) -> None:
-    from glsynth.repository import generate_repository
+    from glsynth.appearance.repository import generate_repository
 
     t0 = time.perf_counter()
     root = generate_repository(args.out, args.seed, args.count, args.size)
@@ -123,10 +123,10 @@ def cmd_textures(args: argparse.Namespace) -> None:
 def cmd_generate(args: argparse.Namespace) -> None:
     from tqdm import tqdm
 
-    from glsynth.dataset import check_format, merge, plan, prepare_output
-    from glsynth.engines import check_engine, execute
-    from glsynth.fileio import atomic_write_bytes, atomic_write_json, png_bytes
-    from glsynth.report import contact_sheet
+    from glsynth.data.dataset import check_format, merge, plan, prepare_output
+    from glsynth.data.engines import check_engine, execute
+    from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
+    from glsynth.data.report import contact_sheet
 
     config = _config(args)
     check_format(config)
@@ -210,7 +210,7 @@ def _depth_range(text: str) -> tuple[float, float]:
 
 
 def cmd_assess(args: argparse.Namespace) -> int:
-    from glsynth.assessment import AssessSettings, assess_photos, oracle_photos
+    from glsynth.assess.condition import AssessSettings, assess_photos, oracle_photos
 
     settings = AssessSettings(args.min_px_per_cm, args.depth_range)
     out = Path(args.out)
@@ -230,7 +230,7 @@ def cmd_assess(args: argparse.Namespace) -> int:
         predictors = load_predictors(parse_runs(args.runs), args.device)
         images, focals = list(args.images), [args.focal_mm] * len(args.images)
         if args.data:
-            from glsynth.tokaido import read_manifest
+            from glsynth.data.tokaido import read_manifest
 
             result = evaluate_rrdr(predictors, Path(args.data), out / "evaluation", settings,
                                    args.split, use_focal=not args.ignore_focal,
@@ -255,7 +255,7 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_quality(args: argparse.Namespace) -> None:
-    from glsynth.quality import QUALITY, bench_quality, quality_table
+    from glsynth.measure.quality import QUALITY, bench_quality, quality_table
 
     presets = args.presets.split(",") if args.presets else list(QUALITY)
     unknown = set(presets) - set(QUALITY)
@@ -281,7 +281,7 @@ def _samples(text: str) -> list[int]:
 
 
 def cmd_bench_blender(args: argparse.Namespace) -> int:
-    from glsynth.blender import bench_blender, blender_table, find_blender
+    from glsynth.render.blender import bench_blender, blender_table, find_blender
 
     blender = find_blender(args.blender)
     if blender is None:

@@ -15,7 +15,7 @@ from PIL import Image
 from torch.utils.data import Dataset
 
 from glsynth.model.fcn58 import MIN_SIDE
-from glsynth.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
+from glsynth.data.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
 
 TASKS = ("component", "damage", "depth")
 N_OUTPUTS = {"component": 8, "damage": 3, "depth": 1}

@@ -9,14 +9,14 @@ import numpy as np
 import torch
 from PIL import Image
 
-from glsynth.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
-from glsynth.assessment import read_rgb
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
+from glsynth.assess.condition import read_rgb
 from glsynth.model.data import TokaidoDataset, image_tensor
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
 from glsynth.model.train import (CLASS_NAMES, bf16_helps, load_torch, pick_device,
                                  predict_ids)
-from glsynth.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 
 
 @dataclass
@@ -158,7 +158,7 @@ def image_scores(task: str, matrix: np.ndarray, truth: np.ndarray) -> dict:
 def plot_confusion(matrix: np.ndarray, names: list[str], path: Path) -> None:
     import matplotlib.pyplot as plt
 
-    from glsynth.plots import save_figure
+    from glsynth.core.plots import save_figure
 
     rows = matrix.sum(1, keepdims=True)
     share = np.divide(matrix, rows, out=np.zeros(matrix.shape), where=rows > 0)

@@ -9,8 +9,8 @@ import numpy as np
 import torch
 from PIL import Image
 
-from glsynth.assessment import AssessSettings, Maps, Photo, read_rgb
-from glsynth.filters import rrdr
+from glsynth.assess.condition import AssessSettings, Maps, Photo, read_rgb
+from glsynth.data.filters import rrdr
 from glsynth.model.data import image_tensor
 from glsynth.model.inference import Predictor, load_predictor, resize_map
 from glsynth.model.metrics import confusion, segmentation_scores
@@ -85,7 +85,7 @@ def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
     """Damage precision/recall/IoU on the split's damage images before and after keeping only
     pixels inside the RRDR of the predicted depth (px/cm with the manifest's focal length, or
     the depth range with use_focal False, as the paper's Table 13 does for real photos)."""
-    from glsynth.fileio import atomic_write_json
+    from glsynth.core.fileio import atomic_write_json
     from glsynth.model.data import TokaidoDataset
 
     dataset = TokaidoDataset(root, split, "damage",
@@ -140,7 +140,7 @@ def plot_iou_against_ratio(images: list[dict], path: Path) -> None:
     RRDR post-processing, over a histogram of the ratios."""
     import matplotlib.pyplot as plt
 
-    from glsynth.plots import save_figure
+    from glsynth.core.plots import save_figure
 
     ratio = np.array([r["concrete_pixel_ratio"] for r in images])
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)

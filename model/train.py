@@ -27,8 +27,8 @@ import numpy as np
 import torch
 from torch.utils.data import ConcatDataset, DataLoader, Dataset, Subset
 
-from glsynth.fileio import atomic_write_bytes, atomic_write_json
-from glsynth.tokaido import FrameRecord
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.data.tokaido import FrameRecord
 from glsynth.model.data import N_OUTPUTS, TASKS, ImageFolder, TokaidoDataset, target_size
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
@@ -403,7 +403,7 @@ def train(settings: TrainSettings, run: str | Path, log=print) -> dict:
 
 
 def plot_curves(history: list[dict], path: Path, task: str) -> None:
-    from glsynth.plots import save_figure
+    from glsynth.core.plots import save_figure
     import matplotlib.pyplot as plt
 
     epochs = [h["epoch"] for h in history]

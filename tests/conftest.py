@@ -2,8 +2,8 @@ import dataclasses
 
 import pytest
 
-from glsynth.config import Config, EnvironmentConfig
-from glsynth.environment import build_environment
+from glsynth.core.config import Config, EnvironmentConfig
+from glsynth.world.environment import build_environment
 
 
 def env_config(**environment) -> Config:

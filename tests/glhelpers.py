@@ -6,12 +6,12 @@ import numpy as np
 import trimesh
 from trimesh.visual import TextureVisuals
 
-from glsynth.cameras import Camera
-from glsynth.config import RenderConfig
-from glsynth.environment import Part
-from glsynth.labels import Component
-from glsynth.materials import Material
-from glsynth.scene import build_scene
+from glsynth.world.cameras import Camera
+from glsynth.core.config import RenderConfig
+from glsynth.world.environment import Part
+from glsynth.core.labels import Component
+from glsynth.appearance.materials import Material
+from glsynth.render.scene import build_scene
 
 
 def quad(corners: np.ndarray, uv: np.ndarray | None = None) -> trimesh.Trimesh:

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from glsynth.assessment import (AssessSettings, Maps, Photo, assess, assess_photos,
+from glsynth.assess.condition import (AssessSettings, Maps, Photo, assess, assess_photos,
                                 assessment_picture)
 from glsynth.cli import main
 
@@ -123,7 +123,7 @@ def test_a_batch_goes_on_past_bad_images_and_handles_different_sizes(tmp_path):
                                                       maps.depth_m, None)
 
     def corrupt():
-        from glsynth.assessment import read_rgb
+        from glsynth.assess.condition import read_rgb
 
         path = tmp_path / "corrupt.png"
         path.write_bytes(b"not a png")
@@ -147,7 +147,7 @@ def test_a_batch_goes_on_past_bad_images_and_handles_different_sizes(tmp_path):
 def test_oracle_cli_on_generated_data(tiny_dataset, tmp_path):
     from PIL import Image
 
-    from glsynth.tokaido import read_manifest
+    from glsynth.data.tokaido import read_manifest
 
     out = tmp_path / "oracle"
     assert main(["assess", "--oracle", str(tiny_dataset), "--out", str(out)]) == 0
@@ -179,7 +179,7 @@ def runs(tiny_dataset, tmp_path_factory):
 
 
 def test_assess_cli_with_networks(tiny_dataset, runs, tmp_path, capsys):
-    from glsynth.tokaido import read_manifest
+    from glsynth.data.tokaido import read_manifest
 
     image = tiny_dataset / read_manifest(tiny_dataset, "files_test.csv")[0].image
     corrupt = tmp_path / "corrupt.jpg"

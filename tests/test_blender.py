@@ -7,9 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
-from glsynth.blender import compare_labels_depth, read_pass
+from glsynth.render.blender import compare_labels_depth, read_pass
 from glsynth.cli import main
-from glsynth.labels import Component
+from glsynth.core.labels import Component
 
 
 def test_compare_counts_blender_sky_as_nonbridge_and_depth_where_both_hit():

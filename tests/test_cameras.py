@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from glsynth.cameras import Camera, environment_camera, euler_xyz, sample_camera
-from glsynth.config import CameraConfig, Config, RenderConfig
-from glsynth.seeding import Stream, make_rng
+from glsynth.world.cameras import Camera, environment_camera, euler_xyz, sample_camera
+from glsynth.core.config import CameraConfig, Config, RenderConfig
+from glsynth.core.seeding import Stream, make_rng
 
 CFG = Config()
 

@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from glsynth.config import (PRESETS, Config, DatasetConfig, EnvironmentConfig, config_from_dict,
+from glsynth.core.config import (PRESETS, Config, DatasetConfig, EnvironmentConfig, config_from_dict,
                             load_config)
 
 

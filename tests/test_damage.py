@@ -3,13 +3,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from glsynth.config import DamageConfig
-from glsynth.damage import (SEVERITIES, DamageParams, concrete_profile, damage_maps,
+from glsynth.core.config import DamageConfig
+from glsynth.appearance.damage import (SEVERITIES, DamageParams, concrete_profile, damage_maps,
                             encode_normals, metallic_roughness, normal_components, rebar_depth,
                             sample_params, threshold_for_area)
-from glsynth.labels import Damage
-from glsynth.noise import perlin
-from glsynth.seeding import Stream, make_rng
+from glsynth.core.labels import Damage
+from glsynth.appearance.noise import perlin
+from glsynth.core.seeding import Stream, make_rng
 
 SIZE = 128
 CFG = DamageConfig(resolution=SIZE)

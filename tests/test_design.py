@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from glsynth import design
-from glsynth.design import StandardDesign, cross_sections, is_straight, table3_row
+from glsynth.core import design
+from glsynth.core.design import StandardDesign, cross_sections, is_straight, table3_row
 
 EPS = 1e-9
 

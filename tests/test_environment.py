@@ -5,9 +5,9 @@ import pytest
 import trimesh
 from conftest import env_config
 
-from glsynth.config import Config
-from glsynth.environment import build_environment
-from glsynth.labels import Component
+from glsynth.core.config import Config
+from glsynth.world.environment import build_environment
+from glsynth.core.labels import Component
 
 PREFIXES = {"column", "beam", "slab", "rail", "sleeper", "nonstructural", "ground", "scene"}
 EXPECTED_COMPONENT = {"column": Component.COLUMN, "beam": Component.BEAM, "slab": Component.SLAB,
@@ -153,7 +153,7 @@ def test_panels_stand_at_the_configured_distance(env0):
 
 
 def test_box_uvs_run_up_the_side_faces():
-    from glsynth.meshes import box
+    from glsynth.world.meshes import box
 
     b = box((0.6, 0.8, 5.0))
     uv, normals = b.visual.uv, b.face_normals

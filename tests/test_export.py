@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from glsynth.export import export_environment
+from glsynth.render.export import export_environment
 
 ROOT = Path(__file__).resolve().parents[1]
 VALIDATOR = ROOT / ".tools" / "node_modules" / "gltf-validator"
@@ -83,7 +83,7 @@ def test_scene_json_describes_every_viaduct(exported):
 def test_straight_radius_is_null_in_json(tmp_path):
     from conftest import env_config
 
-    from glsynth.environment import build_environment
+    from glsynth.world.environment import build_environment
     env = build_environment(env_config(min_radius_m=(float("inf"), float("inf"))), 0, 0)
     export_environment(env, tmp_path / "s.glb")
     info = json.loads((tmp_path / "scene.json").read_text())

@@ -24,14 +24,14 @@ import pytest
 import torch
 from glhelpers import camera, quad, render_config, scene_of
 
-from glsynth.config import Config, DamageConfig, EnvironmentConfig
-from glsynth.damage import damage_maps, sample_params
-from glsynth.filters import pixels_per_cm, removal_reason, rrdr
-from glsynth.gl.renderer import Renderer
-from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS, Component
-from glsynth.materials import Material
-from glsynth.render import EnvironmentView, preview_config
-from glsynth.seeding import Stream, make_rng
+from glsynth.core.config import Config, DamageConfig, EnvironmentConfig
+from glsynth.appearance.damage import damage_maps, sample_params
+from glsynth.data.filters import pixels_per_cm, removal_reason, rrdr
+from glsynth.render.gl.renderer import Renderer
+from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS, Component
+from glsynth.appearance.materials import Material
+from glsynth.render.view import EnvironmentView, preview_config
+from glsynth.core.seeding import Stream, make_rng
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 
@@ -87,8 +87,8 @@ def test_viaduct_views_at_the_extremes(focal, height, radius):
 
 @pytest.mark.parametrize("area", [0.0, 1.0])
 def test_zero_and_full_damaged_area_render_as_such(small, area):
-    from glsynth.damage_bank import BankEntry, damage_material
-    from glsynth.repository import TextureRepository, generate_repository
+    from glsynth.appearance.damage_bank import BankEntry, damage_material
+    from glsynth.appearance.repository import TextureRepository, generate_repository
     import tempfile
 
     cfg = DamageConfig(resolution=64)

@@ -14,8 +14,8 @@ import pytest
 from PIL import Image
 
 from glsynth.cli import main
-from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS
-from glsynth.tokaido import read_manifest
+from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.data.tokaido import read_manifest
 
 def generate(config, out, *extra) -> int:
     return main(["generate", "--preset", "demo", "--config", str(config), "--seed", "5",
@@ -85,8 +85,8 @@ def test_ray_engine_locally_gives_the_same_dataset(small_config, reference, tmp_
 
 
 def test_ray_worker_that_cannot_see_the_output_says_so(small_config, tmp_path):
-    from glsynth.config import load_config
-    from glsynth.engines import GenerationWorker
+    from glsynth.core.config import load_config
+    from glsynth.data.engines import GenerationWorker
 
     config = load_config("demo", small_config)
     with pytest.raises(FileNotFoundError, match="shared filesystem"):

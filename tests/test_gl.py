@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 from glhelpers import camera, quad, render_config, scene_of
 
-from glsynth.gl import context as gl_context
-from glsynth.gl.programs import PROGRAMS, compile_programs
-from glsynth.gl.renderer import Renderer
-from glsynth.labels import Component
-from glsynth.materials import Material, plain_material
-from glsynth.paths import shader_dir
+from glsynth.render.gl import context as gl_context
+from glsynth.render.gl.programs import PROGRAMS, compile_programs
+from glsynth.render.gl.renderer import Renderer
+from glsynth.core.labels import Component
+from glsynth.appearance.materials import Material, plain_material
+from glsynth.core.paths import shader_dir
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 
@@ -76,7 +76,7 @@ def test_tilted_plane_matches_ray_plane_intersection(renderer, distance):
 def test_image_labels_and_depth_are_aligned(renderer):
     """An asymmetric scene: one box in the upper left of the view; a flip of rows or columns
     in any output would move it elsewhere."""
-    from glsynth.meshes import box, pose
+    from glsynth.world.meshes import box, pose
 
     b = box((1.0, 1.0, 1.0))
     b.apply_transform(pose(0.0, [-2.0, 1.2, -8.0]))
@@ -128,7 +128,7 @@ def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
 
 
 def test_msaa_changes_colour_edges_only_never_labels_or_depth():
-    from glsynth.meshes import box, pose
+    from glsynth.world.meshes import box, pose
 
     b = box((1.0, 1.0, 1.0))
     b.apply_transform(pose(0.4, [0.3, 0.2, -6.0]))
@@ -169,9 +169,9 @@ def test_unknown_platform_and_failure_message(monkeypatch):
 
 
 def test_egl_and_osmesa_render_the_same(env0):
-    from glsynth.cameras import environment_camera
-    from glsynth.config import Config
-    from glsynth.scene import build_scene, default_materials
+    from glsynth.world.cameras import environment_camera
+    from glsynth.core.config import Config
+    from glsynth.render.scene import build_scene, default_materials
 
     rc = render_config(96, 54)
     scene = build_scene(env0.parts, default_materials(env0))
@@ -191,9 +191,9 @@ def test_egl_and_osmesa_render_the_same(env0):
 
 def test_rendered_damage_plate_shows_ids_exactly_where_the_mask_says(tmp_path):
     """A real bank texture (64 px) on a plate that maps texels to pixels one to one."""
-    from glsynth.config import DamageConfig
-    from glsynth.damage_bank import DamageBank, damage_material
-    from glsynth.repository import TextureRepository, generate_repository
+    from glsynth.core.config import DamageConfig
+    from glsynth.appearance.damage_bank import DamageBank, damage_material
+    from glsynth.appearance.repository import TextureRepository, generate_repository
 
     repo = TextureRepository(generate_repository(tmp_path / "r", 0, 2, 16), 16)
     cfg = DamageConfig(resolution=64)

@@ -215,7 +215,7 @@ def test_a_run_folder_with_other_settings_is_refused(tiny_dataset, component_run
 def test_evaluate_and_predict_on_generated_data(tiny_dataset, component_run, tmp_path):
     from PIL import Image
 
-    from glsynth.tokaido import read_manifest
+    from glsynth.data.tokaido import read_manifest
 
     assert main(["evaluate", "--run", str(component_run), "--data", str(tiny_dataset),
                  "--examples", "1"]) == 0

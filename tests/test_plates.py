@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from glhelpers import render_config
 
-from glsynth.config import Config, DamageConfig
-from glsynth.damage_bank import DamageBank
-from glsynth.gl.renderer import Renderer
-from glsynth.labels import Component
-from glsynth.plates import plate_shot
-from glsynth.repository import TextureRepository, generate_repository
+from glsynth.core.config import Config, DamageConfig
+from glsynth.appearance.damage_bank import DamageBank
+from glsynth.render.gl.renderer import Renderer
+from glsynth.core.labels import Component
+from glsynth.data.plates import plate_shot
+from glsynth.appearance.repository import TextureRepository, generate_repository
 
 CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=128),
                              render=render_config(96, 54))

@@ -5,8 +5,8 @@ import json
 import pytest
 
 from glsynth.cli import main
-from glsynth.config import Config
-from glsynth.quality import QUALITY, apply_quality
+from glsynth.core.config import Config
+from glsynth.measure.quality import QUALITY, apply_quality
 
 
 def test_presets_set_every_knob():

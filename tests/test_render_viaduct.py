@@ -8,14 +8,14 @@ import pytest
 from glhelpers import render_config
 from PIL import Image
 
-from glsynth.cameras import environment_camera
+from glsynth.world.cameras import environment_camera
 from glsynth.cli import main
-from glsynth.config import Config
-from glsynth.gl.renderer import Renderer
-from glsynth.labels import COMPONENT_IDS, DAMAGE_IDS
-from glsynth.raycast import mask_lookup
-from glsynth.raycast import ray_cast as glsynth_ray_cast
-from glsynth.scene import build_scene, default_materials
+from glsynth.core.config import Config
+from glsynth.render.gl.renderer import Renderer
+from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.render.raycast import mask_lookup
+from glsynth.render.raycast import ray_cast as glsynth_ray_cast
+from glsynth.render.scene import build_scene, default_materials
 
 RC = render_config(160, 90)
 CAMERAS = Config().cameras
@@ -125,7 +125,7 @@ def test_preview_command(tmp_path):
 def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
     import dataclasses
 
-    from glsynth.render import EnvironmentView, preview_config
+    from glsynth.render.view import EnvironmentView, preview_config
 
     config = preview_config(Config(), 160)
     config = dataclasses.replace(config, cameras=dataclasses.replace(
@@ -148,9 +148,9 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
 def test_parts_that_only_cast_shadows_into_a_view_are_kept():
     import dataclasses
 
-    from glsynth.render import EnvironmentView, preview_config
-    from glsynth.scene import build_scene
-    from glsynth.visibility import visible_parts
+    from glsynth.render.view import EnvironmentView, preview_config
+    from glsynth.render.scene import build_scene
+    from glsynth.world.visibility import visible_parts
 
     config = preview_config(Config(), 160)
     config = dataclasses.replace(config, cameras=dataclasses.replace(
@@ -176,7 +176,7 @@ def test_mask_lookup_samples_like_gl():
 
 
 def test_damage_labels_match_the_ray_cast_through_the_damage_masks():
-    from glsynth.render import EnvironmentView, preview_config
+    from glsynth.render.view import EnvironmentView, preview_config
 
     view = EnvironmentView.open(preview_config(Config(), 320), 0, 0)
     try:

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from glsynth.repository import TextureRepository, generate_repository
-from glsynth.seeding import Stream, make_rng
-from glsynth.texgen import CATEGORIES
+from glsynth.appearance.repository import TextureRepository, generate_repository
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.appearance.texgen import CATEGORIES
 
 
 @pytest.fixture()

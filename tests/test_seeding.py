@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from glsynth.seeding import Stream, make_rng
+from glsynth.core.seeding import Stream, make_rng
 
 
 def test_same_inputs_same_stream_and_independent_items():

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from glhelpers import camera, quad, render_config, scene_of
 
-from glsynth.config import RenderConfig
-from glsynth.gl.renderer import Renderer
-from glsynth.labels import Component
-from glsynth.materials import Material
-from glsynth.sunlight import (frustum_corners, light_frame, shadow_casters, shadow_matrix,
+from glsynth.core.config import RenderConfig
+from glsynth.render.gl.renderer import Renderer
+from glsynth.core.labels import Component
+from glsynth.appearance.materials import Material
+from glsynth.world.sunlight import (frustum_corners, light_frame, shadow_casters, shadow_matrix,
                               shadow_texel_m, sun_direction)
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))

@@ -3,9 +3,9 @@ import re
 import numpy as np
 import pytest
 
-from glsynth.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
-from glsynth.labels import Damage
-from glsynth.tokaido import (FrameRecord, PuretexRecord, decode_depth, downsample_labels,
+from glsynth.data.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
+from glsynth.core.labels import Damage
+from glsynth.data.tokaido import (FrameRecord, PuretexRecord, decode_depth, downsample_labels,
                              encode_depth, frame_paths, manifest_text, read_manifest)
 
 

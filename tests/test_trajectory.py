@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from glsynth.config import EnvironmentConfig
-from glsynth.seeding import Stream, make_rng
-from glsynth.trajectory import band_limited_noise, enforce_constraints, generate_trajectory
+from glsynth.core.config import EnvironmentConfig
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.world.trajectory import band_limited_noise, enforce_constraints, generate_trajectory
 
 L = 24.0
 

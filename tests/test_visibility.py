@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 from glhelpers import camera
 
-from glsynth.environment import Part
-from glsynth.labels import Component
-from glsynth.meshes import box, pose
-from glsynth.visibility import visible_parts
+from glsynth.world.environment import Part
+from glsynth.core.labels import Component
+from glsynth.world.meshes import box, pose
+from glsynth.world.visibility import visible_parts
 
 
 def part(name, xyz, size=1.0):
@@ -28,8 +28,8 @@ def test_frustum_cases(name, xyz, seen):
 
 
 def test_union_over_cameras_and_environment_columns(env0):
-    from glsynth.cameras import environment_camera
-    from glsynth.config import Config
+    from glsynth.world.cameras import environment_camera
+    from glsynth.core.config import Config
 
     cfg = Config()
     cams = [environment_camera(env0.trajectory, cfg.cameras, cfg.render, 0, 0, i).camera

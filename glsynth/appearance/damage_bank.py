@@ -1,0 +1,110 @@
+"""The damage-texture bank (paper: 1,000 textures per severity), made lazily and cached.
+
+Texture k of a severity comes from its own generator, make_rng(root_seed, 0, DAMAGE_BANK, item),
+so it is the same whichever columns ask for it and in which order. Only the seed-determined
+part is cached on disk (mask, displacement, parameters, image choices; compressed .npz); the
+RGB, metallic-roughness and normal maps are rebuilt from it and the repository on load.
+"""
+
+import dataclasses
+import hashlib
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from glsynth.core.config import DamageConfig
+from glsynth.appearance.damage import (SEVERITIES, DamageMaps, DamageParams, compose_rgb, damage_maps,
+                            encode_normals, metallic_roughness, normal_components,
+                            sample_params)
+from glsynth.core.fileio import atomic_write_bytes
+from glsynth.appearance.materials import Material
+from glsynth.appearance.repository import TextureRepository, cache_root
+from glsynth.core.seeding import Stream, make_rng
+
+BANK_VERSION = 1
+
+
+@dataclass(frozen=True)
+class BankEntry:
+    severity: str
+    index: int
+    params: DamageParams
+    maps: DamageMaps
+    images: tuple[int, int, int]
+    """Repository indices: intact concrete, damaged concrete, steel."""
+
+
+class DamageBank:
+    def __init__(self, cfg: DamageConfig, root_seed: int, cache_dir: Path | None = None
+                 ) -> None:
+        self.cfg = cfg
+        self.root_seed = root_seed
+        key = json.dumps([BANK_VERSION, root_seed, dataclasses.asdict(cfg)], sort_keys=True)
+        digest = hashlib.sha256(key.encode()).hexdigest()[:16]
+        self.dir = (cache_dir or cache_root()) / f"damage-{digest}"
+        self.generated = 0
+        self.loaded = 0
+
+    def _item(self, severity: str, index: int) -> int:
+        if severity not in SEVERITIES:
+            raise ValueError(f"severity = {severity!r}: choose one of {SEVERITIES}")
+        if not 0 <= index < self.cfg.bank_size:
+            raise ValueError(f"bank index = {index}: must be in [0, {self.cfg.bank_size - 1}]")
+        return SEVERITIES.index(severity) * 10**6 + index
+
+    def entry(self, severity: str, index: int, repository: TextureRepository) -> BankEntry:
+        item = self._item(severity, index)
+        path = self.dir / f"{severity}_{index:06d}.npz"
+        if path.exists():
+            self.loaded += 1
+            return self._read(path, severity, index)
+        rng = make_rng(self.root_seed, 0, Stream.DAMAGE_BANK, item)
+        params = sample_params(self.cfg, severity, rng)
+        images = (int(rng.integers(repository.count("concrete"))),
+                  int(rng.integers(repository.count("concrete"))),
+                  int(rng.integers(repository.count("steel"))))
+        maps = damage_maps(params, self.cfg, rng)
+        entry = BankEntry(severity, index, params, maps, images)
+        self._write(path, entry)
+        self.generated += 1
+        return entry
+
+    def _write(self, path: Path, entry: BankEntry) -> None:
+        buf = io.BytesIO()
+        meta = {"params": dataclasses.asdict(entry.params), "images": entry.images,
+                "threshold": entry.maps.threshold}
+        np.savez_compressed(buf, mask=entry.maps.mask, displacement=entry.maps.displacement_m,
+                            meta=np.frombuffer(json.dumps(meta).encode(), np.uint8))
+        atomic_write_bytes(path, buf.getvalue())
+
+    def _read(self, path: Path, severity: str, index: int) -> BankEntry:
+        with np.load(path) as data:
+            meta = json.loads(data["meta"].tobytes())
+            maps = DamageMaps(data["mask"], data["displacement"], meta["threshold"])
+        p = meta["params"]
+        params = DamageParams(**{**p, "period_px": tuple(p["period_px"])})
+        return BankEntry(severity, index, params, maps, tuple(meta["images"]))
+
+
+def damage_material(entry: BankEntry, repository: TextureRepository, cfg: DamageConfig,
+                    scale: float) -> Material:
+    """The PBR material of a damaged column: RGB, metallic-roughness and normal maps plus the
+    damage-id mask, repeating every tile_m / scale metres."""
+    size = entry.maps.mask.shape[0]
+    images = [_fit(repository.image(cat, i), size)
+              for cat, i in zip(("concrete", "concrete", "steel"), entry.images)]
+    normals = normal_components(entry.maps.displacement_m, cfg.tile_m / size)
+    return Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0,
+                    uv_scale=scale / cfg.tile_m,
+                    base_color_map=compose_rgb(entry.maps.mask, *images),
+                    metallic_roughness_map=metallic_roughness(entry.maps.mask),
+                    normal_map=encode_normals(*normals), damage_mask=entry.maps.mask)
+
+
+def _fit(image: np.ndarray, size: int) -> np.ndarray:
+    """Tile or crop a square repository image to size x size."""
+    reps = -(-size // image.shape[0])
+    return np.tile(image, (reps, reps, 1))[:size, :size]

@@ -1,0 +1,80 @@
+"""Dress an environment: a material for every part (Section 3.2) and damage for the columns
+(Section 3.3), from the texture repository and the damage bank.
+
+Each part draws from its own generator (MATERIALS stream, item = its index in the environment's
+part list; sleepers per viaduct; column damage from the DAMAGE stream), so a part's material
+never depends on which other parts are built. Damage textures are built only for columns in
+``visible`` (seen by some camera of the environment); a damaged column no camera sees keeps its
+sampled damage record but is drawn with plain concrete, which no image can show.
+"""
+
+from dataclasses import dataclass, replace
+
+from glsynth.core.config import Config
+from glsynth.appearance.damage import SEVERITIES
+from glsynth.appearance.damage_bank import DamageBank, damage_material
+from glsynth.world.environment import Environment
+from glsynth.appearance.materials import Assignment, Material, part_kind, sample_assignment
+from glsynth.appearance.repository import TextureRepository, builtin_repository
+from glsynth.core.seeding import Stream, make_rng
+
+SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
+_SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
+
+
+@dataclass(frozen=True)
+class Dressing:
+    materials: dict[str, Material]
+    assignments: dict[str, Assignment]
+
+
+def open_repository(config: Config) -> TextureRepository:
+    m = config.materials
+    root = m.repository or builtin_repository(m.repository_seed, m.images_per_category,
+                                              m.texture_size)
+    return TextureRepository(root, m.texture_size)
+
+
+def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> dict:
+    d = config.damage
+    rng = make_rng(root_seed, env, Stream.DAMAGE, ordinal)
+    if rng.random() < d.undamaged_probability:
+        return {"damaged": False}
+    return {"damaged": True, "severity": SEVERITIES[int(rng.integers(len(SEVERITIES)))],
+            "bank_index": int(rng.integers(d.bank_size)), "scale": float(rng.uniform(*d.scale))}
+
+
+def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
+          visible: set[str]) -> Dressing:
+    cfg = config.materials
+    root, index = env.root_seed, env.env_index
+    materials, assignments = {}, {}
+    for ordinal, part in enumerate(env.parts):
+        kind = part_kind(part.name)
+        if kind == "sleeper":
+            rng = make_rng(root, index, Stream.MATERIALS, _SLEEPER_ITEM + part.viaduct)
+            category = SLEEPER_CATEGORIES[int(rng.integers(len(SLEEPER_CATEGORIES)))]
+        else:
+            rng = make_rng(root, index, Stream.MATERIALS, ordinal)
+            category = ""
+        a = sample_assignment(kind, cfg, rng, category, repository.count)
+        image = repository.image(a.category, a.image)
+        if kind == "scene":
+            material = Material(base_color=(0.0, 0.0, 0.0, 1.0), roughness=1.0,
+                                emissive=(cfg.panel_emission,) * 3, emissive_map=image)
+        else:
+            material = Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=a.metallic,
+                                roughness=a.roughness, uv_scale=a.scale, base_color_map=image)
+        if kind == "column":
+            damage = _column_damage(config, root, index, ordinal)
+            if damage["damaged"]:
+                damage["built"] = part.name in visible
+                if damage["built"]:
+                    entry = bank.entry(damage["severity"], damage["bank_index"], repository)
+                    material = damage_material(entry, repository, config.damage,
+                                               damage["scale"])
+                    damage.update(params=entry.params, images=list(entry.images))
+            a = replace(a, damage=damage)
+        materials[part.name] = material
+        assignments[part.name] = a
+    return Dressing(materials, assignments)

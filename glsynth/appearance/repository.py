@@ -1,0 +1,116 @@
+"""The texture repository: image folders by category, as in the paper (Section 2.3).
+
+A repository is a folder with one sub-folder per category (concrete, steel, painted, wood,
+ground, scene) holding images (.png, .jpg, .jpeg, .bmp, .tif). Users point glsynth at their own
+photos in this layout; by default glsynth generates a procedural one (glsynth.appearance.texgen) once,
+deterministically from a seed, and caches it under $GLSYNTH_CACHE (default ~/.cache/glsynth).
+
+An image that cannot be read is skipped with a warning naming it, and the next readable image
+of its category is used instead, so a bad file never stops a long run; a category with no
+readable image is an error that says what to fix.
+"""
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+from glsynth.core.fileio import atomic_write_bytes, png_bytes
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.appearance.texgen import CATEGORIES
+
+EXTENSIONS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
+GENERATOR_VERSION = 1
+
+
+def cache_root() -> Path:
+    return Path(os.environ.get("GLSYNTH_CACHE") or Path.home() / ".cache" / "glsynth")
+
+
+class TextureRepository:
+    """Images of each category, loaded lazily, resized to size x size RGB, kept in memory."""
+
+    def __init__(self, root: str | Path, size: int) -> None:
+        self.root = Path(root)
+        self.size = size
+        self.files: dict[str, list[Path]] = {}
+        if not self.root.is_dir():
+            raise ValueError(f"texture repository {str(self.root)!r} is not a folder. Point "
+                             "[materials] repository at a folder with sub-folders "
+                             f"{sorted(CATEGORIES)}, or leave it empty for the built-in one.")
+        for category in CATEGORIES:
+            folder = self.root / category
+            files = sorted(p for p in folder.glob("*") if p.suffix.lower() in EXTENSIONS) \
+                if folder.is_dir() else []
+            if not files:
+                raise ValueError(f"texture repository {str(self.root)!r}: category folder "
+                                 f"{category!r} is missing or has no images "
+                                 f"({', '.join(sorted(EXTENSIONS))}). Add images, or run "
+                                 f"`glsynth textures --out {self.root}` to generate them.")
+            self.files[category] = files
+        self._cache: dict[tuple[str, int], np.ndarray] = {}
+        self._bad: set[Path] = set()
+
+    def count(self, category: str) -> int:
+        return len(self.files[category])
+
+    def _load(self, path: Path) -> np.ndarray | None:
+        try:
+            with Image.open(path) as im:
+                im = im.convert("RGB")
+                if im.size != (self.size, self.size):
+                    im = im.resize((self.size, self.size), Image.Resampling.LANCZOS)
+                return np.asarray(im, dtype=np.uint8)
+        except (OSError, UnidentifiedImageError, ValueError) as err:
+            warnings.warn(f"texture repository: skipping unreadable image {str(path)!r} "
+                          f"({type(err).__name__}: {err})", stacklevel=3)
+            return None
+
+    def image(self, category: str, index: int) -> np.ndarray:
+        """Image ``index`` of a category (wrapping), or the next readable one after it."""
+        files = self.files[category]
+        for step in range(len(files)):
+            i = (index + step) % len(files)
+            key = (category, i)
+            if key in self._cache:
+                return self._cache[key]
+            if files[i] in self._bad:
+                continue
+            array = self._load(files[i])
+            if array is None:
+                self._bad.add(files[i])
+                continue
+            array.setflags(write=False)
+            self._cache[key] = array
+            return array
+        raise ValueError(f"texture repository {str(self.root)!r}: no readable image in "
+                         f"category {category!r}; replace the files named in the warnings")
+
+    def pick(self, category: str, rng: np.random.Generator) -> tuple[int, np.ndarray]:
+        index = int(rng.integers(self.count(category)))
+        return index, self.image(category, index)
+
+
+def generate_repository(root: str | Path, seed: int, per_category: int, size: int) -> Path:
+    """Fill ``root`` with ``per_category`` procedural images per category (PNG, atomic).
+
+    Image k of a category comes from its own generator, so it is the same whatever the count;
+    existing files are kept (a run that was stopped carries on where it was).
+    """
+    root = Path(root)
+    for c_index, (category, make) in enumerate(CATEGORIES.items()):
+        for k in range(per_category):
+            path = root / category / f"{category}_{k:04d}.png"
+            if path.exists():
+                continue
+            rng = make_rng(seed, 0, Stream.MATERIALS, 10**6 * (c_index + 1) + k)
+            atomic_write_bytes(path, png_bytes(make(size, rng)))
+    return root
+
+
+def builtin_repository(seed: int, per_category: int, size: int) -> Path:
+    """The procedural repository for these settings, generated on first use and cached."""
+    root = cache_root() / f"textures-v{GENERATOR_VERSION}-seed{seed}-n{per_category}-{size}px"
+    return generate_repository(root, seed, per_category, size)

@@ -1,0 +1,241 @@
+"""Unified structural condition assessment (paper Section 4.7, Fig. 17, Table 13, Fig. 18):
+damage x region of reliable damage recognition (RRDR) x component, as pure functions of maps.
+
+Maps come from the three networks (glsynth/model/pipeline.py) or, in oracle mode, from a
+dataset's ground truth; all three are at one resolution. Damage is kept only inside the RRDR
+and on bridge components (everything but Nonbridge and unlabelled), attributed to the component
+under it, and quantified per component as a pixel fraction and, when the focal length is known,
+as an area in m^2: each pixel at depth z covers (z / f_px)^2 on a fronto-parallel surface, so
+oblique surfaces are under-counted by the cosine of their tilt.
+"""
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from glsynth.data.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
+from glsynth.core.labels import Component, Damage
+from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, overlay
+
+BRIDGE = tuple(c for c in Component if c not in (Component.UNLABELLED, Component.NONBRIDGE))
+DAMAGE_CLASSES = (Damage.CONCRETE, Damage.REBAR)
+
+
+@dataclass(frozen=True)
+class AssessSettings:
+    min_px_per_cm: float = RRDR_PX_PER_CM
+    """RRDR when the focal length is known: resolution at least this [px/cm]."""
+    depth_range_m: tuple[float, float] = RRDR_DEPTH_RANGE_M
+    """RRDR when it is not: predicted depth within this range [m]."""
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.min_px_per_cm) and self.min_px_per_cm > 0):
+            raise ValueError(f"min_px_per_cm = {self.min_px_per_cm}: give a positive number "
+                             "(the paper uses 1.5)")
+        near, far = self.depth_range_m
+        if not 0 <= near < far:
+            raise ValueError(f"depth_range_m = {self.depth_range_m}: give 0 <= near < far "
+                             "(the paper uses 0.5, 20)")
+
+
+@dataclass(frozen=True)
+class Maps:
+    component: np.ndarray
+    """Component ids (H, W)."""
+    damage: np.ndarray
+    """Damage ids (H, W)."""
+    depth_m: np.ndarray
+    """Depth along the optical axis (H, W), metres."""
+    focal_px: float | None
+    """Focal length in pixels of the photo (the RRDR's px/cm is the photo's resolution), or
+    None when unknown."""
+    stride: float = 1.0
+    """Photo pixels per map pixel (3 for Tokaido maps of 1920x1080 images)."""
+
+    def __post_init__(self) -> None:
+        shapes = {a.shape for a in (self.component, self.damage, self.depth_m)}
+        if len(shapes) != 1 or self.component.ndim != 2:
+            raise ValueError(f"component {self.component.shape}, damage {self.damage.shape} "
+                             f"and depth {self.depth_m.shape} maps must be 2-D and of one size")
+
+
+@dataclass
+class Assessment:
+    reliable: np.ndarray
+    """RRDR (bool)."""
+    considered: np.ndarray
+    """RRDR and a bridge component (bool): where damage is assessed."""
+    damage: np.ndarray
+    """Damage ids kept (1 = none, 2-3 damage) inside ``considered``, 0 elsewhere."""
+    components: dict = field(default_factory=dict)
+    """Per bridge component present: pixels, pixels in the RRDR, damaged pixels and fractions,
+    areas in m^2 (None without a focal length)."""
+    totals: dict = field(default_factory=dict)
+
+
+def pixel_area_m2(depth_m: np.ndarray, focal_px: float, stride: float = 1.0) -> np.ndarray:
+    """Fronto-parallel surface area seen by each map pixel (stride x stride photo pixels);
+    0 where depth is not positive or not finite."""
+    d = np.where(np.isfinite(depth_m) & (depth_m > 0), depth_m, 0.0).astype(np.float64)
+    return (d * stride / focal_px) ** 2
+
+
+def assess(maps: Maps, settings: AssessSettings = AssessSettings()) -> Assessment:
+    reliable = rrdr(maps.depth_m, maps.focal_px, min_px_per_cm=settings.min_px_per_cm,
+                    depth_range_m=settings.depth_range_m)
+    bridge = np.isin(maps.component, BRIDGE)
+    considered = reliable & bridge
+    damage = np.where(considered, maps.damage, Damage.UNLABELLED).astype(np.uint8)
+    area = None if maps.focal_px is None else \
+        pixel_area_m2(maps.depth_m, maps.focal_px, maps.stride)
+    components = {}
+    for comp in BRIDGE:
+        on = maps.component == comp
+        if not on.any():
+            continue
+        inside = on & reliable
+        entry = {"pixels": int(on.sum()), "pixels_in_rrdr": int(inside.sum()),
+                 "damaged_pixels": {}, "damaged_fraction": {}, "area_m2_in_rrdr": None,
+                 "damaged_area_m2": None}
+        for cls in DAMAGE_CLASSES:
+            hit = inside & (damage == cls)
+            name = cls.name.lower()
+            entry["damaged_pixels"][name] = int(hit.sum())
+            entry["damaged_fraction"][name] = float(hit.sum() / inside.sum()) \
+                if inside.any() else None
+        if area is not None:
+            entry["area_m2_in_rrdr"] = float(area[inside].sum())
+            entry["damaged_area_m2"] = {cls.name.lower(): float(area[inside & (damage == cls)]
+                                                               .sum())
+                                        for cls in DAMAGE_CLASSES}
+        components[comp.name.lower()] = entry
+    totals = {"pixels": int(maps.component.size), "bridge_pixels": int(bridge.sum()),
+              "rrdr_pixels": int(reliable.sum()), "assessed_pixels": int(considered.sum()),
+              "damaged_pixels": {cls.name.lower(): int((damage == cls).sum())
+                                 for cls in DAMAGE_CLASSES},
+              "damage_outside_rrdr_or_bridge_pixels": int(
+                  (np.isin(maps.damage, DAMAGE_CLASSES) & ~considered).sum()),
+              "focal_known": maps.focal_px is not None}
+    return Assessment(reliable, considered, damage, components, totals)
+
+
+def assessment_picture(rgb: np.ndarray, component: np.ndarray,
+                       result: Assessment) -> np.ndarray:
+    """Fig. 17 at the photo's size: components tinted, kept damage coloured by class over
+    them, and far or non-bridge regions greyed out. Maps are brought to the photo's size by
+    nearest sampling."""
+    shape = rgb.shape[:2]
+    component = nearest_resize(component, shape)
+    damage = nearest_resize(result.damage, shape)
+    considered = nearest_resize(result.considered, shape)
+    tinted = overlay(rgb, component, COMPONENT_RGB, 0.3, skip=(0,))
+    picture = overlay(tinted, damage, DAMAGE_RGB, 0.85,
+                      skip=(Damage.UNLABELLED, Damage.NO_DAMAGE))
+    grey = rgb.astype(np.float32).mean(axis=2, keepdims=True) * 0.45 + 90
+    return np.where(considered[..., None], picture, grey).round().astype(np.uint8)
+
+
+def nearest_resize(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A map brought to (rows, cols) by nearest sampling (ids and masks never blend)."""
+    if values.shape[:2] == tuple(shape):
+        return values
+    rows = np.arange(shape[0]) * values.shape[0] // shape[0]
+    cols = np.arange(shape[1]) * values.shape[1] // shape[1]
+    return values[rows[:, None], cols[None, :]]
+
+
+@dataclass(frozen=True)
+class Photo:
+    name: str
+    """Output stem; unique within a batch."""
+    load: Callable[[], tuple[np.ndarray, Maps]]
+    """Returns the photo (RGB uint8 at its own size) and its maps; may raise ValueError or
+    OSError, which fail this photo only."""
+
+
+def assess_photos(photos: Iterable[Photo], out: Path,
+                  settings: AssessSettings = AssessSettings()) -> dict:
+    """Assess each photo: <name>_assessment.png (Fig. 17) and <name>.json per photo, and
+    summary.json across them. A photo that fails is reported and the others go on."""
+    from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
+
+    per_component: dict[str, dict] = {}
+    done, failed = [], []
+    for photo in photos:
+        try:
+            rgb, maps = photo.load()
+            result = assess(maps, settings)
+            picture = assessment_picture(rgb, maps.component, result)
+        except (ValueError, OSError) as err:
+            failed.append({"image": photo.name, "error": str(err)})
+            continue
+        report = {"image": photo.name, "maps_size": list(result.damage.shape[::-1]),
+                  "focal_px": maps.focal_px, "settings": _settings_json(settings),
+                  "totals": result.totals, "components": result.components}
+        atomic_write_json(out / f"{photo.name}.json", report)
+        atomic_write_bytes(out / f"{photo.name}_assessment.png", png_bytes(picture))
+        done.append(photo.name)
+        for name, entry in result.components.items():
+            agg = per_component.setdefault(name, {"images": 0, "pixels_in_rrdr": 0,
+                                                  "damaged_pixels": dict.fromkeys(
+                                                      ("concrete", "rebar"), 0),
+                                                  "damaged_area_m2": None})
+            agg["images"] += 1
+            agg["pixels_in_rrdr"] += entry["pixels_in_rrdr"]
+            for cls, n in entry["damaged_pixels"].items():
+                agg["damaged_pixels"][cls] += n
+            if entry["damaged_area_m2"] is not None:
+                area = agg["damaged_area_m2"] or dict.fromkeys(("concrete", "rebar"), 0.0)
+                agg["damaged_area_m2"] = {k: area[k] + v
+                                          for k, v in entry["damaged_area_m2"].items()}
+    for agg in per_component.values():
+        agg["damaged_fraction"] = {k: (v / agg["pixels_in_rrdr"] if agg["pixels_in_rrdr"]
+                                       else None) for k, v in agg["damaged_pixels"].items()}
+    summary = {"assessed": done, "failed": failed, "settings": _settings_json(settings),
+               "components": per_component}
+    atomic_write_json(out / "summary.json", summary)
+    return summary
+
+
+def _settings_json(settings: AssessSettings) -> dict:
+    return {"min_px_per_cm": settings.min_px_per_cm,
+            "depth_range_m": list(settings.depth_range_m)}
+
+
+def read_rgb(path: Path) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    except UnidentifiedImageError as err:
+        raise ValueError(f"{str(path)!r} is not a readable image") from err
+
+
+def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
+                  limit: int | None = None) -> list[Photo]:
+    """Ground-truth maps of a Tokaido-layout split in place of the networks, to check the
+    post-processing on its own. The focal length comes from the manifest (mm, on a sensor
+    ``sensor_mm`` wide; glsynth's cameras use 36 mm)."""
+    from PIL import Image
+
+    from glsynth.data.tokaido import decode_depth, read_manifest
+
+    rows = read_manifest(root, f"files_{split}.csv")[:limit]
+
+    def loader(row) -> Callable[[], tuple[np.ndarray, Maps]]:
+        def load() -> tuple[np.ndarray, Maps]:
+            def ids(rel: str) -> np.ndarray:
+                with Image.open(root / rel) as im:
+                    return np.asarray(im)
+
+            component, damage = ids(row.component), ids(row.damage)
+            depth = decode_depth(ids(row.depth))
+            rgb = read_rgb(root / row.image)
+            focal_px = row.focal_mm / sensor_mm * rgb.shape[1]
+            return rgb, Maps(component, damage, depth, focal_px, rgb.shape[1] / component.shape[1])
+        return load
+
+    return [Photo(Path(r.image).stem.removesuffix("_Scene"), loader(r)) for r in rows]

@@ -1,0 +1,376 @@
+"""Configuration: frozen dataclasses validated on construction, TOML files and named presets.
+
+Units are metres and radians inside; ``_m``/``_deg``/``_mm`` suffixes name the unit at this
+boundary. An invalid value raises ValueError naming the field, the value and the allowed range.
+"""
+
+import dataclasses
+import math
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from glsynth.core import design
+from glsynth.core.checks import check_interval, check_number, fail
+from glsynth.core.design import StandardDesign
+
+
+@dataclass(frozen=True)
+class EnvironmentConfig:
+    """Random trajectories and their meshes (paper Section 3.1, Table 4)."""
+
+    n_viaducts: int = 10
+    """N, viaducts per environment."""
+    initial_height_m: tuple[float, float] = (6.5, 12.0)
+    """Range of the first viaduct's height (ground to deck top at its centre)."""
+    cutoff_factor: float = 2.0
+    """Cutoff frequency of the rectangular spectra, as cutoff_factor / N cycles per viaduct."""
+    ground_amplitude_m: float = 1.0
+    """Spectrum amplitude of the ground-height increments (unitary DFT)."""
+    height_amplitude_m: float = 0.2
+    """Spectrum amplitude of the viaduct-height increments (unitary DFT)."""
+    min_radius_m: tuple[float, float] = (500.0, 5000.0)
+    """Range of the smallest radius of curvature along the trajectory; (inf, inf) is straight."""
+    height_limits_m: tuple[float, float] = (design.HEIGHT_MIN_M, design.HEIGHT_MAX_M)
+    """Table 4: 5.0 <= H <= 14 m."""
+    max_slope: float = 0.02
+    """Table 4: |S| < 0.02 between neighbouring viaducts."""
+    panel_distance_m: float = 30.0
+    """Scene panels stand this far from the centre line (paper: 30 m)."""
+    panel_height_m: float = 30.0
+    end_margin_m: float = 30.0
+    """Ground and panels run on past both ends of the trajectory by this much."""
+    sweep_step_m: float = 1.0
+    """Arc-length step of curved sweeps (slab, rails, ground...); chord error step^2 / 8R."""
+    cylinder_segments: int = 12
+    """Facets around poles and wires."""
+
+    def __post_init__(self) -> None:
+        s = "environment"
+        check_number(s, "n_viaducts", self.n_viaducts, 1, 1000, integer=True)
+        check_interval(s, "height_limits_m", self.height_limits_m,
+                        design.HEIGHT_MIN_M, design.HEIGHT_MAX_M)
+        check_interval(s, "initial_height_m", self.initial_height_m, *self.height_limits_m)
+        check_number(s, "cutoff_factor", self.cutoff_factor, 0.0, self.n_viaducts / 2)
+        check_number(s, "ground_amplitude_m", self.ground_amplitude_m, 0.0, 100.0)
+        check_number(s, "height_amplitude_m", self.height_amplitude_m, 0.0, 100.0)
+        check_interval(s, "min_radius_m", self.min_radius_m, 100.0, math.inf)
+        if math.isinf(self.min_radius_m[1]) and not math.isinf(self.min_radius_m[0]):
+            fail(s, "min_radius_m", self.min_radius_m,
+                 "finite, or [inf, inf] for straight track")
+        check_number(s, "max_slope", self.max_slope, 0.0, 0.2, lo_open=True)
+        check_number(s, "panel_distance_m", self.panel_distance_m, 15.0, 1000.0)
+        check_number(s, "panel_height_m", self.panel_height_m, 1.0, 1000.0)
+        check_number(s, "end_margin_m", self.end_margin_m, 0.0, 1000.0)
+        check_number(s, "sweep_step_m", self.sweep_step_m, 0.01, 6.0)
+        check_number(s, "cylinder_segments", self.cylinder_segments, 3, 256, integer=True)
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Synthetic cameras (paper Section 3.4)."""
+
+    n_regular: int = 50
+    """Regular cameras per environment (global views)."""
+    n_closeup: int = 50
+    """Close-up cameras per environment (mostly columns)."""
+    focal_mm: tuple[float, float] = (15.0, 55.0)
+    sensor_mm: float = 36.0
+    """Sensor width; it spans the image width."""
+    regular_distance_m: float = 10.0
+    regular_height_m: tuple[float, float] = (1.0, 10.0)
+    closeup_distance_m: float = 5.0
+    closeup_height_m: tuple[float, float] = (1.0, 6.5)
+    rot_x_deg: tuple[float, float] = (45.0, 135.0)
+    """Blender XYZ Euler X: 90 looks horizontally."""
+    rot_y_deg: tuple[float, float] = (-15.0, 15.0)
+    rot_z_deg: tuple[float, float] = (-90.0, 90.0)
+    """Relative to the direction that points to the viaduct centre line."""
+
+    def __post_init__(self) -> None:
+        s = "cameras"
+        check_number(s, "n_regular", self.n_regular, 0, 100000, integer=True)
+        check_number(s, "n_closeup", self.n_closeup, 0, 100000, integer=True)
+        check_interval(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
+        check_number(s, "sensor_mm", self.sensor_mm, 1.0, 100.0)
+        check_number(s, "regular_distance_m", self.regular_distance_m, 0.0, 1000.0)
+        check_number(s, "closeup_distance_m", self.closeup_distance_m, 0.0, 1000.0)
+        check_interval(s, "regular_height_m", self.regular_height_m, 0.0, 1000.0)
+        check_interval(s, "closeup_height_m", self.closeup_height_m, 0.0, 1000.0)
+        check_interval(s, "rot_x_deg", self.rot_x_deg, 0.0, 180.0)
+        check_interval(s, "rot_y_deg", self.rot_y_deg, -180.0, 180.0)
+        check_interval(s, "rot_z_deg", self.rot_z_deg, -180.0, 180.0)
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """Image size, antialiasing, clip planes and lighting of the GL renderer."""
+
+    width: int = 1920
+    height: int = 1080
+    msaa: int = 4
+    """Samples for the colour pass (0: none; llvmpipe supports up to 4). Labels and depth are
+    never multisampled."""
+    znear_m: float = 0.05
+    zfar_m: float = 2000.0
+    """Also the depth of pixels that see no geometry (sky)."""
+    sun_elevation_deg: float = 50.0
+    sun_azimuth_deg: float = 30.0
+    """From +x (the initial track direction), counter-clockwise."""
+    sun_intensity: float = 3.0
+    ambient_intensity: float = 0.6
+    sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
+    """Background colour where no geometry is hit (linear RGB)."""
+    exposure: float = 1.0
+    shadow_map_px: int = 2048
+    """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
+    the shadowed range divided by this."""
+    shadow_distance_m: float = 60.0
+    """Shadows are drawn on surfaces nearer than this to the camera; farther ones are lit."""
+
+    def __post_init__(self) -> None:
+        s = "render"
+        check_number(s, "width", self.width, 1, 16384, integer=True)
+        check_number(s, "height", self.height, 1, 16384, integer=True)
+        if self.msaa not in (0, 2, 4, 8, 16):
+            fail(s, "msaa", self.msaa, "one of 0, 2, 4, 8, 16")
+        check_number(s, "znear_m", self.znear_m, 1e-4, 10.0)
+        check_number(s, "zfar_m", self.zfar_m, self.znear_m, 1e7, lo_open=True)
+        check_number(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
+        check_number(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
+        check_number(s, "sun_intensity", self.sun_intensity, 0.0, 100.0)
+        check_number(s, "ambient_intensity", self.ambient_intensity, 0.0, 100.0)
+        if len(self.sky_rgb) != 3 or not all(0.0 <= c <= 1.0 for c in self.sky_rgb):
+            fail(s, "sky_rgb", self.sky_rgb, "three values in [0, 1]")
+        check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
+        check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
+        if 0 < self.shadow_map_px < 64:
+            fail(s, "shadow_map_px", self.shadow_map_px, "0 (no shadows) or 64 to 16384")
+        check_number(s, "shadow_distance_m", self.shadow_distance_m, 1.0, 1e5)
+
+
+@dataclass(frozen=True)
+class DamageConfig:
+    """Procedural concrete damage and exposed rebar of the columns (paper Section 3.3).
+
+    The paper's numbers are kept as written. Reading (DESIGN.md): slight damage is 0-1 % damaged
+    area; for medium and severe, the paper's [90 %, 99 %] and [70 %, 90 %] are the intact share,
+    i.e. the quantile of |noise| at which the threshold t sits: 1-10 % and 10-30 % damaged area.
+    """
+
+    resolution: int = 1024
+    """Damage texture size in pixels (paper: 2048; the paper preset uses 2048)."""
+    octaves: int = 8
+    frequency: tuple[float, float] = (0.2, 2.0)
+    """First-octave feature size as a fraction of the texture size (paper: 20-200 %)."""
+    tile_m: float = 1.0
+    """Physical size of one damage texture at texture scale 1.0."""
+    slight_area: tuple[float, float] = (0.0, 0.01)
+    slight_depth_cm: tuple[float, float] = (1.0, 2.0)
+    medium_intact: tuple[float, float] = (0.90, 0.99)
+    medium_depth_cm: tuple[float, float] = (1.0, 10.0)
+    severe_intact: tuple[float, float] = (0.70, 0.90)
+    severe_depth_cm: tuple[float, float] = (2.0, 10.0)
+    axial_cover_cm: tuple[float, float] = (2.5, 7.5)
+    stirrup_cover_offset_cm: float = 2.0
+    """c_s = c_a - 2 cm."""
+    axial_radius: float = 1 / 200
+    """Rebar radius as a fraction of the texture size."""
+    stirrup_radius: float = 1 / 300
+    spacing_diameters: tuple[float, float] = (3.0, 10.0)
+    ripple: float = 0.1
+    """Sinusoidal ripple amplitude as a fraction of the bar radius."""
+    undamaged_probability: float = 0.1
+    scale: tuple[float, float] = (0.2, 1.0)
+    """Texture scale of a damaged column (the texture repeats every 1/scale * tile_m metres)."""
+    bank_size: int = 1000
+    """Damage textures per severity (made lazily, on first use, and cached)."""
+
+    def __post_init__(self) -> None:
+        s = "damage"
+        check_number(s, "resolution", self.resolution, 16, 8192, integer=True)
+        check_number(s, "octaves", self.octaves, 1, 16, integer=True)
+        check_interval(s, "frequency", self.frequency, 0.001, 100.0)
+        check_number(s, "tile_m", self.tile_m, 0.0, 100.0, lo_open=True)
+        check_interval(s, "slight_area", self.slight_area, 0.0, 1.0)
+        for name in ("medium_intact", "severe_intact"):
+            check_interval(s, name, getattr(self, name), 0.0, 1.0)
+        for name in ("slight_depth_cm", "medium_depth_cm", "severe_depth_cm"):
+            check_interval(s, name, getattr(self, name), 0.0, 1000.0)
+        check_interval(s, "axial_cover_cm", self.axial_cover_cm, 0.0, 1000.0)
+        check_number(s, "stirrup_cover_offset_cm", self.stirrup_cover_offset_cm, 0.0,
+                     self.axial_cover_cm[0])
+        check_number(s, "axial_radius", self.axial_radius, 0.0, 0.25, lo_open=True)
+        check_number(s, "stirrup_radius", self.stirrup_radius, 0.0, 0.25, lo_open=True)
+        check_interval(s, "spacing_diameters", self.spacing_diameters, 1.0, 1000.0)
+        check_number(s, "ripple", self.ripple, 0.0, 0.9)
+        check_number(s, "undamaged_probability", self.undamaged_probability, 0.0, 1.0)
+        check_interval(s, "scale", self.scale, 0.0, 100.0)
+        if self.scale[0] <= 0:
+            fail(s, "scale", self.scale, "an interval of positive scales")
+        check_number(s, "bank_size", self.bank_size, 1, 10**6, integer=True)
+
+    def area_range(self, severity: str) -> tuple[float, float]:
+        """Damaged-area fraction range of a severity, under the documented reading."""
+        if severity == "slight":
+            return self.slight_area
+        if severity in ("medium", "severe"):
+            lo, hi = getattr(self, f"{severity}_intact")
+            return (1.0 - hi, 1.0 - lo)
+        raise ValueError(f"severity = {severity!r}: choose slight, medium or severe")
+
+    def depth_range_m(self, severity: str) -> tuple[float, float]:
+        self.area_range(severity)  # validates the name
+        lo, hi = getattr(self, f"{severity}_depth_cm")
+        return (lo / 100.0, hi / 100.0)
+
+
+@dataclass(frozen=True)
+class MaterialsConfig:
+    """Texture repository and the per-component PBR rules (paper Sections 2.3, 3.2)."""
+
+    repository: str = ""
+    """Folder with concrete/, steel/, painted/, wood/, ground/, scene/ images; empty: the
+    built-in procedural repository (generated once and cached)."""
+    texture_size: int = 512
+    """Repository images are resized to this many pixels square."""
+    images_per_category: int = 12
+    """Size of the built-in procedural repository."""
+    repository_seed: int = 0
+    """Seed of the built-in procedural repository."""
+    concrete_scale: tuple[float, float] = (0.1, 1.0)
+    """Slabs, beams, undamaged columns, sleepers, rails, wires, fences, poles."""
+    ground_scale: tuple[float, float] = (0.0, 0.1)
+    """Ground (a scale of 0 shows a single texel colour)."""
+    steel_roughness: tuple[float, float] = (0.0, 1.0)
+    painted_metallic: tuple[float, float] = (0.0, 1.0)
+    painted_roughness: tuple[float, float] = (0.0, 1.0)
+    panel_emission: float = 0.5
+    """Emission strength of the scene panels (paper: 0.5)."""
+
+    def __post_init__(self) -> None:
+        s = "materials"
+        if not isinstance(self.repository, str):
+            fail(s, "repository", self.repository, "a folder path (string)")
+        check_number(s, "texture_size", self.texture_size, 4, 8192, integer=True)
+        check_number(s, "images_per_category", self.images_per_category, 1, 10000,
+                     integer=True)
+        check_number(s, "repository_seed", self.repository_seed, 0, 2**63 - 1, integer=True)
+        for name in ("concrete_scale", "ground_scale"):
+            check_interval(s, name, getattr(self, name), 0.0, 100.0)
+        for name in ("steel_roughness", "painted_metallic", "painted_roughness"):
+            check_interval(s, name, getattr(self, name), 0.0, 1.0)
+        check_number(s, "panel_emission", self.panel_emission, 0.0, 100.0)
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """How many environments a run makes and which are held out."""
+
+    n_environments: int = 200
+    """Paper: 200 environments."""
+    n_test_environments: int = 25
+    """The last ones are the test split (paper: 25 of 200)."""
+    n_plates: int = 3000
+    """Pure-texture plate images (paper: 3,000)."""
+    n_test_plates: int = 300
+    """The last ones are the test split (paper: 300)."""
+    plates_per_task: int = 50
+    """Plates per unit of work (a unit is resumed or redone as a whole)."""
+
+    def __post_init__(self) -> None:
+        check_number("dataset", "n_environments", self.n_environments, 1, 10**6, integer=True)
+        check_number("dataset", "n_test_environments", self.n_test_environments,
+                     0, self.n_environments, integer=True)
+        check_number("dataset", "n_plates", self.n_plates, 0, 10**7, integer=True)
+        check_number("dataset", "n_test_plates", self.n_test_plates, 0, self.n_plates,
+                     integer=True)
+        check_number("dataset", "plates_per_task", self.plates_per_task, 1, 10**6,
+                     integer=True)
+
+
+@dataclass(frozen=True)
+class Config:
+    environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
+    design: StandardDesign = field(default_factory=StandardDesign)
+    dataset: DatasetConfig = field(default_factory=DatasetConfig)
+    cameras: CameraConfig = field(default_factory=CameraConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    damage: DamageConfig = field(default_factory=DamageConfig)
+    materials: MaterialsConfig = field(default_factory=MaterialsConfig)
+
+    def __post_init__(self) -> None:
+        half_deck = self.design.deck_width_m / 2
+        if self.environment.panel_distance_m <= half_deck + 1.0:
+            fail("environment", "panel_distance_m", self.environment.panel_distance_m,
+                  f"more than half the deck width plus 1 m ({half_deck + 1.0})")
+
+
+PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    # The paper's full configuration (200 environments, 25 of them test).
+    "paper": {"damage": {"resolution": 2048}},
+    # A small but complete run for the README's main job and for tests.
+    "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
+                         "n_test_plates": 2, "plates_per_task": 6},
+             "cameras": {"n_regular": 6, "n_closeup": 6},
+             "damage": {"resolution": 512}},
+}
+
+_SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
+             "cameras": CameraConfig, "render": RenderConfig, "damage": DamageConfig,
+             "materials": MaterialsConfig}
+
+
+def _coerce(cls: type, key: str, value: Any) -> Any:
+    hint = typing.get_type_hints(cls)[key]
+    if isinstance(value, list):
+        return tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                     for v in value)
+    if hint is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
+    """Overlay ``{section: {key: value}}`` on ``base`` (default: the built-in defaults)."""
+    base = base or Config()
+    sections = {}
+    for section, values in data.items():
+        if section not in _SECTIONS:
+            raise ValueError(f"unknown config section [{section}]: "
+                             f"allowed sections are {sorted(_SECTIONS)}")
+        cls = _SECTIONS[section]
+        allowed = {f.name for f in dataclasses.fields(cls)}
+        if not isinstance(values, dict):
+            raise ValueError(f"config section [{section}] must be a table of key = value")
+        unknown = sorted(set(values) - allowed)
+        if unknown:
+            raise ValueError(f"unknown key(s) {unknown} in [{section}]: "
+                             f"allowed keys are {sorted(allowed)}")
+        coerced = {k: _coerce(cls, k, v) for k, v in values.items()}
+        sections[section] = dataclasses.replace(getattr(base, section), **coerced)
+    return dataclasses.replace(base, **sections)
+
+
+def load_config(preset: str = "paper", path: str | Path | None = None) -> Config:
+    """A named preset, optionally overlaid with a TOML file."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset = {preset!r}: choose one of {sorted(PRESETS)}")
+    config = config_from_dict(PRESETS[preset])
+    if path is not None:
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ValueError(f"config file {str(path)!r} does not exist") from None
+        except tomllib.TOMLDecodeError as err:
+            raise ValueError(f"config file {str(path)!r} is not valid TOML: {err}") from None
+        config = config_from_dict(data, config)
+    return config
+
+
+def config_to_dict(config: Config) -> dict[str, Any]:
+    """Plain JSON-able form (inf stays a float; json writes it as Infinity)."""
+    return dataclasses.asdict(config)

@@ -1,0 +1,286 @@
+"""Dataset generation in the Tokaido layout (paper Sections 3.4, 4.2; DESIGN.md format).
+
+Work comes in units: one environment (all its cameras) or a run of plates. A unit writes its
+files atomically and then a marker under ``progress/`` holding its manifest rows and counts; a
+run that is stopped and started again skips the units with markers and redoes the others,
+rewriting identical bytes. The manifests are merged from the markers at the end, sorted, so
+the dataset is the same whatever the number of workers or the order units finished in.
+How units are run (one process, a local pool, Ray) is in glsynth/data/engines.py.
+"""
+
+import dataclasses
+import hashlib
+import json
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from glsynth.core.config import Config, config_to_dict
+from glsynth.core.fileio import (atomic_write_bytes, atomic_write_json, image_bytes, jsonable,
+                            png_bytes)
+from glsynth.data.filters import mask_damage, removal_reason, rrdr
+from glsynth.core.labels import Component, Damage
+from glsynth.data.tokaido import (LABEL_STRIDE, FrameRecord, PuretexRecord, downsample_labels,
+                             encode_depth, frame_paths, manifest_text, puretex_paths)
+
+RUN_FILE = "glsynth_run.json"
+REASONS = ("dark", "single_component", "too_close")
+
+
+def check_format(config: Config) -> None:
+    r = config.render
+    if (r.width, r.height) != (1920, 1080):
+        raise ValueError(f"render size {r.width}x{r.height}: the Tokaido format needs "
+                         "1920x1080 images (labels 640x360); set [render] width = 1920 and "
+                         "height = 1080")
+
+
+def environment_split(config: Config, env: int) -> str:
+    d = config.dataset
+    return "test" if env >= d.n_environments - d.n_test_environments else "train"
+
+
+def plate_split(config: Config, index: int) -> str:
+    d = config.dataset
+    return "test" if index >= d.n_plates - d.n_test_plates else "train"
+
+
+@dataclass(frozen=True)
+class Task:
+    kind: str
+    """'env' or 'plates'."""
+    first: int
+    count: int = 1
+
+    @property
+    def marker(self) -> str:
+        return (f"progress/env_{self.first:06d}.json" if self.kind == "env"
+                else f"progress/plates_{self.first:07d}.json")
+
+
+def plan(config: Config) -> list[Task]:
+    d = config.dataset
+    tasks = [Task("env", e) for e in range(d.n_environments)]
+    tasks += [Task("plates", s, min(d.plates_per_task, d.n_plates - s))
+              for s in range(0, d.n_plates, d.plates_per_task)]
+    return tasks
+
+
+def _counts(ids: np.ndarray, n: int) -> list[int]:
+    return np.bincount(ids.ravel(), minlength=n)[:n].tolist()
+
+
+def run_environment(config: Config, root_seed: int, env: int, out: Path, renderer) -> dict:
+    """Render, filter and write every camera of one environment; returns its marker data."""
+    from glsynth.render.view import EnvironmentView
+    from glsynth.world.visibility import visible_parts
+
+    clock = _Clock()
+    view = EnvironmentView.open(config, root_seed, env, renderer)
+    clock.lap("environment, materials and damage textures")
+    split = environment_split(config, env)
+    cams = config.cameras
+    rows, removed = [], dict.fromkeys(REASONS, 0)
+    comp_px, dmg_px = [0] * len(Component), [0] * len(Damage)
+    columns = [p for p in view.environment.parts if p.name.startswith("column")]
+    for index in range(cams.n_regular + cams.n_closeup):
+        placement, output = view.render(index)
+        clock.lap("render and read back")
+        reason = removal_reason(output.color, output.component, output.depth)
+        if reason is not None:
+            removed[reason] += 1
+            clock.lap("filters, RRDR and labels")
+            continue
+        camera = placement.camera
+        reliable = rrdr(output.depth, camera.fx)
+        masked = mask_damage(output.damage, reliable)
+        paths = frame_paths(split, env, index)
+        component = downsample_labels(output.component)
+        damage = downsample_labels(masked.labels)
+        clock.lap("filters, RRDR and labels")
+        atomic_write_bytes(out / paths["image"], png_bytes(output.color))
+        atomic_write_bytes(out / paths["component"], image_bytes(component, "BMP"))
+        atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
+        atomic_write_bytes(out / paths["depth"],
+                           png_bytes(downsample_labels(encode_depth(output.depth))))
+        seen = visible_parts(columns, [camera])
+        meta = {"root_seed": root_seed, "env": env, "camera_index": index,
+                "kind": placement.kind, "split": split, "camera": camera.to_json(),
+                "placement": {"s_m": placement.s_m, "side": placement.side,
+                              "distance_m": placement.distance_m,
+                              "height_above_ground_m": placement.height_above_ground_m,
+                              "euler_xyz_rad": list(placement.euler_xyz_rad)},
+                "damage_in_rrdr": masked.damage_in_rrdr,
+                "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
+                                    for n in sorted(seen)}}
+        atomic_write_json(out / "meta" / split / f"image_case{env}_frame{index}.json", meta)
+        rows.append(dataclasses.asdict(FrameRecord(
+            paths["image"], paths["component"], paths["damage"], paths["depth"],
+            round(camera.focal_mm, 6), placement.kind == "regular", masked.damage_in_rrdr)))
+        comp_px = [a + b for a, b in zip(comp_px, _counts(component, len(Component)))]
+        if masked.damage_in_rrdr:
+            dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]
+        clock.lap("encode and write files")
+    atomic_write_json(out / "meta" / f"env_{env}.json", _env_description(view))
+    clock.lap("encode and write files")
+    return {"kind": "env", "env": env, "split": split, "rows": rows, "removed": removed,
+            "component_pixels": comp_px, "damage_pixels": dmg_px, "timings": clock.totals}
+
+
+def _env_description(view) -> dict:
+    from glsynth.render.export import describe
+
+    info = describe(view.environment)
+    info["materials"] = {n: jsonable(a)
+                         for n, a in view.dressing.assignments.items()}
+    return info
+
+
+def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) -> dict:
+    from glsynth.appearance.dressing import open_repository
+    from glsynth.appearance.damage_bank import DamageBank
+    from glsynth.data.plates import plate_shot
+
+    clock = _Clock()
+    repository = open_repository(config)
+    bank = DamageBank(config.damage, root_seed)
+    rows = {"train": [], "test": []}
+    dmg_px = [0] * len(Damage)
+    for index in range(task.first, task.first + task.count):
+        shot = plate_shot(config, root_seed, index, repository, bank)
+        renderer.load(shot.scene)
+        clock.lap("plate damage textures")
+        output = renderer.render(shot.camera, {"color", "damage"})
+        clock.lap("render and read back")
+        paths = puretex_paths(index)
+        damage = downsample_labels(output.damage)
+        atomic_write_bytes(out / paths["image"], png_bytes(output.color))
+        atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
+        atomic_write_json(out / "meta" / "puretex" / f"image_{index}.json",
+                          {"root_seed": root_seed, **jsonable(shot.meta),
+                           "camera": shot.camera.to_json()})
+        rows[plate_split(config, index)].append([paths["image"], paths["damage"]])
+        dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]
+        clock.lap("encode and write files")
+    return {"kind": "plates", "first": task.first, "rows": rows, "damage_pixels": dmg_px,
+            "timings": clock.totals}
+
+
+class _Clock:
+    """Seconds spent per named phase (reported, never written into the dataset)."""
+
+    def __init__(self) -> None:
+        self.totals: dict[str, float] = {}
+        self.last = time.perf_counter()
+
+    def lap(self, phase: str) -> None:
+        now = time.perf_counter()
+        self.totals[phase] = self.totals.get(phase, 0.0) + now - self.last
+        self.last = now
+
+
+def run_task(config: Config, root_seed: int, task: Task, out: Path, renderer) -> dict:
+    """Run one unit and write its marker; the returned result adds its timings."""
+    t0 = time.perf_counter()
+    if task.kind == "env":
+        result = run_environment(config, root_seed, task.first, out, renderer)
+    else:
+        result = run_plates(config, root_seed, task, out, renderer)
+    timings = result.pop("timings")
+    atomic_write_json(out / task.marker, result)
+    return {**result, "timings": timings, "seconds": time.perf_counter() - t0}
+
+
+def run_identity(config: Config, root_seed: int) -> dict:
+    settings = config_to_dict(config)
+    digest = hashlib.sha256(json.dumps([root_seed, settings], sort_keys=True,
+                                       default=str).encode()).hexdigest()
+    return {"root_seed": root_seed, "config_sha256": digest}
+
+
+def pending_tasks(config: Config, out: Path) -> list[Task]:
+    return [t for t in plan(config) if not (out / t.marker).exists()]
+
+
+def check_run_folder(out: Path, config: Config, root_seed: int) -> None:
+    """A worker's check that it sees the driver's output folder (a shared path on a cluster)."""
+    run_file = out / RUN_FILE
+    if not run_file.exists():
+        raise FileNotFoundError(
+            f"{str(run_file)!r} is not visible to this worker: with several machines --out "
+            "must be a shared filesystem mounted at the same path on every node")
+    recorded = json.loads(run_file.read_text())
+    if recorded.get("config_sha256") != run_identity(config, root_seed)["config_sha256"]:
+        raise ValueError(f"{str(run_file)!r} belongs to another run than this worker's")
+
+
+def prepare_output(out: Path, config: Config, root_seed: int) -> None:
+    """Create or reopen an output folder; refuse one that holds a different run."""
+    identity = run_identity(config, root_seed)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {str(out)!r} is a file; give a folder for the dataset")
+    run_file = out / RUN_FILE
+    if run_file.exists():
+        previous = json.loads(run_file.read_text())
+        if previous.get("config_sha256") != identity["config_sha256"] or \
+                previous.get("root_seed") != root_seed:
+            raise ValueError(f"--out {str(out)!r} holds a run with other settings (seed "
+                             f"{previous.get('root_seed')}); use a new folder, or the same "
+                             "preset, config and seed to resume it")
+    elif out.exists() and any(out.iterdir()):
+        raise ValueError(f"--out {str(out)!r} is not empty and holds no glsynth run; "
+                         "use a new or empty folder")
+    # A killed run can leave temporary files of interrupted atomic writes: remove them.
+    for stale in out.rglob(".*.tmp") if out.exists() else ():
+        stale.unlink()
+    atomic_write_json(run_file, {**identity, "config": config_to_dict(config)})
+    free = shutil.disk_usage(out).free
+    if free < 200 * 2**20:
+        raise OSError(f"only {free / 2**20:.0f} MiB free under {str(out)!r}; the dataset "
+                      "needs more (about 4 MB per kept image): free space or choose another "
+                      "--out")
+
+
+def merge(config: Config, out: Path) -> dict:
+    """Write the four manifests from the markers, sorted; return the dataset's counts."""
+    frames = {"train": [], "test": []}
+    plates = {"train": [], "test": []}
+    removed = dict.fromkeys(REASONS, 0)
+    comp_px, dmg_px = np.zeros(len(Component), np.int64), np.zeros(len(Damage), np.int64)
+    for task in plan(config):
+        data = json.loads((out / task.marker).read_text())
+        if data["kind"] == "env":
+            frames[data["split"]] += [(data["env"], r["image"], r) for r in data["rows"]]
+            for k, v in data["removed"].items():
+                removed[k] += v
+            comp_px += data["component_pixels"]
+        else:
+            for split in ("train", "test"):
+                plates[split] += data["rows"][split]
+        dmg_px += data["damage_pixels"]
+    for split in ("train", "test"):
+        ordered = [FrameRecord(**r) for _, _, r in sorted(
+            frames[split], key=lambda x: (x[0], _frame_number(x[1])))]
+        atomic_write_bytes(out / f"files_{split}.csv", manifest_text(ordered).encode())
+        pure = [PuretexRecord(*r) for r in sorted(plates[split], key=lambda r: _plate_no(r[0]))]
+        atomic_write_bytes(out / f"files_puretex_{split}.csv", manifest_text(pure).encode())
+    kept = sum(len(v) for v in frames.values())
+    labelled = dmg_px[1:].sum()
+    return {"kept": kept, "removed": removed,
+            "plates": sum(len(v) for v in plates.values()),
+            "component_fraction": {Component(i).name.lower(): float(c / max(1, comp_px.sum()))
+                                   for i, c in enumerate(comp_px) if i},
+            "damage_fraction": {Damage(i).name.lower(): float(c / max(1, labelled))
+                                for i, c in enumerate(dmg_px) if i},
+            "label_size": [1920 // LABEL_STRIDE, 1080 // LABEL_STRIDE]}
+
+
+def _frame_number(image: str) -> int:
+    return int(image.rsplit("_frame", 1)[1].split("_")[0])
+
+
+def _plate_no(image: str) -> int:
+    return int(image.rsplit("_", 1)[1].split(".")[0])

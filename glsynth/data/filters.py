@@ -1,0 +1,68 @@
+"""Post-processing of rendered views: the Section 3.4 filters and the region of reliable damage
+recognition (RRDR, Section 4.2), as pure functions of the maps."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from glsynth.core.labels import Damage
+
+MIN_MEAN_INTENSITY = 30.0
+MIN_DEPTH_M = 0.5
+RRDR_PX_PER_CM = 1.5
+RRDR_DEPTH_RANGE_M = (0.5, 20.0)
+
+
+def removal_reason(image: np.ndarray, component: np.ndarray, depth: np.ndarray,
+                   *, min_intensity: float = MIN_MEAN_INTENSITY,
+                   min_depth_m: float = MIN_DEPTH_M) -> str | None:
+    """Why an image is filtered out (Section 3.4), or None to keep it. Checked in the paper's
+    order: mean intensity < 30, a single component label, minimum depth not larger than 0.5 m."""
+    if float(image.mean()) < min_intensity:
+        return "dark"
+    if np.unique(component).size <= 1:
+        return "single_component"
+    if float(depth.min()) <= min_depth_m:
+        return "too_close"
+    return None
+
+
+def pixels_per_cm(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
+    """Image resolution on a fronto-parallel surface: f_px / (100 depth). Depth <= 0 or not
+    finite gives 0 (no reliable resolution), never inf or NaN."""
+    d = np.asarray(depth_m, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    out = np.zeros(d.shape)
+    np.divide(focal_px, 100.0 * d, out=out, where=valid)
+    return out
+
+
+def rrdr(depth_m: np.ndarray, focal_px: float | None, *,
+         min_px_per_cm: float = RRDR_PX_PER_CM,
+         depth_range_m: tuple[float, float] = RRDR_DEPTH_RANGE_M) -> np.ndarray:
+    """Boolean map of reliable damage recognition: >= 1.5 px/cm when the focal length (in
+    pixels of this map) is known, else depth within [0.5, 20] m."""
+    if focal_px is None:
+        d = np.asarray(depth_m)
+        return np.isfinite(d) & (d >= depth_range_m[0]) & (d <= depth_range_m[1])
+    if not np.isfinite(focal_px) or focal_px <= 0:
+        raise ValueError(f"focal_px = {focal_px!r}: must be a positive number of pixels")
+    return pixels_per_cm(depth_m, focal_px) >= min_px_per_cm
+
+
+@dataclass(frozen=True)
+class MaskedDamage:
+    labels: np.ndarray
+    """Damage ids with 0 (unlabelled) where damage lies outside the RRDR."""
+    damage_in_rrdr: bool
+    """Any concrete damage or exposed rebar inside the RRDR."""
+
+
+def mask_damage(damage: np.ndarray, reliable: np.ndarray) -> MaskedDamage:
+    """Section 4.2: discard damage labels outside the RRDR (they become 0, ignored)."""
+    if damage.shape != reliable.shape:
+        raise ValueError(f"damage map {damage.shape} and RRDR {reliable.shape} differ in size")
+    damaged = damage >= Damage.CONCRETE
+    out = damage.copy()
+    out[damaged & ~reliable] = Damage.UNLABELLED
+    return MaskedDamage(out, bool(np.any(damaged & reliable)))

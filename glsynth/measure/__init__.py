@@ -1,0 +1,1 @@
+"""Measurements of the renderer: quality presets and their speed against accuracy."""

@@ -1,0 +1,31 @@
+"""GLSL programs from the shader files in glsynth.shaders (the top-level shaders/ folder)."""
+
+from functools import cache
+
+import moderngl
+
+from glsynth.core.paths import shader_dir
+
+# Program name -> (vertex shader file, fragment shader file).
+PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
+            "shadow": ("shadow.vert", "shadow.frag")}
+
+
+@cache
+def shader_source(name: str) -> str:
+    path = shader_dir() / name
+    if not path.is_file():
+        raise FileNotFoundError(f"shader {name!r} is missing from glsynth.shaders")
+    return path.read_text(encoding="utf-8")
+
+
+def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:
+    """Compile every program for one context (a GLSL error names the file that failed)."""
+    programs = {}
+    for name, (vert, frag) in PROGRAMS.items():
+        try:
+            programs[name] = ctx.program(vertex_shader=shader_source(vert),
+                                         fragment_shader=shader_source(frag))
+        except moderngl.Error as err:
+            raise RuntimeError(f"GLSL program {name!r} ({vert} + {frag}) failed: {err}") from err
+    return programs

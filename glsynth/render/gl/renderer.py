@@ -1,0 +1,295 @@
+"""Offscreen renderer: draws a glsynth RenderScene (a pyrender Scene) with glsynth's programs.
+
+Passes:
+- shadow (before colour, when [render] shadow_map_px > 0): depth from the sun into a depth
+  texture fitted to this camera's view (glsynth.world.sunlight);
+- colour: PBR into an RGBA8 target, multisampled when msaa > 0 and resolved before read-back;
+- labels: one draw per part into one RGBA32F target holding (component id, damage id, linear
+  depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis.
+Only the passes asked for are drawn. Pixels with no geometry read component 1 (Nonbridge),
+damage 1 (no damage) and depth = zfar.
+"""
+
+import math
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from glsynth.world.cameras import Camera
+from glsynth.core.config import RenderConfig
+from glsynth.render.gl.context import create_context
+from glsynth.render.gl.programs import compile_programs
+from glsynth.core.labels import Component, Damage
+from glsynth.appearance.materials import Material
+from glsynth.render.scene import RenderScene
+from glsynth.world.sunlight import shadow_matrix, shadow_texel_m, sun_direction
+
+PASSES = frozenset({"color", "component", "damage", "depth"})
+_LABEL_PASSES = frozenset({"component", "damage", "depth"})
+_GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
+_CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
+
+
+@dataclass(frozen=True)
+class RenderOutput:
+    color: np.ndarray | None = None
+    """(H, W, 3) uint8 sRGB."""
+    component: np.ndarray | None = None
+    """(H, W) uint8 component ids."""
+    damage: np.ndarray | None = None
+    """(H, W) uint8 damage ids."""
+    depth: np.ndarray | None = None
+    """(H, W) float32 metres along the optical axis; zfar where nothing was hit."""
+
+
+@dataclass
+class _Draw:
+    name: str
+    pose: np.ndarray
+    vaos: dict[str, moderngl.VertexArray]
+    material: Material
+    textures: dict[str, moderngl.Texture]
+    component: float
+    damage_mask: moderngl.Texture | None
+    center: np.ndarray
+    """World-space centre of the bounding box, for front-to-back ordering."""
+
+
+class Renderer:
+    """One GL context, its programs and framebuffers; load a scene, then render cameras."""
+
+    def __init__(self, config: RenderConfig, platform: str | None = None) -> None:
+        self.config = config
+        self.ctx, self.platform = create_context(platform)
+        self.programs = compile_programs(self.ctx)
+        self.size = (config.width, config.height)
+        self._draws: list[_Draw] = []
+        # Uploaded textures by the id of their source array; the array is kept with it so that
+        # the id cannot be reused by another array while the entry exists.
+        self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
+        self._defaults = {
+            "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
+            "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
+        }
+        self._make_framebuffers()
+
+    # --- resources --------------------------------------------------------------------------
+    def _make_framebuffers(self) -> None:
+        ctx, size, samples = self.ctx, self.size, self.config.msaa
+        self.color_target = ctx.renderbuffer(size, 4)
+        self.color_fbo = ctx.framebuffer([self.color_target], ctx.depth_renderbuffer(size))
+        if samples > ctx.max_samples:
+            raise ValueError(f"[render] msaa = {samples}: this GL ({self.platform}) supports at "
+                             f"most {ctx.max_samples} samples; set msaa to {ctx.max_samples} "
+                             "or less")
+        if samples:
+            self.msaa_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4, samples=samples)],
+                                            ctx.depth_renderbuffer(size, samples=samples))
+        self.label_target = ctx.renderbuffer(size, 4, dtype="f4")
+        self.label_fbo = ctx.framebuffer([self.label_target], ctx.depth_renderbuffer(size))
+        # Without shadows a 1x1 map stays bound, so the shadow sampler always has a depth texture.
+        side = self.config.shadow_map_px or 1
+        self.shadow_map = ctx.depth_texture((side, side))
+        self.shadow_map.compare_func = "<="  # sampler2DShadow: the hardware compares (and
+        self.shadow_map.filter = (moderngl.LINEAR, moderngl.LINEAR)  # filters 2x2 of) results
+        self.shadow_map.repeat_x = self.shadow_map.repeat_y = False
+        self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_map)
+
+    def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
+        key = id(array)
+        if key in self._textures:
+            return self._textures[key][1]
+        source = array
+        array = np.ascontiguousarray(array)
+        h, w = array.shape[:2]
+        channels = 1 if array.ndim == 2 else array.shape[2]
+        # Image rows run top to bottom; GL's t runs bottom to top: flip so that uv (0, 0) is
+        # the image's bottom-left corner, as glTF and Blender define it.
+        data = np.ascontiguousarray(array[::-1])
+        if integer:
+            tex = self.ctx.texture((w, h), channels, data.tobytes(), dtype="u1", alignment=1)
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        else:
+            tex = self.ctx.texture((w, h), channels, data.tobytes(), alignment=1)
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.repeat_x = tex.repeat_y = True
+        self._textures[key] = (source, tex)
+        return tex
+
+    def load(self, render_scene: RenderScene) -> None:
+        """Upload the geometry and textures of every mesh node (replacing any earlier scene)."""
+        self.release_scene()
+        scene = render_scene.scene
+        for node in sorted(scene.mesh_nodes, key=lambda n: n.name):
+            info = render_scene.parts[node.name]
+            mat = info.material
+            for primitive in node.mesh.primitives:
+                data = np.hstack([primitive.positions, primitive.normals,
+                                  primitive.texcoord_0]).astype(np.float32)
+                vbo = self.ctx.buffer(data.tobytes())
+                ibo = self.ctx.buffer(primitive.indices.astype(np.uint32).tobytes())
+                vaos = {
+                    "color": self.ctx.vertex_array(
+                        self.programs["color"],
+                        [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")], ibo, 4),
+                    "labels": self.ctx.vertex_array(
+                        self.programs["labels"],
+                        [(vbo, "3f 12x 2f", "in_position", "in_uv")], ibo, 4),
+                    "shadow": self.ctx.vertex_array(
+                        self.programs["shadow"], [(vbo, "3f 20x", "in_position")], ibo, 4),
+                }
+                textures = {slot: self._upload_texture(array) for slot, array in (
+                    ("base", mat.base_color_map), ("mr", mat.metallic_roughness_map),
+                    ("emissive", mat.emissive_map), ("normal", mat.normal_map))
+                    if array is not None}
+                mask = (self._upload_texture(mat.damage_mask, integer=True)
+                        if mat.damage_mask is not None else None)
+                pose = scene.get_pose(node)
+                box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
+                center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
+                self._draws.append(_Draw(node.name, pose, vaos, mat, textures,
+                                         float(info.component), mask, center))
+
+    def release_scene(self) -> None:
+        defaults = {id(t) for t in self._defaults.values()}
+        for draw in self._draws:
+            for vao in draw.vaos.values():
+                vao.release()
+        for key, (_, tex) in list(self._textures.items()):
+            if id(tex) not in defaults:
+                tex.release()
+                del self._textures[key]
+        self._draws = []
+
+    def release(self) -> None:
+        self.release_scene()
+        self.ctx.release()
+
+    # --- drawing ----------------------------------------------------------------------------
+    def _front_to_back(self, camera: Camera) -> list[_Draw]:
+        """Nearest parts first: llvmpipe's early depth test then skips hidden fragments."""
+        eye = camera.pose[:3, 3]
+        return sorted(self._draws, key=lambda d: float(np.sum((d.center - eye) ** 2)))
+
+    @staticmethod
+    def _matrices(view: np.ndarray, pose: np.ndarray) -> tuple[bytes, bytes]:
+        modelview = view @ pose  # float64, then float32 for GL
+        normal = np.linalg.inv(modelview[:3, :3]).T
+        return (modelview.astype("f4").T.tobytes(), normal.astype("f4").T.tobytes())
+
+    def _shadow_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray | None:
+        """Draw the sun's depth; return the shadow map's clip-from-world matrix."""
+        if not self.config.shadow_map_px or not draws:
+            return None
+        light = shadow_matrix(camera, self.config)
+        prog = self.programs["shadow"]
+        self.shadow_fbo.use()
+        self.shadow_fbo.clear(depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        # Slope-scaled offset against shadow acne on surfaces grazed by the sun; depth clamping
+        # keeps casters on the sun side of the map's range (glsynth.world.sunlight).
+        self.ctx.polygon_offset = (2.0, 4.0)
+        self.ctx.enable_direct(_GL_DEPTH_CLAMP)
+        for draw in draws:
+            prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
+            draw.vaos["shadow"].render()
+        self.ctx.disable_direct(_GL_DEPTH_CLAMP)
+        self.ctx.polygon_offset = (0.0, 0.0)
+        return light
+
+    def _color_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
+        cfg, prog = self.config, self.programs["color"]
+        light = self._shadow_pass(camera, draws)
+        fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
+        fbo.use()
+        sky = cfg.sky_rgb
+        fbo.clear(*(c ** (1 / 2.2) for c in (1 - math.exp(-sky[0]), 1 - math.exp(-sky[1]),
+                                              1 - math.exp(-sky[2]))), 1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        view = camera.view()
+        view3 = view[:3, :3]
+        sun = sun_direction(cfg)
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        prog["u_sun_dir"].value = tuple(view3 @ sun)
+        prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
+        prog["u_sun_color"].value = (cfg.sun_intensity,) * 3
+        prog["u_sky_color"].value = tuple(cfg.ambient_intensity * np.array(sky))
+        prog["u_ground_color"].value = tuple(cfg.ambient_intensity * 0.35 * np.array(sky))
+        prog["u_exposure"].value = cfg.exposure
+        for unit, name in enumerate(("u_base_color_map", "u_metallic_roughness_map",
+                                     "u_emissive_map", "u_normal_map", "u_shadow_map")):
+            prog[name].value = unit
+        prog["u_has_shadows"].value = light is not None
+        self.shadow_map.use(4)
+        if light is not None:
+            shadow_from_view = _CLIP_TO_TEXTURE @ light @ camera.pose
+            prog["u_shadow_from_view"].write(shadow_from_view.astype("f4").T.tobytes())
+            prog["u_shadow_texel"].value = 1.0 / cfg.shadow_map_px
+            # 1.5 texels along the normal lifts the lookup clear of the surface's own texels.
+            prog["u_shadow_offset_m"].value = 1.5 * shadow_texel_m(light, cfg.shadow_map_px)
+        for draw in draws:
+            modelview, normal = self._matrices(view, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_normal_matrix"].write(normal)
+            mat = draw.material
+            prog["u_base_color"].value = tuple(float(c) for c in mat.base_color)
+            prog["u_metallic"].value = float(mat.metallic)
+            prog["u_roughness"].value = float(mat.roughness)
+            prog["u_emissive"].value = tuple(float(c) for c in mat.emissive)
+            prog["u_has_normal_map"].value = "normal" in draw.textures
+            tex = draw.textures
+            tex.get("base", self._defaults["white"]).use(0)
+            tex.get("mr", self._defaults["white"]).use(1)
+            tex.get("emissive", self._defaults["white"]).use(2)
+            tex.get("normal", self._defaults["flat"]).use(3)
+            draw.vaos["color"].render()
+        if cfg.msaa:
+            self.ctx.copy_framebuffer(self.color_fbo, self.msaa_fbo)
+        raw = self.color_fbo.read(components=3, alignment=1)
+        return np.frombuffer(raw, np.uint8).reshape(self.size[1], self.size[0], 3)[::-1]
+
+    def _label_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
+        prog = self.programs["labels"]
+        self.label_fbo.use()
+        self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
+                             camera.zfar, 0.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        prog["u_damage_mask"].value = 0
+        view = camera.view()
+        for draw in draws:
+            modelview, _ = self._matrices(view, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_component"].value = draw.component
+            prog["u_has_damage_mask"].value = draw.damage_mask is not None
+            if draw.damage_mask is not None:
+                draw.damage_mask.use(0)
+            draw.vaos["labels"].render()
+        raw = self.label_fbo.read(components=4, dtype="f4")
+        return np.frombuffer(raw, np.float32).reshape(self.size[1], self.size[0], 4)[::-1]
+
+    def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES) -> RenderOutput:
+        unknown = set(passes) - PASSES
+        if unknown:
+            raise ValueError(f"passes {sorted(unknown)}: choose from {sorted(PASSES)}")
+        if (camera.width, camera.height) != self.size:
+            raise ValueError(f"camera size {camera.width}x{camera.height} differs from the "
+                             f"renderer's {self.size[0]}x{self.size[1]}: make the camera with "
+                             "the same [render] width and height")
+        draws = self._front_to_back(camera)
+        color = self._color_pass(camera, draws) if "color" in passes else None
+        out: dict[str, np.ndarray] = {}
+        if passes & _LABEL_PASSES:
+            labels = self._label_pass(camera, draws)
+            if "component" in passes:
+                out["component"] = labels[..., 0].astype(np.uint8)
+            if "damage" in passes:
+                out["damage"] = labels[..., 1].astype(np.uint8)
+            if "depth" in passes:
+                out["depth"] = np.ascontiguousarray(labels[..., 2])
+        return RenderOutput(color=None if color is None else np.ascontiguousarray(color), **out)

@@ -1,0 +1,110 @@
+"""Rendering one environment's cameras to files (glsynth render) and quick previews.
+
+GL stays in glsynth.render.gl; this module only orchestrates: environment -> materials -> scene ->
+renderer -> files. Every output is written atomically.
+"""
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from glsynth.world.cameras import CameraPlacement, environment_camera
+from glsynth.core.config import Config
+from glsynth.world.environment import Environment, build_environment
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
+from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
+from glsynth.core.labels import Component
+from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.appearance.dressing import Dressing, dress, open_repository
+from glsynth.appearance.damage_bank import DamageBank
+from glsynth.render.scene import RenderScene, build_scene
+from glsynth.world.visibility import shadowing_parts, visible_parts
+
+
+@dataclass
+class EnvironmentView:
+    """An environment loaded into a renderer, ready for its cameras."""
+
+    config: Config
+    environment: Environment
+    dressing: Dressing
+    scene: RenderScene
+    renderer: Renderer
+
+    @classmethod
+    def open(cls, config: Config, root_seed: int, env_index: int,
+             renderer: Renderer | None = None, cull: bool = True) -> "EnvironmentView":
+        """Build, dress and upload environment ``env_index``. Only parts that some camera of
+        the environment (all of them, not only those rendered now) can see, or that can shadow
+        such a view, are uploaded, and only the seen columns get damage textures, so a camera
+        renders the same bytes alone or in a batch, and the same as with ``cull=False``
+        (everything uploaded; for measuring)."""
+        env = build_environment(config, root_seed, env_index)
+        n_cameras = config.cameras.n_regular + config.cameras.n_closeup
+        cameras = [environment_camera(env.trajectory, config.cameras, config.render,
+                                      root_seed, env_index, i).camera for i in range(n_cameras)]
+        visible = visible_parts(env.parts, cameras)
+        dressing = dress(env, config, open_repository(config),
+                         DamageBank(config.damage, root_seed), visible)
+        needed = visible | shadowing_parts(env.parts, cameras, config.render)
+        parts = [p for p in env.parts if p.name in needed] if cull else env.parts
+        scene = build_scene(parts, dressing.materials)
+        renderer = renderer or Renderer(config.render)
+        renderer.load(scene)
+        return cls(config, env, dressing, scene, renderer)
+
+    def camera(self, index: int) -> CameraPlacement:
+        cfg = self.config
+        return environment_camera(self.environment.trajectory, cfg.cameras, cfg.render,
+                                  self.environment.root_seed, self.environment.env_index, index)
+
+    def render(self, index: int, passes: frozenset[str] = PASSES
+               ) -> tuple[CameraPlacement, RenderOutput]:
+        placement = self.camera(index)
+        return placement, self.renderer.render(placement.camera, passes)
+
+
+def write_render(out_dir: str | Path, placement: CameraPlacement, output: RenderOutput,
+                 meta: dict) -> None:
+    """image.png, component.png, damage.png (uint8 ids), depth.npy (float32), camera.json."""
+    out = Path(out_dir)
+    atomic_write_bytes(out / "image.png", png_bytes(output.color))
+    atomic_write_bytes(out / "component.png", png_bytes(output.component))
+    atomic_write_bytes(out / "damage.png", png_bytes(output.damage))
+    atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
+    info = placement.camera.to_json()
+    info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,
+                side=placement.side, distance_m=placement.distance_m,
+                height_above_ground_m=placement.height_above_ground_m,
+                euler_xyz_rad=list(placement.euler_xyz_rad), **meta)
+    atomic_write_json(out / "camera.json", info)
+
+
+def preview_sheet(view: EnvironmentView, cameras: list[int]) -> np.ndarray:
+    """Rows of (colour, component overlay, damage overlay, depth) for each camera."""
+    rows = []
+    for index in cameras:
+        _, out = view.render(index)
+        comp = overlay(out.color, out.component, COMPONENT_RGB, 0.55)
+        dmg = overlay(out.color, out.damage, DAMAGE_RGB, 0.8, skip=(1,))
+        rows.append(np.concatenate([out.color, comp, dmg, depth_rgb(out.depth)], axis=1))
+    return np.concatenate(rows, axis=0)
+
+
+def preview_config(config: Config, width: int) -> Config:
+    """The same scene at a preview width (same aspect), without MSAA, with 256-pixel damage
+    and repository textures and at most a 1024-pixel shadow map: geometry, cameras and damage
+    placement are unchanged."""
+    height = max(1, round(width * config.render.height / config.render.width))
+    return replace(config,
+                   render=replace(config.render, width=width, height=height, msaa=0,
+                                  shadow_map_px=min(1024, config.render.shadow_map_px)),
+                   damage=replace(config.damage, resolution=min(256, config.damage.resolution)),
+                   materials=replace(config.materials,
+                                     texture_size=min(256, config.materials.texture_size)))
+
+
+def describe_output(output: RenderOutput) -> str:
+    ids = sorted(Component(int(i)).name.lower() for i in np.unique(output.component))
+    return f"components {ids}, depth {output.depth.min():.2f}-{output.depth.max():.2f} m"

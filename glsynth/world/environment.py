@@ -1,0 +1,308 @@
+"""One random environment: a trajectory of N standard-design viaducts as named, tagged meshes.
+
+Every part has a name that starts with its component name, a component id (glsynth.core.labels), the
+viaduct it belongs to (None for environment-wide parts), a mesh in its own frame and a 4x4
+world-from-mesh pose. Footings are underground and not modelled; columns start at the ground.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from glsynth.core import design
+from glsynth.world import meshes
+from glsynth.core.config import Config
+from glsynth.core.labels import Component
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.world.trajectory import Trajectory, generate_trajectory
+
+# Name prefix of each kind of part, as in the exported glTF nodes.
+PREFIX = {
+    Component.NONBRIDGE: "ground",  # scene panels use "scene"
+    Component.SLAB: "slab",
+    Component.BEAM: "beam",
+    Component.COLUMN: "column",
+    Component.NONSTRUCTURAL: "nonstructural",
+    Component.RAIL: "rail",
+    Component.SLEEPER: "sleeper",
+}
+
+
+@dataclass(frozen=True)
+class Part:
+    name: str
+    component: Component
+    viaduct: int | None
+    mesh: trimesh.Trimesh
+    pose: np.ndarray
+    """4x4 world-from-mesh."""
+
+    def world_vertices(self) -> np.ndarray:
+        return self.mesh.vertices @ self.pose[:3, :3].T + self.pose[:3, 3]
+
+
+@dataclass(frozen=True)
+class ColumnInfo:
+    name: str
+    center_xy: tuple[float, float]
+    bottom_z: float
+    top_z: float
+    heading: float
+    section_m: tuple[float, float]
+    """(along track, across track)."""
+
+
+@dataclass(frozen=True)
+class ViaductInfo:
+    index: int
+    start_s_m: float
+    height_m: float
+    radius_m: float
+    """math.inf when straight."""
+    sections: design.SectionChoice
+    footprint_xy: np.ndarray
+    """Deck outline: left edge forward, then right edge back, (P, 2) world metres."""
+    columns: tuple[ColumnInfo, ...]
+
+
+@dataclass(frozen=True)
+class Environment:
+    root_seed: int
+    env_index: int
+    config: Config
+    trajectory: Trajectory
+    viaducts: tuple[ViaductInfo, ...]
+    parts: tuple[Part, ...]
+
+
+def _samples(s0: float, s1: float, step: float, breaks: np.ndarray) -> np.ndarray:
+    """Arc lengths from s0 to s1 at most ``step`` apart, including any breakpoints inside."""
+    n = max(1, int(np.ceil((s1 - s0) / step - 1e-9)))
+    s = np.linspace(s0, s1, n + 1)
+    inside = breaks[(breaks > s0) & (breaks < s1)]
+    return np.unique(np.concatenate([s, inside]))
+
+
+def _photo_uv(mesh: trimesh.Trimesh, mirror: bool) -> trimesh.Trimesh:
+    """A scene panel shows one photo: UVs normalised to [0, 1] over the panel (an exception to
+    UVs in metres), v = 1 at the top, u left to right as seen from the track (``mirror`` when
+    the sweep runs right to left for that viewer)."""
+    uv = mesh.visual.uv / mesh.visual.uv.max(axis=0)
+    if np.corrcoef(uv[:, 1], mesh.vertices[:, 2])[0, 1] < 0:
+        uv[:, 1] = 1.0 - uv[:, 1]
+    if mirror:
+        uv[:, 0] = 1.0 - uv[:, 0]
+    mesh.visual.uv = uv
+    return mesh
+
+
+class _Builder:
+    """Holds the trajectory and design while parts are made; the result is plain data."""
+
+    def __init__(self, config: Config, trajectory: Trajectory) -> None:
+        self.cfg = config.environment
+        self.d = config.design
+        self.traj = trajectory
+        self.up = np.array([0.0, 0.0, 1.0])
+        self.parts: list[Part] = []
+
+    def add(self, name: str, component: Component, viaduct: int | None,
+            mesh: trimesh.Trimesh, pose: np.ndarray | None = None) -> None:
+        self.parts.append(Part(name, component, viaduct, mesh,
+                               np.eye(4) if pose is None else pose))
+
+    def along(self, s: np.ndarray, offset: float = 0.0, base: str = "deck",
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path at lateral ``offset`` on the deck top (or the ground), with its sweep frame."""
+        points, _, normal = self.traj.frame(s)
+        if base == "ground":
+            points[:, 2] = self.traj.ground_at(s)
+        path = points + offset * normal
+        return path, normal, np.tile(self.up, (len(s), 1))
+
+    def deck_sweep(self, s: np.ndarray, profile: np.ndarray, **kw) -> trimesh.Trimesh:
+        path, across, up = self.along(s)
+        return meshes.sweep(profile, path, across, up, closed=True, caps=True, **kw)
+
+    # --- viaduct ---------------------------------------------------------------------------
+    def viaduct(self, i: int) -> ViaductInfo:
+        d, traj = self.d, self.traj
+        L = d.length_m
+        s0, s1 = i * L, (i + 1) * L
+        height = float(traj.heights_m[i])
+        radius = float(traj.radii_m[i])
+        sections = design.cross_sections(height, radius)
+        s = _samples(s0, s1, self.cfg.sweep_step_m, traj.centres_s)
+        tag = f"v{i:02d}"
+        t_s, half_w = d.slab_thickness_m, d.deck_width_m / 2
+        self.add(f"slab_{tag}", Component.SLAB, i,
+                 self.deck_sweep(s, meshes.rectangle(-half_w, half_w, -t_s, 0.0)))
+        beam_bottom = -t_s - d.girder_depth_m
+        for side, sign in (("l", 1), ("r", -1)):
+            u = sign * d.column_spacing_m / 2
+            self.add(f"beam_{tag}_girder_{side}", Component.BEAM, i, self.deck_sweep(
+                s, meshes.rectangle(u - d.girder_width_m / 2, u + d.girder_width_m / 2,
+                                    beam_bottom, -t_s)))
+        columns = self.columns_and_beams(i, sections, tag)
+        self.track(i, s, tag)
+        self.fences_and_poles(i, s, tag)
+        left, _, _ = self.along(s, half_w)
+        right, _, _ = self.along(s, -half_w)
+        footprint = np.concatenate([left[:, :2], right[::-1, :2]])
+        return ViaductInfo(i, s0, height, radius, sections, footprint, columns)
+
+    def columns_and_beams(self, i: int, sections: design.SectionChoice, tag: str
+                          ) -> tuple[ColumnInfo, ...]:
+        d, traj = self.d, self.traj
+        a, b = (x / 100.0 for x in sections.column_cm)
+        rows_s = i * d.length_m + np.array(d.column_rows_s)
+        points, _, normal = traj.frame(rows_s)
+        heading = traj.heading(rows_s)
+        underside = traj.deck_at(rows_s) - d.slab_thickness_m - d.girder_depth_m
+        columns = []
+        centers = np.zeros((len(rows_s), 2, 3))
+        for r, s_c in enumerate(rows_s):
+            # Ground is linear in s under a column: its lowest point is at one footprint edge.
+            bottom = float(min(traj.ground_at(s_c - a / 2), traj.ground_at(s_c + a / 2)))
+            top = float(underside[r] + d.embed_m)
+            # Cross beam over the row, reaching from girder edge to girder edge.
+            cross_len = d.column_spacing_m + d.girder_width_m
+            cz = underside[r] + (d.girder_depth_m + d.embed_m) / 2
+            self.add(f"beam_{tag}_cross_{r}", Component.BEAM, i,
+                     meshes.box((d.crossbeam_width_m, cross_len, d.girder_depth_m + d.embed_m)),
+                     meshes.pose(heading[r], [points[r, 0], points[r, 1], cz]))
+            for k, (side, sign) in enumerate((("l", 1), ("r", -1))):
+                xy = points[r, :2] + sign * d.column_spacing_m / 2 * normal[r, :2]
+                centers[r, k] = [xy[0], xy[1], bottom]
+                name = f"column_{tag}_{r}{side}"
+                self.add(name, Component.COLUMN, i, meshes.box((a, b, top - bottom)),
+                         meshes.pose(heading[r], [xy[0], xy[1], (top + bottom) / 2]))
+                columns.append(ColumnInfo(name, (float(xy[0]), float(xy[1])), bottom, top,
+                                          float(heading[r]), (a, b)))
+        if sections.intermediate_beam_cm is not None:
+            depth, width = (x / 100.0 for x in sections.intermediate_beam_cm)
+            z = 0.5 * (max(c.bottom_z for c in columns) + underside.min())
+            for r in range(len(rows_s)):  # across the track, between the pair of a row
+                mid = centers[r].mean(axis=0)
+                self.add(f"beam_{tag}_tie_{r}", Component.BEAM, i,
+                         meshes.box((width, d.column_spacing_m, depth)),
+                         meshes.pose(heading[r], [mid[0], mid[1], z]))
+            for k, side in enumerate("lr"):  # along the track, between neighbouring rows
+                for r in range(len(rows_s) - 1):
+                    p, q = centers[r, k], centers[r + 1, k]
+                    chord = q[:2] - p[:2]
+                    mid = (p[:2] + q[:2]) / 2
+                    self.add(f"beam_{tag}_tie_{side}{r}", Component.BEAM, i,
+                             meshes.box((float(np.hypot(*chord)), width, depth)),
+                             meshes.pose(float(np.arctan2(chord[1], chord[0])),
+                                         [mid[0], mid[1], z]))
+        return tuple(columns)
+
+    def track(self, i: int, s: np.ndarray, tag: str) -> None:
+        d, traj = self.d, self.traj
+        h_sl = d.sleeper_height_m
+        n_sl = int(round(d.length_m / d.sleeper_spacing_m))
+        s_sl = i * d.length_m + (np.arange(n_sl) + 0.5) * d.sleeper_spacing_m
+        points, _, normal = traj.frame(s_sl)
+        heading = traj.heading(s_sl)
+        head, foot, web = d.rail_head_width_m, d.rail_foot_width_m, d.rail_web_width_m
+        h_rail = d.rail_height_m
+        # Rail as three convex prisms: foot, web, head (an I-shaped section).
+        rail_parts = ((foot, 0.0, 0.2 * h_rail), (web, 0.2 * h_rail, 0.75 * h_rail),
+                      (head, 0.75 * h_rail, h_rail))
+        for t, sign in enumerate((1, -1)):
+            u_track = sign * d.track_spacing_m / 2
+            centre = points + u_track * normal
+            centre[:, 2] += h_sl / 2
+            sleeper_poses = np.stack([meshes.pose(h, c) for h, c in zip(heading, centre)])
+            self.add(f"sleeper_{tag}_t{t}", Component.SLEEPER, i, meshes.boxes(
+                (d.sleeper_width_m, d.sleeper_length_m, h_sl), sleeper_poses))
+            for side, rsign in (("l", 1), ("r", -1)):
+                u = u_track + rsign * (d.gauge_m + head) / 2
+                pieces = [self.deck_sweep(s, meshes.rectangle(u - w / 2, u + w / 2,
+                                                              h_sl + z0, h_sl + z1))
+                          for w, z0, z1 in rail_parts]
+                self.add(f"rail_{tag}_t{t}{side}", Component.RAIL, i,
+                         trimesh.util.concatenate(pieces))
+            for kind, height in (("contact", d.contact_wire_height_m),
+                                 ("messenger", d.messenger_wire_height_m)):
+                path, across, up = self.along(s, u_track)
+                path[:, 2] += h_sl + h_rail + height
+                self.add(f"nonstructural_{tag}_wire_{kind}_t{t}", Component.NONSTRUCTURAL, i,
+                         meshes.sweep(meshes.circle(d.wire_radius_m, self.cfg.cylinder_segments),
+                                      path, across, up, closed=True, smooth=True, caps=True))
+
+    def fences_and_poles(self, i: int, s: np.ndarray, tag: str) -> None:
+        d, traj = self.d, self.traj
+        half_w, t_f = d.deck_width_m / 2, d.fence_thickness_m
+        for side, sign in (("l", 1), ("r", -1)):
+            lo, hi = sorted((sign * half_w, sign * (half_w - t_f)))
+            self.add(f"nonstructural_{tag}_fence_{side}", Component.NONSTRUCTURAL, i,
+                     self.deck_sweep(s, meshes.rectangle(lo, hi, 0.0, d.fence_height_m)))
+        s_mid = np.array([i * d.length_m + d.length_m / 2])
+        points, _, normal = traj.frame(s_mid)
+        heading = float(traj.heading(s_mid)[0])
+        u_pole = half_w - t_f - d.pole_radius_m - 0.1
+        vertical = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, d.pole_height_m]])
+        x_axis, y_axis = np.tile([1.0, 0, 0], (2, 1)), np.tile([0, 1.0, 0], (2, 1))
+        for side, sign in (("l", 1), ("r", -1)):
+            base = points[0] + sign * u_pole * normal[0]
+            self.add(f"nonstructural_{tag}_pole_{side}", Component.NONSTRUCTURAL, i,
+                     meshes.sweep(meshes.circle(d.pole_radius_m, self.cfg.cylinder_segments),
+                                  vertical, x_axis, y_axis, closed=True, smooth=True, caps=True),
+                     meshes.pose(0.0, base))
+        top = points[0].copy()
+        top[2] += d.pole_height_m - d.portal_beam_size_m / 2
+        self.add(f"nonstructural_{tag}_portal", Component.NONSTRUCTURAL, i,
+                 meshes.box((d.portal_beam_size_m, 2 * u_pole, d.portal_beam_size_m)),
+                 meshes.pose(heading, top))
+
+    # --- surroundings -----------------------------------------------------------------------
+    def surroundings(self) -> None:
+        cfg, traj = self.cfg, self.traj
+        L, n = self.d.length_m, traj.n
+        D, margin = cfg.panel_distance_m, cfg.end_margin_m
+        # Ground and panels in pieces: the two lead-in/out margins and one per viaduct.
+        bounds = [(-margin, 0.0, "start")] if margin > 0 else []
+        bounds += [(i * L, (i + 1) * L, f"v{i:02d}") for i in range(n)]
+        bounds += [(n * L, n * L + margin, "end")] if margin > 0 else []
+        for s0, s1, tag in bounds:
+            viaduct = int(tag[1:]) if tag.startswith("v") else None
+            s = _samples(s0, s1, cfg.sweep_step_m, traj.centres_s)
+            path, across, up = self.along(s, base="ground")
+            self.add(f"ground_{tag}", Component.NONBRIDGE, viaduct, meshes.sweep(
+                np.array([[D + 1.0, 0.0], [-D - 1.0, 0.0]]), path, across, up, closed=False))
+            for side, u in (("l", D), ("r", -D)):
+                # Open profile facing the centre line (its left side when walking it).
+                top_bottom = [[u, cfg.panel_height_m], [u, -1.0]]
+                profile = np.array(top_bottom if u > 0 else top_bottom[::-1])
+                self.add(f"scene_{tag}_{side}", Component.NONBRIDGE, viaduct,
+                         _photo_uv(meshes.sweep(profile, path, across, up, closed=False),
+                                   mirror=u < 0))
+        # End panels close the view along the track.
+        for tag, s_end, facing in (("start", -margin, 1.0), ("end", n * L + margin, -1.0)):
+            point, tangent, normal = traj.frame(np.array([s_end]))
+            base = point[0].copy()
+            base[2] = traj.ground_at(np.array([s_end]))[0]
+            ends = np.array([base - D * normal[0], base + D * normal[0]])
+            if facing < 0:
+                ends = ends[::-1]
+            # A path across the track, swept with the panel as an open vertical profile.
+            direction = (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
+            across = np.tile(np.cross(direction, self.up), (2, 1))
+            up = np.tile(self.up, (2, 1))
+            profile = np.array([[0.0, cfg.panel_height_m], [0.0, -1.0]])
+            self.add(f"scene_{tag}_across", Component.NONBRIDGE, None,
+                     _photo_uv(meshes.sweep(profile, ends, -across, up, closed=False),
+                               mirror=False))
+
+
+def build_environment(config: Config, root_seed: int, env_index: int) -> Environment:
+    """Environment ``env_index`` of run ``root_seed``: same inputs, identical meshes."""
+    rng = make_rng(root_seed, env_index, Stream.GEOMETRY)
+    trajectory = generate_trajectory(config.environment, config.design.length_m, rng)
+    builder = _Builder(config, trajectory)
+    viaducts = tuple(builder.viaduct(i) for i in range(trajectory.n))
+    builder.surroundings()
+    return Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))

@@ -1,0 +1,57 @@
+"""Which parts a set of cameras can see: a conservative frustum test, no GL.
+
+A part is seen when its oriented bounding box is not entirely outside one of the camera's
+frustum planes (near plane and the four image edges). Occlusion is ignored, so the answer may
+include hidden parts but never misses a part that is in view. With shadows, the parts that
+may shadow a view are needed as well (glsynth.world.sunlight).
+"""
+
+import numpy as np
+
+from glsynth.world.cameras import Camera
+from glsynth.core.config import RenderConfig
+from glsynth.world.environment import Part
+from glsynth.world.sunlight import shadow_casters
+
+_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+
+
+def part_corners(part: Part) -> np.ndarray:
+    """The 8 world-space corners of the part's bounding box in its own frame (8, 3)."""
+    lo, hi = part.mesh.bounds
+    local = lo + _CORNERS * (hi - lo)
+    return local @ part.pose[:3, :3].T + part.pose[:3, 3]
+
+
+def seen_by(corners: np.ndarray, camera: Camera) -> np.ndarray:
+    """For boxes (P, 8, 3), whether each may be in this camera's view (P,)."""
+    view = camera.view()
+    c = corners @ view[:3, :3].T + view[:3, 3]
+    x, y, d = c[..., 0], c[..., 1], -c[..., 2]
+    k = camera.K
+    planes = (d - camera.znear,                                   # in front of the near plane
+              k[0, 0] * x + (k[0, 2] + 0.5) * d,                  # right of the left edge
+              (camera.width - 0.5 - k[0, 2]) * d - k[0, 0] * x,   # left of the right edge
+              -k[1, 1] * y + (k[1, 2] + 0.5) * d,                 # below the top edge
+              (camera.height - 0.5 - k[1, 2]) * d + k[1, 1] * y)  # above the bottom edge
+    outside = np.zeros(corners.shape[0], bool)
+    for value in planes:
+        outside |= np.all(value < 0, axis=1)
+    return ~outside
+
+
+def visible_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera]) -> set[str]:
+    corners = np.stack([part_corners(p) for p in parts])
+    seen = np.zeros(len(parts), bool)
+    for camera in cameras:
+        seen |= seen_by(corners, camera)
+    return {p.name for p, s in zip(parts, seen) if s}
+
+
+def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
+                    render: RenderConfig) -> set[str]:
+    """Parts that may cast the sun's shadow into some camera's view (none without shadows)."""
+    if not render.shadow_map_px:
+        return set()
+    casts = shadow_casters(np.stack([part_corners(p) for p in parts]), cameras, render)
+    return {p.name for p, c in zip(parts, casts) if c}
