@@ -25,10 +25,6 @@ from glsynth.core.config import Config  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
 
-BLENDER_CYCLES_S = {"64 samples": 53.8, "16 samples": 13.6}  # ../shared/notes, same machine
-RAW_FLOOR_MS = 56 + 29 + 28  # minimal moderngl passes (textured colour, flat label, depth)
-
-
 def median_ms(values: list[float]) -> float:
     return round(statistics.median(values) * 1000, 1)
 
@@ -114,14 +110,7 @@ def main() -> None:
             results["colour pass by shadow map size (ms)"] = time_shadow_sizes(
                 view, cameras, args.repeats)
         view.renderer.release()
-    full0 = results["glsynth msaa=0 (ms)"]["full sample"]
-    full4 = results["glsynth msaa=4 (ms)"]["full sample"]
-    results["ratios"] = {
-        "cycles_64spp / full sample (msaa 0)": round(BLENDER_CYCLES_S["64 samples"] * 1000 / full0),
-        "cycles_64spp / full sample (msaa 4)": round(BLENDER_CYCLES_S["64 samples"] * 1000 / full4),
-        "cycles_16spp / full sample (msaa 0)": round(BLENDER_CYCLES_S["16 samples"] * 1000 / full0),
-        "full sample (msaa 0) / raw moderngl floor": round(full0 / RAW_FLOOR_MS, 2),
-    }
+    # Cycles on the same view, timed in the same run: `glsynth bench blender`.
     if not args.no_pyrender:
         view = EnvironmentView.open(config, 0, 0, Renderer(config.render, platform="egl"))
         results["pyrender 0.1.45 OffscreenRenderer (ms)"] = time_pyrender(view, cameras,

@@ -4,8 +4,8 @@ next to the bare step on tensors already in memory.
 
     .venv/bin/python bench/bench_train.py [--data out/demo/dataset] [--steps 4]
 
-Re-executes itself with Debian's jemalloc preloaded (as ../shared/notes/fcn58-facts.md
-advises) unless --no-jemalloc; the results say which allocator ran.
+Re-executes itself with Debian's jemalloc preloaded (docs/design.md, "Training memory") unless
+--no-jemalloc; the results say which allocator ran.
 """
 
 import argparse
@@ -27,7 +27,6 @@ SIZES = ((642, 360), (1920, 1080))  # 642: a multiple of 3 near 640, so targets 
 def bare_steps(size: tuple[int, int], steps: int, bf16: bool) -> float:
     """Median seconds per image of forward + backward + Adam on a fixed batch of 8."""
     import torch
-
     from glsynth.model.fcn58 import FCN58
     from glsynth.model.losses import weighted_cross_entropy
 
@@ -76,7 +75,6 @@ def main() -> None:
     if not (data / "files_train.csv").exists():
         sys.exit(f"--data {data}: no dataset there; run bash scripts/setup.sh first")
     import torch
-
     from glsynth.model.train import bf16_helps
 
     native = bf16_helps(torch.device("cpu"))

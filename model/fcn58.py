@@ -9,17 +9,17 @@ Reading of the table (it gives filters, kernels and strides only):
   (every pair but the first of the 64 -> 128 block).
 - Fusion as in FCN (Long et al., the paper's [36]): a 1x1 score layer (with bias) on Conv0, Conv1,
   Maxpool0-2 and the deepest output, each up-sampled bilinearly to Conv0's size and summed.
-This gives 940,608 parameters for 8 classes and 9.55 GMACs at 1920x1080, as measured
-independently (../shared/notes/fcn58-facts.md). Output: (N, classes, ceil(H/3), ceil(W/3)).
+This gives 940,608 parameters for 8 classes and 9.55 GMACs at 1920x1080, equal to an
+independent count of the same reading (docs/design.md). Output: (N, classes, ceil(H/3), ceil(W/3)).
 """
 
 import torch
 import torch.nn.functional as F
+from glsynth.model.settings import MIN_SIDE
 from torch import nn
 
 BLOCKS = ((64, 8), (128, 12), (128, 12), (128, 12), (128, 12))
 """(filters, depth-wise separable layers) per block: Dconv2-9, 10-21, 22-33, 34-45, 46-57."""
-MIN_SIDE = 96  # /3, /2 and four 2x2 pools leave at least one pixel at the deepest scale
 
 
 def conv_bn_relu(c_in: int, c_out: int, kernel: int, stride: int) -> nn.Sequential:

@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # GL: EGL (default) and OSMesa (fallback) from Mesa; libxrender1 because pyrender imports pyglet;
-# jemalloc for full-resolution training (see ../shared/notes/fcn58-facts.md).
+# jemalloc for full-resolution training (docs/design.md, "Training memory").
 system_packages=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libosmesa6 libxrender1
                  libjemalloc2)
 command -v python3 >/dev/null || system_packages+=(python3)

@@ -5,7 +5,7 @@ trajectory (straight: radius > 5000 m; curved otherwise). Everything else about 
 is sparse in the literature (paper Section 3.1); those dimensions live in ``StandardDesign`` with
 documented defaults, and can be changed in the ``[design]`` config section.
 
-Conventions (DESIGN.md reading notes):
+Conventions (docs/design.md, "Reading the paper"):
 - Heights in [5.0, 5.5] m use the first row; row upper bounds are inclusive (5.5 < H <= 7 ...).
 - A radius of exactly 5000 m is *curved*: the issue defines straight as radius > 5000 m.
 - Column sections are (along track, across track): curved viaducts are stiffer transversely, so

@@ -1,4 +1,4 @@
-"""Label ids of the released Tokaido dataset (DESIGN.md). 0 is 'unlabelled' in both sets."""
+"""Label ids of the released Tokaido dataset (docs/design.md). 0 is 'unlabelled' in both sets."""
 
 from enum import IntEnum
 
