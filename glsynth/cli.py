@@ -8,7 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+from glsynth.assess.condition import AssessSettings
 from glsynth.core.config import PRESETS, Config, load_config
+from glsynth.core.errors import UserError
+from glsynth.core.options import add_options, from_options
+from glsynth.model.settings import TrainSettings
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -37,6 +41,27 @@ def _seed(text: str) -> int:
     return value
 
 
+def _count(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 1")
+    return value
+
+
+def _n_cameras(config: Config) -> int:
+    return config.cameras.n_regular + config.cameras.n_closeup
+
+
+def _check_cameras(config: Config, indices: list[int]) -> None:
+    """Before any work: every camera index exists in this config."""
+    n = _n_cameras(config)
+    bad = [i for i in indices if i >= n]
+    if bad:
+        raise UserError(f"--camera {bad[0]}: this config has cameras 0 to {n - 1} "
+                        f"({config.cameras.n_regular} regular, then {config.cameras.n_closeup} "
+                        "close-ups)")
+
+
 def _config(args: argparse.Namespace) -> Config:
     config = load_config(args.preset, args.config)
     if getattr(args, "quality", None):
@@ -47,8 +72,8 @@ def _config(args: argparse.Namespace) -> Config:
 
 
 def cmd_export(args: argparse.Namespace) -> None:
-    from glsynth.world.environment import build_environment
     from glsynth.render.export import export_environment
+    from glsynth.world.environment import build_environment
 
     t0 = time.perf_counter()
     env = build_environment(_config(args), args.seed, args.env)
@@ -84,6 +109,7 @@ def cmd_render(args: argparse.Namespace) -> None:
     from glsynth.render.view import EnvironmentView, describe_output, write_render
 
     config = _config(args)
+    _check_cameras(config, args.camera)
     view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
     print(f"GL platform: {view.renderer.platform}")
     for index in args.camera:
@@ -103,8 +129,7 @@ def cmd_preview(args: argparse.Namespace) -> None:
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)
     view = EnvironmentView.open(config, args.seed, args.env)
-    total = config.cameras.n_regular + config.cameras.n_closeup
-    cameras = np.linspace(0, total - 1, args.cameras).round().astype(int).tolist()
+    cameras = np.linspace(0, _n_cameras(config) - 1, args.cameras).round().astype(int).tolist()
     atomic_write_bytes(args.out, png_bytes(preview_sheet(view, cameras)))
     print(f"cameras {cameras} at {config.render.width}x{config.render.height} "
           f"(colour | components | damage | depth) in {time.perf_counter() - t0:.1f} s "
@@ -121,17 +146,27 @@ def cmd_textures(args: argparse.Namespace) -> None:
 
 
 def cmd_generate(args: argparse.Namespace) -> None:
-    from tqdm import tqdm
-
-    from glsynth.data.dataset import check_format, merge, plan, prepare_output
-    from glsynth.data.engines import check_engine, execute
-    from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
-    from glsynth.data.report import contact_sheet
+    from glsynth.core.runlock import RunLock
+    from glsynth.data.dataset import check_format
+    from glsynth.data.engines import check_engine
 
     config = _config(args)
     check_format(config)
     check_engine(args.engine, args.workers, args.address)
     out = Path(args.out)
+    with RunLock(out):
+        _generate(args, config, out)
+
+
+def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
+    """The run itself, while this process holds the output folder's lock."""
+    from tqdm import tqdm
+
+    from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
+    from glsynth.data.dataset import merge, plan, prepare_output
+    from glsynth.data.engines import execute
+    from glsynth.data.report import contact_sheet
+
     prepare_output(out, config, args.seed)
     tasks = plan(config)
     t0 = time.perf_counter()
@@ -161,18 +196,9 @@ def cmd_generate(args: argparse.Namespace) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> None:
-    from glsynth.model.data import parse_size
-    from glsynth.model.train import TrainSettings, parse_schedule, train
+    from glsynth.model.train import train
 
-    settings = TrainSettings(
-        task=args.task, data=str(Path(args.data).resolve()),
-        extra=tuple(str(Path(e).resolve()) for e in args.extra),
-        image_size=parse_size(args.image_size), batch_size=args.batch_size,
-        schedule=parse_schedule(args.schedule), weight_decay=args.weight_decay,
-        val_count=args.val_count, puretex=not args.no_puretex, seed=args.seed,
-        precision=args.precision, channels_last=not args.no_channels_last,
-        loader_workers=args.loader_workers, views=args.views, device=args.device,
-        time_budget_s=args.time_budget_min * 60 if args.time_budget_min else None)
+    settings = from_options(TrainSettings, args)
     last = train(settings, args.out)
     print(f"trained {args.task} for {last.get('epoch', 0)} epochs -> {args.out}/model.pt")
 
@@ -201,32 +227,28 @@ def cmd_predict(args: argparse.Namespace) -> None:
     print(f"{len(written)} predictions -> {args.out}")
 
 
-def _depth_range(text: str) -> tuple[float, float]:
-    try:
-        near, far = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: write NEAR,FAR in metres, e.g. 0.5,20")
-    return near, far
-
-
 def cmd_assess(args: argparse.Namespace) -> int:
-    from glsynth.assess.condition import AssessSettings, assess_photos, oracle_photos
+    from glsynth.assess.condition import assess_photos, oracle_photos
 
-    settings = AssessSettings(args.min_px_per_cm, args.depth_range)
+    settings = from_options(AssessSettings, args)
     out = Path(args.out)
     if (args.runs is None) == (args.oracle is None):
-        raise ValueError("give either --runs component=R1,damage=R2,depth=R3 or --oracle DATA")
+        raise UserError("give either --runs component=R1,damage=R2,depth=R3 or --oracle DATA")
     if args.oracle is not None:
         if args.images:
-            raise ValueError("--oracle takes its images from the dataset; drop IMAGES")
+            raise UserError("--oracle takes its images from the dataset; drop IMAGES")
         photos = oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit)
     else:
-        from glsynth.model.pipeline import (evaluate_rrdr, load_predictors, network_photos,
-                                            parse_runs)
+        from glsynth.model.pipeline import (
+            evaluate_rrdr,
+            load_predictors,
+            network_photos,
+            parse_runs,
+        )
 
         if bool(args.images) == bool(args.data):
-            raise ValueError("with --runs give IMAGES to assess, or --data DIR to assess and "
-                             "evaluate a labelled split")
+            raise UserError("with --runs give IMAGES to assess, or --data DIR to assess and "
+                            "evaluate a labelled split")
         predictors = load_predictors(parse_runs(args.runs), args.device)
         images, focals = list(args.images), [args.focal_mm] * len(args.images)
         if args.data:
@@ -260,9 +282,9 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
     presets = args.presets.split(",") if args.presets else list(QUALITY)
     unknown = set(presets) - set(QUALITY)
     if unknown:
-        raise ValueError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
+        raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
-    n = config.cameras.n_regular + config.cameras.n_closeup
+    n = _n_cameras(config)
     cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1)) for i in range(args.cameras)})
     result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets)
     print(quality_table(result), end="")
@@ -290,9 +312,7 @@ def cmd_bench_blender(args: argparse.Namespace) -> int:
               "--blender PATH; this bench is optional.", file=sys.stderr)
         return 0
     config = _config(args)
-    n = config.cameras.n_regular + config.cameras.n_closeup
-    if not 0 <= args.camera < n:
-        raise ValueError(f"--camera {args.camera}: this config has cameras 0 to {n - 1}")
+    _check_cameras(config, [args.camera])
     result = bench_blender(config, args.seed, args.env, args.camera, args.samples,
                            Path(args.out), blender, args.timeout_min * 60)
     print(blender_table(result), end="")
@@ -302,6 +322,8 @@ def cmd_bench_blender(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of every error, user errors too")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("export", help="write one environment as .glb plus scene.json")
@@ -313,7 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("histograms", help="height/curvature histograms (paper Fig. 7) as PNG")
     _add_config_args(p)
     p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--count", type=int, default=0,
+    p.add_argument("--count", type=_seed, default=0,
                    help="trajectories (default: the preset's n_environments)")
     p.add_argument("--out", required=True, help="output .png path")
     p.set_defaults(func=cmd_histograms)
@@ -331,8 +353,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("preview", help="low-resolution contact sheet of one environment")
     _add_config_args(p)
     _add_env_args(p)
-    p.add_argument("--cameras", type=int, default=6, help="how many cameras (spread evenly)")
-    p.add_argument("--width", type=int, default=384, help="width of each tile in pixels")
+    p.add_argument("--cameras", type=_count, default=6, help="how many cameras (spread evenly)")
+    p.add_argument("--width", type=_count, default=384, help="width of each tile in pixels")
     p.add_argument("--out", required=True, help="output .png")
     p.set_defaults(func=cmd_preview)
 
@@ -341,7 +363,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_quality_arg(p)
     p.add_argument("--seed", type=_seed, required=True, help="root seed")
     p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
-    p.add_argument("--workers", type=int, default=1,
+    p.add_argument("--workers", type=_count, default=1,
                    help="worker processes (local) or Ray actors, one GL context each")
     p.add_argument("--engine", choices=("local", "ray"), default="local",
                    help="local processes, or Ray actors sharded by environment")
@@ -351,31 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_generate)
 
     p = sub.add_parser("train", help="train FCN58 on a Tokaido-layout dataset (needs torch)")
-    p.add_argument("--task", required=True, choices=("component", "damage", "depth"))
-    p.add_argument("--data", required=True, help="dataset root (glsynth's or the released)")
+    add_options(p, TrainSettings)
     p.add_argument("--out", required=True, help="run folder (new, or a run to resume)")
-    p.add_argument("--extra", action="append", default=[], metavar="DIR",
-                   help="real labelled photos to mix in: DIR/images/* and DIR/labels/<stem>."
-                        "png (repeatable)")
-    p.add_argument("--image-size", default="1920x1080", help="WxH input size (default "
-                   "1920x1080; outputs are a third)")
-    p.add_argument("--batch-size", type=int, default=8)
-    p.add_argument("--schedule", default="1e-3:200,1e-4:50,1e-5:10",
-                   help="LR:EPOCHS stages (paper Section 4.3)")
-    p.add_argument("--weight-decay", type=float, default=1e-4)
-    p.add_argument("--val-count", type=int, default=300,
-                   help="training images held out for validation (at most a fifth)")
-    p.add_argument("--views", choices=("regular", "closeup", "all"), default=None,
-                   help="default: regular for component/depth, all for damage")
-    p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
-    p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--precision", choices=("auto", "bf16", "fp32"), default="auto",
-                   help="auto: bf16 autocast where the GPU/CPU runs it natively, else fp32")
-    p.add_argument("--no-channels-last", action="store_true")
-    p.add_argument("--loader-workers", type=int, default=1)
-    p.add_argument("--time-budget-min", type=float, default=None,
-                   help="stop after this many minutes of training (validate and save first)")
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("evaluate", help="metrics of a trained run on a dataset split")
@@ -383,7 +382,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", required=True)
     p.add_argument("--split", choices=("train", "test"), default="test")
     p.add_argument("--out", default=None, help="default: RUN/eval_<split>")
-    p.add_argument("--examples", type=int, default=6, help="example overlays to write")
+    p.add_argument("--examples", type=_seed, default=6, help="example overlays to write")
     p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
     p.add_argument("--device", default="auto")
     p.set_defaults(func=cmd_evaluate)
@@ -403,15 +402,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", default=None,
                    help="with --runs: assess a labelled split and evaluate before/after RRDR")
     p.add_argument("--split", choices=("train", "test"), default="test")
-    p.add_argument("--limit", type=int, default=None, help="at most this many dataset images")
+    p.add_argument("--limit", type=_count, default=None, help="at most this many dataset images")
     p.add_argument("--focal-mm", type=float, default=None,
                    help="focal length of the photos; unknown: RRDR from the depth range")
     p.add_argument("--ignore-focal", action="store_true",
                    help="with --data: RRDR from the depth range, as the paper's Table 13")
     p.add_argument("--sensor-mm", type=float, default=36.0, help="sensor width [mm]")
-    p.add_argument("--min-px-per-cm", type=float, default=1.5)
-    p.add_argument("--depth-range", type=_depth_range, default=(0.5, 20.0),
-                   metavar="NEAR,FAR", help="RRDR without a focal length [m] (default 0.5,20)")
+    add_options(p, AssessSettings)
     p.add_argument("--device", default="auto")
     p.add_argument("--out", required=True)
     p.set_defaults(func=cmd_assess)
@@ -423,7 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(q)
     q.add_argument("--seed", type=_seed, default=0)
     q.add_argument("--env", type=_seed, default=0)
-    q.add_argument("--cameras", type=int, default=6, help="views spread over the environment")
+    q.add_argument("--cameras", type=_count, default=6, help="views spread over the environment")
     q.add_argument("--presets", default=None, help="comma-separated (default: all)")
     q.add_argument("--out", required=True)
     q.set_defaults(func=cmd_bench_quality)
@@ -433,7 +430,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_quality_arg(b)
     b.add_argument("--seed", type=_seed, default=0)
     b.add_argument("--env", type=_seed, default=0)
-    b.add_argument("--camera", type=int, default=0, help="camera index in the environment")
+    b.add_argument("--camera", type=_seed, default=0, help="camera index in the environment")
     b.add_argument("--samples", type=_samples, default=[1, 16],
                    help="Cycles sample counts, comma-separated (default 1,16)")
     b.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
@@ -444,19 +441,29 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("textures", help="generate a procedural texture repository folder")
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
     p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--count", type=int, default=12, help="images per category")
-    p.add_argument("--size", type=int, default=512, help="image size in pixels")
+    p.add_argument("--count", type=_count, default=12, help="images per category")
+    p.add_argument("--size", type=_count, default=512, help="image size in pixels")
     p.set_defaults(func=cmd_textures)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Runs one command. Bad input (UserError) and operating-system errors (permissions, full
+    disks, missing files) print one line and return 2; anything else is a programming error
+    and keeps its traceback. --debug shows the traceback of every error."""
     args = build_parser().parse_args(argv)
     try:
         return args.func(args) or 0
-    except (ValueError, TypeError, OSError) as err:
-        print(f"glsynth {args.command}: error: {err}", file=sys.stderr)
+    except (UserError, OSError) as err:
+        if args.debug:
+            raise
+        message = " ".join(str(err).split())
+        print(f"glsynth {args.command}: error: {message}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"glsynth {args.command}: interrupted; run the same command again to resume",
+              file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -11,33 +11,15 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from glsynth.model.settings import N_OUTPUTS, TASKS, target_size
 from PIL import Image
 from torch.utils.data import Dataset
 
-from glsynth.model.fcn58 import MIN_SIDE
+from glsynth.core.errors import UserError
+from glsynth.core.images import nearest_resize
 from glsynth.data.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
 
-TASKS = ("component", "damage", "depth")
-N_OUTPUTS = {"component": 8, "damage": 3, "depth": 1}
-"""Network output channels per task: ids 1..8 (components), 1..3 (damage), metres (depth)."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
-
-
-def target_size(image_size: tuple[int, int]) -> tuple[int, int]:
-    """(width, height) of FCN58's output and of the targets: a third, rounded up."""
-    return (-(-image_size[0] // 3), -(-image_size[1] // 3))
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """'WxH' -> (W, H), for command-line options."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"image size {text!r}: write it as WIDTHxHEIGHT, e.g. 1920x1080") \
-            from None
-    if min(w, h) < MIN_SIDE:
-        raise ValueError(f"image size {text!r}: FCN58 needs at least {MIN_SIDE} px per side")
-    return w, h
 
 
 def image_tensor(image: Image.Image | np.ndarray, size: tuple[int, int]) -> torch.Tensor:
@@ -58,9 +40,7 @@ def load_image(path: Path, size: tuple[int, int]) -> torch.Tensor:
 def load_map(path: Path, size: tuple[int, int]) -> np.ndarray:
     """A label or depth-code map resized by nearest sampling (ids never blend)."""
     with Image.open(path) as im:
-        if im.size != size:
-            im = im.resize(size, Image.Resampling.NEAREST)
-        return np.asarray(im)
+        return nearest_resize(np.asarray(im), (size[1], size[0]))
 
 
 class TokaidoDataset(Dataset):
@@ -110,21 +90,21 @@ class ImageFolder(Dataset):
     def __init__(self, root: str | Path, task: str,
                  image_size: tuple[int, int] = (1920, 1080)) -> None:
         if task not in ("component", "damage"):
-            raise ValueError(f"extra image folders carry labels; task {task!r} has none "
-                             "(use them for component or damage)")
+            raise UserError(f"extra image folders carry labels; task {task!r} has none "
+                            "(use them for component or damage)")
         self.root, self.task, self.size = Path(root), task, image_size
         images = sorted(p for p in (self.root / "images").glob("*")
                         if p.suffix.lower() in IMAGE_SUFFIXES)
         if not images:
-            raise ValueError(f"extra data {str(root)!r}: no images in {str(self.root)!r}/images;"
-                             " put photos in images/ and id maps with the same stems in labels/")
+            raise UserError(f"extra data {str(root)!r}: no images in {str(self.root)!r}/images;"
+                            " put photos in images/ and id maps with the same stems in labels/")
         self.items = []
         for image in images:
             labels = [self.root / "labels" / f"{image.stem}{s}" for s in (".png", ".bmp")]
             found = [p for p in labels if p.exists()]
             if not found:
-                raise ValueError(f"extra data: no label map for {str(image)!r}; expected "
-                                 f"{str(labels[0])!r} or .bmp")
+                raise UserError(f"extra data: no label map for {str(image)!r}; expected "
+                                f"{str(labels[0])!r} or .bmp")
             self.items.append((image, found[0]))
 
     def __len__(self) -> int:
@@ -134,8 +114,8 @@ class ImageFolder(Dataset):
         labels = self.items[index][1]
         ids = load_map(labels, target_size(self.size))
         if ids.ndim != 2 or ids.max(initial=0) > N_OUTPUTS[self.task]:
-            raise ValueError(f"{str(labels)!r}: expected one channel of ids 0..."
-                             f"{N_OUTPUTS[self.task]} for task {self.task!r}")
+            raise UserError(f"{str(labels)!r}: expected one channel of ids 0..."
+                            f"{N_OUTPUTS[self.task]} for task {self.task!r}")
         return torch.from_numpy(ids.astype(np.int64))
 
     def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:

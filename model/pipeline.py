@@ -7,14 +7,15 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from PIL import Image
-
-from glsynth.assess.condition import AssessSettings, Maps, Photo, read_rgb
-from glsynth.data.filters import rrdr
 from glsynth.model.data import image_tensor
 from glsynth.model.inference import Predictor, load_predictor, resize_map
 from glsynth.model.metrics import confusion, segmentation_scores
-from glsynth.model.train import CLASS_NAMES
+from glsynth.model.settings import CLASS_NAMES
+from PIL import Image
+
+from glsynth.assess.condition import ASSESS_DEFAULTS, AssessSettings, Maps, Photo, read_rgb
+from glsynth.core.errors import UserError
+from glsynth.data.filters import rrdr
 
 TASK_NAMES = ("component", "damage", "depth")
 
@@ -25,12 +26,12 @@ def parse_runs(text: str) -> dict[str, str]:
     for part in text.split(","):
         task, _, run = part.partition("=")
         if task not in TASK_NAMES or not run:
-            raise ValueError(f"--runs {text!r}: write component=RUN1,damage=RUN2,depth=RUN3")
+            raise UserError(f"--runs {text!r}: write component=RUN1,damage=RUN2,depth=RUN3")
         runs[task] = run
     missing = set(TASK_NAMES) - set(runs)
     if missing:
-        raise ValueError(f"--runs {text!r}: missing {', '.join(sorted(missing))}; give all "
-                         "three trained runs")
+        raise UserError(f"--runs {text!r}: missing {', '.join(sorted(missing))}; give all "
+                        "three trained runs")
     return runs
 
 
@@ -39,8 +40,8 @@ def load_predictors(runs: dict[str, str], device: str = "auto") -> dict[str, Pre
     for task, run in runs.items():
         predictor = load_predictor(run, device)
         if predictor.task != task:
-            raise ValueError(f"--runs {task}={run}: that run was trained for "
-                             f"{predictor.task!r}, not {task!r}")
+            raise UserError(f"--runs {task}={run}: that run was trained for "
+                            f"{predictor.task!r}, not {task!r}")
         predictors[task] = predictor
     return predictors
 
@@ -60,8 +61,8 @@ def predicted_maps(predictors: dict[str, Predictor], path: Path,
         outputs[task] = predictor(inputs[size])[0].numpy()
     shapes = {v.shape for v in outputs.values()}
     if len(shapes) != 1:
-        raise ValueError(f"the runs were trained at different image sizes ({shapes}); train "
-                         "the three at one --image-size")
+        raise UserError(f"the runs were trained at different image sizes ({shapes}); train "
+                        "the three at one --image-size")
     focal_px = None if focal_mm is None else focal_mm / sensor_mm * rgb.shape[1]
     return rgb, Maps(outputs["component"].astype(np.uint8), outputs["damage"].astype(np.uint8),
                      outputs["depth"].astype(np.float32), focal_px,
@@ -80,18 +81,19 @@ def network_photos(predictors: dict[str, Predictor], images: list[str],
 
 
 def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
-                  settings: AssessSettings = AssessSettings(), split: str = "test",
+                  settings: AssessSettings = ASSESS_DEFAULTS, split: str = "test",
                   use_focal: bool = True, sensor_mm: float = 36.0) -> dict:
     """Damage precision/recall/IoU on the split's damage images before and after keeping only
     pixels inside the RRDR of the predicted depth (px/cm with the manifest's focal length, or
     the depth range with use_focal False, as the paper's Table 13 does for real photos)."""
-    from glsynth.core.fileio import atomic_write_json
     from glsynth.model.data import TokaidoDataset
+
+    from glsynth.core.fileio import atomic_write_json
 
     dataset = TokaidoDataset(root, split, "damage",
                              image_size=predictors["damage"].image_size)
     if len(dataset) == 0:
-        raise ValueError(f"--data {str(root)!r}: no {split} images with damage in the RRDR")
+        raise UserError(f"--data {str(root)!r}: no {split} images with damage in the RRDR")
     before, after = np.zeros((3, 3), np.int64), np.zeros((3, 3), np.int64)
     images = []
     for index, record in enumerate(dataset.items):

@@ -6,8 +6,14 @@ import json
 import numpy as np
 import pytest
 
-from glsynth.assess.condition import (AssessSettings, Maps, Photo, assess, assess_photos,
-                                assessment_picture)
+from glsynth.assess.condition import (
+    AssessSettings,
+    Maps,
+    Photo,
+    assess,
+    assess_photos,
+    assessment_picture,
+)
 from glsynth.cli import main
 
 
@@ -92,9 +98,9 @@ def test_no_bridge_pixels_and_all_damage_outside_the_rrdr():
 
 
 def test_settings_and_sizes_are_checked():
-    with pytest.raises(ValueError, match="min_px_per_cm"):
+    with pytest.raises(ValueError, match="--min-px-per-cm 0"):
         AssessSettings(min_px_per_cm=0)
-    with pytest.raises(ValueError, match="near < far"):
+    with pytest.raises(ValueError, match="NEAR < FAR"):
         AssessSettings(depth_range_m=(20, 0.5))
     maps = constructed()
     with pytest.raises(ValueError, match="of one size"):

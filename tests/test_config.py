@@ -2,8 +2,14 @@ import math
 
 import pytest
 
-from glsynth.core.config import (PRESETS, Config, DatasetConfig, EnvironmentConfig, config_from_dict,
-                            load_config)
+from glsynth.core.config import (
+    PRESETS,
+    Config,
+    DatasetConfig,
+    EnvironmentConfig,
+    config_from_dict,
+    load_config,
+)
 
 
 def test_presets_are_valid_and_differ_where_meant():

@@ -3,10 +3,18 @@ import re
 import numpy as np
 import pytest
 
-from glsynth.data.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
 from glsynth.core.labels import Damage
-from glsynth.data.tokaido import (FrameRecord, PuretexRecord, decode_depth, downsample_labels,
-                             encode_depth, frame_paths, manifest_text, read_manifest)
+from glsynth.data.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
+from glsynth.data.tokaido import (
+    FrameRecord,
+    PuretexRecord,
+    decode_depth,
+    downsample_labels,
+    encode_depth,
+    frame_paths,
+    manifest_text,
+    read_manifest,
+)
 
 
 def test_paths_match_the_released_layout_and_loader_conventions():

@@ -2,8 +2,9 @@
 
 A repository is a folder with one sub-folder per category (concrete, steel, painted, wood,
 ground, scene) holding images (.png, .jpg, .jpeg, .bmp, .tif). Users point glsynth at their own
-photos in this layout; by default glsynth generates a procedural one (glsynth.appearance.texgen) once,
-deterministically from a seed, and caches it under $GLSYNTH_CACHE (default ~/.cache/glsynth).
+photos in this layout; by default glsynth generates a procedural one
+(glsynth.appearance.texgen) once, deterministically from a seed, and caches it under
+$GLSYNTH_CACHE (default ~/.cache/glsynth).
 
 An image that cannot be read is skipped with a warning naming it, and the next readable image
 of its category is used instead, so a bad file never stops a long run; a category with no
@@ -17,9 +18,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
+from glsynth.appearance.texgen import CATEGORIES
+from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, png_bytes
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.appearance.texgen import CATEGORIES
 
 EXTENSIONS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
 GENERATOR_VERSION = 1
@@ -37,18 +39,18 @@ class TextureRepository:
         self.size = size
         self.files: dict[str, list[Path]] = {}
         if not self.root.is_dir():
-            raise ValueError(f"texture repository {str(self.root)!r} is not a folder. Point "
-                             "[materials] repository at a folder with sub-folders "
-                             f"{sorted(CATEGORIES)}, or leave it empty for the built-in one.")
+            raise UserError(f"texture repository {str(self.root)!r} is not a folder. Point "
+                            "[materials] repository at a folder with sub-folders "
+                            f"{sorted(CATEGORIES)}, or leave it empty for the built-in one.")
         for category in CATEGORIES:
             folder = self.root / category
             files = sorted(p for p in folder.glob("*") if p.suffix.lower() in EXTENSIONS) \
                 if folder.is_dir() else []
             if not files:
-                raise ValueError(f"texture repository {str(self.root)!r}: category folder "
-                                 f"{category!r} is missing or has no images "
-                                 f"({', '.join(sorted(EXTENSIONS))}). Add images, or run "
-                                 f"`glsynth textures --out {self.root}` to generate them.")
+                raise UserError(f"texture repository {str(self.root)!r}: category folder "
+                                f"{category!r} is missing or has no images "
+                                f"({', '.join(sorted(EXTENSIONS))}). Add images, or run "
+                                f"`glsynth textures --out {self.root}` to generate them.")
             self.files[category] = files
         self._cache: dict[tuple[str, int], np.ndarray] = {}
         self._bad: set[Path] = set()
@@ -63,7 +65,7 @@ class TextureRepository:
                 if im.size != (self.size, self.size):
                     im = im.resize((self.size, self.size), Image.Resampling.LANCZOS)
                 return np.asarray(im, dtype=np.uint8)
-        except (OSError, UnidentifiedImageError, ValueError) as err:
+        except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as err:
             warnings.warn(f"texture repository: skipping unreadable image {str(path)!r} "
                           f"({type(err).__name__}: {err})", stacklevel=3)
             return None
@@ -85,12 +87,8 @@ class TextureRepository:
             array.setflags(write=False)
             self._cache[key] = array
             return array
-        raise ValueError(f"texture repository {str(self.root)!r}: no readable image in "
-                         f"category {category!r}; replace the files named in the warnings")
-
-    def pick(self, category: str, rng: np.random.Generator) -> tuple[int, np.ndarray]:
-        index = int(rng.integers(self.count(category)))
-        return index, self.image(category, index)
+        raise UserError(f"texture repository {str(self.root)!r}: no readable image in "
+                        f"category {category!r}; replace the files named in the warnings")
 
 
 def generate_repository(root: str | Path, seed: int, per_category: int, size: int) -> Path:

@@ -15,29 +15,44 @@ from pathlib import Path
 
 import numpy as np
 
-from glsynth.data.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
+from glsynth.core.errors import UserError
+from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, overlay
+from glsynth.data.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
 
 BRIDGE = tuple(c for c in Component if c not in (Component.UNLABELLED, Component.NONBRIDGE))
 DAMAGE_CLASSES = (Damage.CONCRETE, Damage.REBAR)
+
+
+def parse_range(text: str) -> tuple[float, float]:
+    """'NEAR,FAR' in metres -> (near, far)."""
+    try:
+        near, far = (float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"{text!r}: write NEAR,FAR in metres, e.g. 0.5,20") from None
+    return near, far
 
 
 @dataclass(frozen=True)
 class AssessSettings:
     min_px_per_cm: float = RRDR_PX_PER_CM
     """RRDR when the focal length is known: resolution at least this [px/cm]."""
-    depth_range_m: tuple[float, float] = RRDR_DEPTH_RANGE_M
+    depth_range_m: tuple[float, float] = field(default=RRDR_DEPTH_RANGE_M, metadata={
+        "flag": "--depth-range", "parse": parse_range, "metavar": "NEAR,FAR", "show": "0.5,20"})
     """RRDR when it is not: predicted depth within this range [m]."""
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.min_px_per_cm) and self.min_px_per_cm > 0):
-            raise ValueError(f"min_px_per_cm = {self.min_px_per_cm}: give a positive number "
-                             "(the paper uses 1.5)")
+            raise UserError(f"--min-px-per-cm {self.min_px_per_cm}: give a positive number "
+                            "(the paper uses 1.5)")
         near, far = self.depth_range_m
-        if not 0 <= near < far:
-            raise ValueError(f"depth_range_m = {self.depth_range_m}: give 0 <= near < far "
-                             "(the paper uses 0.5, 20)")
+        if not 0 <= near < far < np.inf:
+            raise UserError(f"--depth-range {near},{far}: give 0 <= NEAR < FAR (the paper uses "
+                            "0.5,20)")
+
+
+ASSESS_DEFAULTS = AssessSettings()
 
 
 @dataclass(frozen=True)
@@ -82,7 +97,7 @@ def pixel_area_m2(depth_m: np.ndarray, focal_px: float, stride: float = 1.0) -> 
     return (d * stride / focal_px) ** 2
 
 
-def assess(maps: Maps, settings: AssessSettings = AssessSettings()) -> Assessment:
+def assess(maps: Maps, settings: AssessSettings = ASSESS_DEFAULTS) -> Assessment:
     reliable = rrdr(maps.depth_m, maps.focal_px, min_px_per_cm=settings.min_px_per_cm,
                     depth_range_m=settings.depth_range_m)
     bridge = np.isin(maps.component, BRIDGE)
@@ -137,15 +152,6 @@ def assessment_picture(rgb: np.ndarray, component: np.ndarray,
     return np.where(considered[..., None], picture, grey).round().astype(np.uint8)
 
 
-def nearest_resize(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """A map brought to (rows, cols) by nearest sampling (ids and masks never blend)."""
-    if values.shape[:2] == tuple(shape):
-        return values
-    rows = np.arange(shape[0]) * values.shape[0] // shape[0]
-    cols = np.arange(shape[1]) * values.shape[1] // shape[1]
-    return values[rows[:, None], cols[None, :]]
-
-
 @dataclass(frozen=True)
 class Photo:
     name: str
@@ -156,7 +162,7 @@ class Photo:
 
 
 def assess_photos(photos: Iterable[Photo], out: Path,
-                  settings: AssessSettings = AssessSettings()) -> dict:
+                  settings: AssessSettings = ASSESS_DEFAULTS) -> dict:
     """Assess each photo: <name>_assessment.png (Fig. 17) and <name>.json per photo, and
     summary.json across them. A photo that fails is reported and the others go on."""
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
@@ -210,8 +216,12 @@ def read_rgb(path: Path) -> np.ndarray:
     try:
         with Image.open(path) as im:
             return np.asarray(im.convert("RGB"))
-    except UnidentifiedImageError as err:
-        raise ValueError(f"{str(path)!r} is not a readable image") from err
+    except FileNotFoundError:
+        raise UserError(f"{str(path)!r} does not exist") from None
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError) as err:
+        # OSError: truncated data; SyntaxError: PIL's word for a malformed header.
+        raise UserError(f"{str(path)!r} is not a readable image ({type(err).__name__}: "
+                        f"{err})") from err
 
 
 def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,

@@ -4,9 +4,11 @@ import math
 import typing
 from typing import Any
 
+from glsynth.core.errors import UserError
+
 
 def fail(section: str, name: str, value: Any, expected: str) -> typing.NoReturn:
-    raise ValueError(
+    raise UserError(
         f"{section}.{name} = {value!r}: must be {expected}. "
         f"Fix it in the [{section}] table of your config file, or use a preset."
     )
@@ -28,3 +30,10 @@ def check_interval(section: str, name: str, value: Any, lo: float, hi: float) ->
     if not ok or math.isnan(value[0]) or math.isnan(value[1]) or not (
             lo <= value[0] <= value[1] <= hi):
         fail(section, name, value, f"an interval [a, b] with {lo} <= a <= b <= {hi}")
+
+
+def check_vector(section: str, name: str, value: Any, size: int, lo: float, hi: float) -> None:
+    ok = (isinstance(value, tuple) and len(value) == size
+          and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
+    if not ok or not all(lo <= v <= hi for v in value):
+        fail(section, name, value, f"{size} numbers in [{lo}, {hi}]")

@@ -1,7 +1,8 @@
 """Configuration: frozen dataclasses validated on construction, TOML files and named presets.
 
 Units are metres and radians inside; ``_m``/``_deg``/``_mm`` suffixes name the unit at this
-boundary. An invalid value raises ValueError naming the field, the value and the allowed range.
+boundary. An invalid value raises UserError (a ValueError) naming the field, the value and the
+allowed range.
 """
 
 import dataclasses
@@ -13,8 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from glsynth.core import design
-from glsynth.core.checks import check_interval, check_number, fail
+from glsynth.core.checks import check_interval, check_number, check_vector, fail
 from glsynth.core.design import StandardDesign
+from glsynth.core.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -142,8 +144,7 @@ class RenderConfig:
         check_number(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
         check_number(s, "sun_intensity", self.sun_intensity, 0.0, 100.0)
         check_number(s, "ambient_intensity", self.ambient_intensity, 0.0, 100.0)
-        if len(self.sky_rgb) != 3 or not all(0.0 <= c <= 1.0 for c in self.sky_rgb):
-            fail(s, "sky_rgb", self.sky_rgb, "three values in [0, 1]")
+        check_vector(s, "sky_rgb", self.sky_rgb, 3, 0.0, 1.0)
         check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
         check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
         if 0 < self.shadow_map_px < 64:
@@ -155,9 +156,10 @@ class RenderConfig:
 class DamageConfig:
     """Procedural concrete damage and exposed rebar of the columns (paper Section 3.3).
 
-    The paper's numbers are kept as written. Reading (DESIGN.md): slight damage is 0-1 % damaged
-    area; for medium and severe, the paper's [90 %, 99 %] and [70 %, 90 %] are the intact share,
-    i.e. the quantile of |noise| at which the threshold t sits: 1-10 % and 10-30 % damaged area.
+    The paper's numbers are kept as written. Reading (docs/design.md): slight damage is 0-1 %
+    damaged area; for medium and severe, the paper's [90 %, 99 %] and [70 %, 90 %] are the intact
+    share, i.e. the quantile of |noise| at which the threshold t sits: 1-10 % and 10-30 % damaged
+    area.
     """
 
     resolution: int = 1024
@@ -219,7 +221,7 @@ class DamageConfig:
         if severity in ("medium", "severe"):
             lo, hi = getattr(self, f"{severity}_intact")
             return (1.0 - hi, 1.0 - lo)
-        raise ValueError(f"severity = {severity!r}: choose slight, medium or severe")
+        raise UserError(f"severity = {severity!r}: choose slight, medium or severe")
 
     def depth_range_m(self, severity: str) -> tuple[float, float]:
         self.area_range(severity)  # validates the name
@@ -339,16 +341,16 @@ def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config
     sections = {}
     for section, values in data.items():
         if section not in _SECTIONS:
-            raise ValueError(f"unknown config section [{section}]: "
-                             f"allowed sections are {sorted(_SECTIONS)}")
+            raise UserError(f"unknown config section [{section}]: "
+                            f"allowed sections are {sorted(_SECTIONS)}")
         cls = _SECTIONS[section]
         allowed = {f.name for f in dataclasses.fields(cls)}
         if not isinstance(values, dict):
-            raise ValueError(f"config section [{section}] must be a table of key = value")
+            raise UserError(f"config section [{section}] must be a table of key = value")
         unknown = sorted(set(values) - allowed)
         if unknown:
-            raise ValueError(f"unknown key(s) {unknown} in [{section}]: "
-                             f"allowed keys are {sorted(allowed)}")
+            raise UserError(f"unknown key(s) {unknown} in [{section}]: "
+                            f"allowed keys are {sorted(allowed)}")
         coerced = {k: _coerce(cls, k, v) for k, v in values.items()}
         sections[section] = dataclasses.replace(getattr(base, section), **coerced)
     return dataclasses.replace(base, **sections)
@@ -357,16 +359,22 @@ def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config
 def load_config(preset: str = "paper", path: str | Path | None = None) -> Config:
     """A named preset, optionally overlaid with a TOML file."""
     if preset not in PRESETS:
-        raise ValueError(f"preset = {preset!r}: choose one of {sorted(PRESETS)}")
+        raise UserError(f"preset = {preset!r}: choose one of {sorted(PRESETS)}")
     config = config_from_dict(PRESETS[preset])
     if path is not None:
         path = Path(path)
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except FileNotFoundError:
-            raise ValueError(f"config file {str(path)!r} does not exist") from None
+            raise UserError(f"config file {str(path)!r} does not exist") from None
+        except IsADirectoryError:
+            raise UserError(f"config file {str(path)!r} is a folder; give a .toml file") \
+                from None
+        except UnicodeDecodeError as err:
+            raise UserError(f"config file {str(path)!r} is not UTF-8 text (byte {err.start}); "
+                            "save it as UTF-8") from None
         except tomllib.TOMLDecodeError as err:
-            raise ValueError(f"config file {str(path)!r} is not valid TOML: {err}") from None
+            raise UserError(f"config file {str(path)!r} is not valid TOML: {err}") from None
         config = config_from_dict(data, config)
     return config
 

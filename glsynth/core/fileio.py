@@ -9,15 +9,14 @@ import io
 import json
 import math
 import os
-import tempfile
+import secrets
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from PIL import Image
 
-_UMASK = os.umask(0)
-os.umask(_UMASK)
+from glsynth.core.errors import UserError
 
 
 def ensure_parent(path: Path) -> None:
@@ -25,26 +24,37 @@ def ensure_parent(path: Path) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        raise OSError(f"cannot create output folder {str(path.parent)!r}: {err.strerror}. "
-                      "Choose a writable --out location.") from err
+        raise UserError(f"cannot create output folder {str(path.parent)!r}: {err.strerror}. "
+                        "Choose a writable --out location.") from err
+
+
+def _write_failed(path: Path, err: OSError) -> UserError:
+    """The error names the file the user asked for, never the temporary one, and the fix."""
+    return UserError(f"cannot write {str(path)!r}: {err.strerror or err}. Check free disk "
+                     "space and the permissions of its folder, then run the same command "
+                     "again to resume.")
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     path = Path(path)
     ensure_parent(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        # O_CREAT with mode 0o666 lets the process umask decide the final permissions, as for
+        # any new file (mkstemp would make it 0600).
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except OSError as err:
+        raise _write_failed(path, err) from err
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the usual file mode
         os.replace(tmp, path)
     except BaseException as err:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         if isinstance(err, OSError):
-            raise OSError(f"cannot write {str(path)!r}: {err.strerror or err}. Check free disk "
-                          "space and permissions of the output folder.") from err
+            raise _write_failed(path, err) from err
         raise
 
 

@@ -1,4 +1,4 @@
-"""Dataset generation in the Tokaido layout (paper Sections 3.4, 4.2; DESIGN.md format).
+"""Dataset generation in the Tokaido layout (paper Sections 3.4, 4.2; format in docs/design.md).
 
 Work comes in units: one environment (all its cameras) or a run of plates. A unit writes its
 files atomically and then a marker under ``progress/`` holding its manifest rows and counts; a
@@ -19,12 +19,27 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.config import Config, config_to_dict
-from glsynth.core.fileio import (atomic_write_bytes, atomic_write_json, image_bytes, jsonable,
-                            png_bytes)
-from glsynth.data.filters import mask_damage, removal_reason, rrdr
+from glsynth.core.errors import UserError
+from glsynth.core.fileio import (
+    atomic_write_bytes,
+    atomic_write_json,
+    image_bytes,
+    jsonable,
+    png_bytes,
+)
 from glsynth.core.labels import Component, Damage
-from glsynth.data.tokaido import (LABEL_STRIDE, FrameRecord, PuretexRecord, downsample_labels,
-                             encode_depth, frame_paths, manifest_text, puretex_paths)
+from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
+from glsynth.data.filters import mask_damage, removal_reason, rrdr
+from glsynth.data.tokaido import (
+    LABEL_STRIDE,
+    FrameRecord,
+    PuretexRecord,
+    downsample_labels,
+    encode_depth,
+    frame_paths,
+    manifest_text,
+    puretex_paths,
+)
 
 RUN_FILE = "glsynth_run.json"
 REASONS = ("dark", "single_component", "too_close")
@@ -33,9 +48,9 @@ REASONS = ("dark", "single_component", "too_close")
 def check_format(config: Config) -> None:
     r = config.render
     if (r.width, r.height) != (1920, 1080):
-        raise ValueError(f"render size {r.width}x{r.height}: the Tokaido format needs "
-                         "1920x1080 images (labels 640x360); set [render] width = 1920 and "
-                         "height = 1080")
+        raise UserError(f"render size {r.width}x{r.height}: the Tokaido format needs "
+                        "1920x1080 images (labels 640x360); set [render] width = 1920 and "
+                        "height = 1080")
 
 
 def environment_split(config: Config, env: int) -> str:
@@ -140,8 +155,8 @@ def _env_description(view) -> dict:
 
 
 def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) -> dict:
-    from glsynth.appearance.dressing import open_repository
     from glsynth.appearance.damage_bank import DamageBank
+    from glsynth.appearance.dressing import open_repository
     from glsynth.data.plates import plate_shot
 
     clock = _Clock()
@@ -209,37 +224,38 @@ def check_run_folder(out: Path, config: Config, root_seed: int) -> None:
     """A worker's check that it sees the driver's output folder (a shared path on a cluster)."""
     run_file = out / RUN_FILE
     if not run_file.exists():
-        raise FileNotFoundError(
+        raise UserError(
             f"{str(run_file)!r} is not visible to this worker: with several machines --out "
             "must be a shared filesystem mounted at the same path on every node")
     recorded = json.loads(run_file.read_text())
     if recorded.get("config_sha256") != run_identity(config, root_seed)["config_sha256"]:
-        raise ValueError(f"{str(run_file)!r} belongs to another run than this worker's")
+        raise UserError(f"{str(run_file)!r} belongs to another run than this worker's")
 
 
 def prepare_output(out: Path, config: Config, root_seed: int) -> None:
     """Create or reopen an output folder; refuse one that holds a different run."""
     identity = run_identity(config, root_seed)
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} is a file; give a folder for the dataset")
+        raise UserError(f"--out {str(out)!r} is a file; give a folder for the dataset")
     run_file = out / RUN_FILE
     if run_file.exists():
         previous = json.loads(run_file.read_text())
         if previous.get("config_sha256") != identity["config_sha256"] or \
                 previous.get("root_seed") != root_seed:
-            raise ValueError(f"--out {str(out)!r} holds a run with other settings (seed "
-                             f"{previous.get('root_seed')}); use a new folder, or the same "
-                             "preset, config and seed to resume it")
-    elif out.exists() and any(out.iterdir()):
-        raise ValueError(f"--out {str(out)!r} is not empty and holds no glsynth run; "
-                         "use a new or empty folder")
-    # A killed run can leave temporary files of interrupted atomic writes: remove them.
+            raise UserError(f"--out {str(out)!r} holds a run with other settings (seed "
+                            f"{previous.get('root_seed')}); use a new folder, or the same "
+                            "preset, config and seed to resume it")
+    elif out.exists() and any(p.name not in (DRIVER_LOCK, WORKERS_LOCK) for p in out.iterdir()):
+        raise UserError(f"--out {str(out)!r} is not empty and holds no glsynth run; "
+                        "use a new or empty folder")
+    # A killed run can leave temporary files of interrupted atomic writes: remove them (the
+    # caller holds the folder's lock, so no other run is writing them).
     for stale in out.rglob(".*.tmp") if out.exists() else ():
         stale.unlink()
     atomic_write_json(run_file, {**identity, "config": config_to_dict(config)})
     free = shutil.disk_usage(out).free
     if free < 200 * 2**20:
-        raise OSError(f"only {free / 2**20:.0f} MiB free under {str(out)!r}; the dataset "
+        raise UserError(f"only {free / 2**20:.0f} MiB free under {str(out)!r}; the dataset "
                       "needs more (about 4 MB per kept image): free space or choose another "
                       "--out")
 

@@ -6,24 +6,34 @@ depend on the engine, the worker count or the order units finish in. The driver 
 markers into the manifests (glsynth/data/dataset.py).
 """
 
+import ctypes
 import os
+import signal
 from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from glsynth.core.config import Config
+from glsynth.core.errors import UserError
+from glsynth.core.runlock import RunLock
 from glsynth.data.dataset import Task, check_run_folder, pending_tasks, run_task
 
 ENGINES = ("local", "ray")
 
 
 class GenerationWorker:
-    """One GL context and the run's settings; a pool process or a Ray actor holds one."""
+    """One GL context and the run's settings; a pool process or a Ray actor holds one.
+    ``separate`` workers (other processes than the driver) hold the run folder's worker lock
+    while they live, so a new run cannot start before they are gone."""
 
-    def __init__(self, config: Config, root_seed: int, out: str) -> None:
+    def __init__(self, config: Config, root_seed: int, out: str, separate: bool = False
+                 ) -> None:
         from glsynth.render.gl.renderer import Renderer
 
         self.config, self.root_seed, self.out = config, root_seed, Path(out)
         check_run_folder(self.out, config, root_seed)
+        self.lock = RunLock(self.out, worker=True).acquire() if separate else None
         self.renderer = Renderer(config.render)
 
     def run(self, task: Task) -> dict:
@@ -31,15 +41,17 @@ class GenerationWorker:
 
     def release(self) -> None:
         self.renderer.release()
+        if self.lock is not None:
+            self.lock.release()
 
 
 def check_engine(engine: str, workers: int, address: str | None) -> None:
     if engine not in ENGINES:
-        raise ValueError(f"--engine {engine!r}: choose one of {', '.join(ENGINES)}")
+        raise UserError(f"--engine {engine!r}: choose one of {', '.join(ENGINES)}")
     if workers < 1:
-        raise ValueError(f"--workers {workers}: give at least 1")
+        raise UserError(f"--workers {workers}: give at least 1")
     if address is not None and engine != "ray":
-        raise ValueError("--address is for --engine ray; drop it or add --engine ray")
+        raise UserError("--address is for --engine ray; drop it or add --engine ray")
 
 
 def execute(config: Config, root_seed: int, out: Path, workers: int, engine: str = "local",
@@ -62,24 +74,63 @@ def execute(config: Config, root_seed: int, out: Path, workers: int, engine: str
         yield from _pool(config, root_seed, out, workers, pending)
 
 
-_PROCESS_WORKER: list[GenerationWorker] = []
+# The pool process's worker, or the error that stopped it from starting: the first unit it is
+# given raises that error in the driver, which then ends the run with it (a pool that restarted
+# failing workers would never end).
+_PROCESS_WORKER: list[GenerationWorker | BaseException] = []
 
 
 def _init_process(config: Config, root_seed: int, out: str) -> None:
-    _PROCESS_WORKER.append(GenerationWorker(config, root_seed, out))
+    _die_with_parent()
+    try:
+        _PROCESS_WORKER.append(GenerationWorker(config, root_seed, out, separate=True))
+    except Exception as error:  # reported by the first unit, in the driver
+        _PROCESS_WORKER.append(error)
+
+
+def _die_with_parent() -> None:
+    """Linux: SIGKILL this worker when the driver dies, so no unit outlives its run."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # not Linux: the worker lock still guards the folder
+        pass
+    if os.getppid() == 1:  # the driver died before prctl took effect
+        os._exit(1)
 
 
 def _run_in_process(task: Task) -> dict:
-    return _PROCESS_WORKER[0].run(task)
+    worker = _PROCESS_WORKER[0]
+    if isinstance(worker, BaseException):
+        raise worker
+    return worker.run(task)
 
 
 def _pool(config: Config, root_seed: int, out: Path, workers: int,
           pending: list[Task]) -> Iterator[dict]:
+    """Units on ``workers`` spawned processes. The first failure, a worker that could not
+    start or one that died, ends the run at once: the other workers are stopped."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("spawn")  # fork and GL contexts do not mix
-    with ctx.Pool(workers, _init_process, (config, root_seed, str(out))) as pool:
-        yield from pool.imap_unordered(_run_in_process, pending)
+    pool = ProcessPoolExecutor(workers, ctx, _init_process, (config, root_seed, str(out)))
+    futures: set[Future] = {pool.submit(_run_in_process, task) for task in pending}
+    try:
+        while futures:
+            done, futures = wait(futures, return_when=FIRST_COMPLETED)
+            for future in done:
+                try:
+                    result = future.result()
+                except BrokenProcessPool as error:
+                    raise UserError("a worker process died (killed, or out of memory?); run "
+                                    "the same command again to resume, with fewer --workers "
+                                    "if memory is short") from error
+                yield result
+    finally:
+        if futures:  # stopped early: do not wait for units still rendering
+            for process in list(pool._processes.values()):  # no public way in Python 3.11
+                process.kill()
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _ray(config: Config, root_seed: int, out: Path, workers: int, address: str | None,
@@ -95,8 +146,8 @@ def _ray(config: Config, root_seed: int, out: Path, workers: int, address: str |
         import ray
         from ray.util import ActorPool
     except ImportError as error:
-        raise RuntimeError("--engine ray needs Ray: .venv/bin/pip install 'glsynth[ray]' "
-                           "(scripts/install.sh installs it)") from error
+        raise UserError("--engine ray needs Ray: .venv/bin/pip install 'glsynth[ray]' "
+                        "(scripts/install.sh installs it)") from error
     env_vars = {k: v for k, v in os.environ.items() if k.startswith("GLSYNTH_")}
     started_here = not ray.is_initialized()
     if started_here:
@@ -106,7 +157,7 @@ def _ray(config: Config, root_seed: int, out: Path, workers: int, address: str |
         ray.init(address=address, **options)
     try:
         actor = ray.remote(num_cpus=1)(GenerationWorker)
-        pool = ActorPool([actor.remote(config, root_seed, str(out.resolve()))
+        pool = ActorPool([actor.remote(config, root_seed, str(out.resolve()), True)
                           for _ in range(workers)])
         yield from pool.map_unordered(lambda a, task: a.run.remote(task), pending)
     finally:

@@ -15,10 +15,14 @@ Depth: uint16, linear from 0.5 m (0) to 30 m (65535), clipped; no geometry is 65
 
 import csv
 import io
+import math
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
+
+from glsynth.core.errors import UserError
+from glsynth.core.images import nearest_resize
 
 DEPTH_NEAR_M = 0.5
 DEPTH_FAR_M = 30.0
@@ -64,7 +68,7 @@ def downsample_labels(labels: np.ndarray, stride: int = LABEL_STRIDE) -> np.ndar
     h, w = labels.shape[:2]
     if h % stride or w % stride:
         raise ValueError(f"label map {w}x{h}: width and height must be multiples of {stride}")
-    return np.ascontiguousarray(labels[stride // 2::stride, stride // 2::stride])
+    return nearest_resize(labels, (h // stride, w // stride))
 
 
 @dataclass(frozen=True)
@@ -90,7 +94,7 @@ def _flag(text: str, where: str) -> bool:
         return True
     if text == "False":
         return False
-    raise ValueError(f"{where}: flag {text!r} must be 'True' or 'False'")
+    raise UserError(f"{where}: flag {text!r} must be 'True' or 'False'")
 
 
 def manifest_text(rows: list[FrameRecord] | list[PuretexRecord]) -> str:
@@ -110,10 +114,10 @@ def safe_path(root: Path, relative: str, where: str) -> Path:
     """root / relative, accepting / or \\ separators; refuses paths that leave the root."""
     parts = PureWindowsPath(relative).parts if "\\" in relative else PurePosixPath(relative).parts
     if not parts or PurePosixPath(relative).is_absolute() or PureWindowsPath(relative).drive:
-        raise ValueError(f"{where}: path {relative!r} must be relative to the dataset root")
+        raise UserError(f"{where}: path {relative!r} must be relative to the dataset root")
     path = root.joinpath(*parts).resolve()
     if not path.is_relative_to(root.resolve()):
-        raise ValueError(f"{where}: path {relative!r} escapes the dataset root {str(root)!r}")
+        raise UserError(f"{where}: path {relative!r} escapes the dataset root {str(root)!r}")
     return path
 
 
@@ -122,18 +126,18 @@ def read_manifest(root: str | Path, name: str) -> list[FrameRecord] | list[Puret
     root = Path(root)
     path = root / name
     if not path.is_file():
-        raise ValueError(f"manifest {str(path)!r} does not exist; is {str(root)!r} a "
-                         "Tokaido-layout dataset root?")
+        raise UserError(f"manifest {str(path)!r} does not exist; is {str(root)!r} a "
+                        "Tokaido-layout dataset root?")
     rows = []
     with path.open(newline="", encoding="utf-8") as f:
         for line_no, row in enumerate(csv.reader(f), start=1):
-            where = f"{name} line {line_no}"
+            where = f"{str(path)!r} line {line_no}"
             if not row:
                 continue
             if len(row) == 7:
                 for col in row[:4]:
                     safe_path(root, col, where)
-                focal = float(row[4]) if row[4].strip() else None
+                focal = _focal(row[4], where)
                 rows.append(FrameRecord(*(_norm(c) for c in row[:4]), focal,
                                         _flag(row[5], where), _flag(row[6], where)))
             elif len(row) == 2:
@@ -141,9 +145,23 @@ def read_manifest(root: str | Path, name: str) -> list[FrameRecord] | list[Puret
                     safe_path(root, col, where)
                 rows.append(PuretexRecord(_norm(row[0]), _norm(row[1])))
             else:
-                raise ValueError(f"{where}: {len(row)} columns; frame manifests have 7, "
-                                 "puretex manifests 2")
+                raise UserError(f"{where}: {len(row)} columns; frame manifests have 7, "
+                                "puretex manifests 2")
     return rows
+
+
+def _focal(text: str, where: str) -> float | None:
+    """The focal-length column: empty (unknown) or a finite length > 0 in millimetres."""
+    if not text.strip():
+        return None
+    try:
+        focal = float(text)
+    except ValueError:
+        focal = math.nan
+    if not (math.isfinite(focal) and focal > 0):
+        raise UserError(f"{where}: focal length {text!r} must be a number of millimetres > 0, "
+                        "or empty when unknown")
+    return focal
 
 
 def _norm(relative: str) -> str:

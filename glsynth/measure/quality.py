@@ -19,8 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from glsynth.assess.condition import nearest_resize
 from glsynth.core.config import Config
+from glsynth.core.errors import UserError
+from glsynth.core.images import nearest_resize
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,7 @@ QUALITY = {
 
 def apply_quality(config: Config, name: str) -> Config:
     if name not in QUALITY:
-        raise ValueError(f"quality {name!r}: choose one of {', '.join(QUALITY)}")
+        raise UserError(f"quality {name!r}: choose one of {', '.join(QUALITY)}")
     q = QUALITY[name]
     width, height = round(1920 * q.render_scale), round(1080 * q.render_scale)
     return dataclasses.replace(

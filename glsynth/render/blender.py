@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.config import Config
-from glsynth.render.export import to_gltf_scene
+from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
+from glsynth.render.export import to_gltf_scene
 from glsynth.world.sunlight import sun_direction
 
 JOB = Path(__file__).with_name("blender_job.py")
@@ -35,8 +36,8 @@ def find_blender(path: str | None = None) -> str | None:
         return shutil.which("blender")
     found = shutil.which(path)
     if found is None:
-        raise ValueError(f"--blender {path!r}: no such executable; give the path of Blender, "
-                         "or leave it out to use `blender` from PATH")
+        raise UserError(f"--blender {path!r}: no such executable; give the path of Blender, "
+                        "or leave it out to use `blender` from PATH")
     return found
 
 

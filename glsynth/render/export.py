@@ -15,9 +15,10 @@ import trimesh
 from trimesh.visual import TextureVisuals
 from trimesh.visual.material import PBRMaterial
 
-from glsynth.world.environment import Environment
+from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
+from glsynth.world.environment import Environment
 
 Z_UP_TO_Y_UP = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=float)
 
@@ -90,8 +91,8 @@ def export_environment(env: Environment, out: str | Path) -> tuple[Path, Path]:
     """Write ``out`` (.glb) and scene.json beside it; both atomically."""
     out = Path(out)
     if out.suffix.lower() != ".glb":
-        raise ValueError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
-                         "in .glb")
+        raise UserError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
+                        "in .glb")
     data = to_gltf_scene(env).export(file_type="glb", include_normals=True)
     atomic_write_bytes(out, data)
     json_path = out.with_name("scene.json")

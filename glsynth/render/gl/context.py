@@ -11,14 +11,18 @@ import os
 
 import moderngl
 
+from glsynth.core.errors import UserError
+
 REQUIRED_GL = 330
 PLATFORMS = ("egl", "osmesa")
 _PACKAGES = {"egl": "libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1",
              "osmesa": "libosmesa6"}
 
 
-class GLUnavailableError(RuntimeError):
-    """No GL context could be made; the message lists each platform tried and why it failed."""
+class GLUnavailableError(UserError):
+    """No GL context could be made; the message lists each platform tried, why it failed and
+    which packages provide it. A machine without GL is for the user to fix, so it is a
+    UserError: the command line prints it as one line."""
 
 
 class _OSMesaLoader:
@@ -77,16 +81,16 @@ def create_context(platform: str | None = None) -> tuple[moderngl.Context, str]:
     """
     platform = platform or os.environ.get("GLSYNTH_GL_PLATFORM") or None
     if platform is not None and platform not in PLATFORMS:
-        raise ValueError(f"GL platform = {platform!r}: choose one of {PLATFORMS} "
-                         "(or leave it unset to try EGL, then OSMesa)")
+        raise UserError(f"GL platform {platform!r} (GLSYNTH_GL_PLATFORM): choose one of "
+                        f"{PLATFORMS}, or leave it unset to try EGL, then OSMesa")
     tried = []
     for name in ([platform] if platform else PLATFORMS):
         try:
             return _create(name), name
         except Exception as err:  # any failure of one platform: record it, try the next
-            tried.append(f"{name.upper()}: {type(err).__name__}: {err} "
+            reason = " ".join(str(err).split())  # one line, whatever the library wrote
+            tried.append(f"{name.upper()}: {type(err).__name__}: {reason} "
                          f"(Debian packages: {_PACKAGES[name]})")
-    raise GLUnavailableError("no OpenGL context could be created. Tried:\n  "
-                             + "\n  ".join(tried)
-                             + "\nInstall the packages above (scripts/install.sh does), "
-                               "or set GLSYNTH_GL_PLATFORM to a platform that works.")
+    raise GLUnavailableError("no OpenGL context could be created. Tried: " + "; ".join(tried)
+                             + ". Install the packages named (scripts/install.sh does), or set "
+                               "GLSYNTH_GL_PLATFORM to a platform that works.")

@@ -1,0 +1,10 @@
+"""The one error type for bad input, and how the command line tells it from a programming error.
+
+A ``UserError`` is something the user can fix: a bad option, config value, file or folder, or a
+machine without what glsynth needs. Its message is one line that names the field, the value and
+the fix. It subclasses ValueError so that callers of the library can catch it as one.
+"""
+
+
+class UserError(ValueError):
+    """Bad input or environment: printed as one line by the command line, without traceback."""

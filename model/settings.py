@@ -1,0 +1,132 @@
+"""Training settings, tasks and sizes: plain data without torch, so that the command line can
+build its options from them without importing torch."""
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from glsynth.core.errors import UserError
+
+TASKS = ("component", "damage", "depth")
+N_OUTPUTS = {"component": 8, "damage": 3, "depth": 1}
+"""Network output channels per task: ids 1..8 (components), 1..3 (damage), metres (depth)."""
+CLASS_NAMES = {"component": ["nonbridge", "slab", "beam", "column", "nonstructural", "rail",
+                             "sleeper", "other"],
+               "damage": ["no_damage", "concrete", "rebar"]}
+PAPER_SCHEDULE = ((1e-3, 200), (1e-4, 50), (1e-5, 10))
+MIN_SIDE = 96
+"""FCN58's smallest input side: /3, /2 and four 2x2 pools leave one pixel at the deepest scale."""
+
+
+def target_size(image_size: tuple[int, int]) -> tuple[int, int]:
+    """(width, height) of FCN58's output and of the targets: a third, rounded up."""
+    return (-(-image_size[0] // 3), -(-image_size[1] // 3))
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H)."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UserError(f"image size {text!r}: write it as WIDTHxHEIGHT, e.g. 1920x1080") \
+            from None
+    if min(w, h) < MIN_SIDE:
+        raise UserError(f"image size {text!r}: FCN58 needs at least {MIN_SIDE} px per side")
+    return w, h
+
+
+def parse_schedule(text: str) -> tuple[tuple[float, int], ...]:
+    """'1e-3:200,1e-4:50' -> ((0.001, 200), (0.0001, 50))."""
+    try:
+        return tuple((float(lr), int(n)) for lr, n in
+                     (stage.split(":") for stage in text.split(",")))
+    except ValueError:
+        raise UserError(f"--schedule {text!r}: write LR:EPOCHS stages separated by commas, "
+                        "e.g. 1e-3:200,1e-4:50,1e-5:10") from None
+
+
+def _folder(text: str) -> str:
+    return str(Path(text).resolve())
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    task: Literal["component", "damage", "depth"]
+    """Which network: component labels, damage labels or depth."""
+    data: str = field(metadata={"parse": _folder, "metavar": "DIR"})
+    """Tokaido-layout dataset root (glsynth's output or the released dataset)."""
+    extra: tuple[str, ...] = field(default=(), metadata={"parse": _folder, "repeat": True,
+                                                          "metavar": "DIR"})
+    """Folders of real labelled photos mixed into training: DIR/images/* and
+    DIR/labels/<stem>.png (repeatable)."""
+    image_size: tuple[int, int] = field(default=(1920, 1080), metadata={
+        "parse": parse_size, "metavar": "WxH", "show": "1920x1080"})
+    """Input size images are resized to; targets are a third, rounded up."""
+    batch_size: int = 8
+    """Images per step (paper: 8)."""
+    schedule: tuple[tuple[float, int], ...] = field(default=PAPER_SCHEDULE, metadata={
+        "parse": parse_schedule, "metavar": "LR:EPOCHS,...", "show": "1e-3:200,1e-4:50,1e-5:10"})
+    """Learning-rate stages (paper Section 4.3)."""
+    weight_decay: float = 1e-4
+    """Adam's weight decay (paper: 1e-4)."""
+    val_count: int = 300
+    """Training images held out for validation (at most a fifth of them)."""
+    puretex: bool = True
+    """Damage task: add the pure-texture plates to training."""
+    seed: int = 0
+    """Seed of the validation split, the initial weights, shuffling and flips."""
+    precision: Literal["auto", "bf16", "fp32"] = "auto"
+    """bf16 autocast, fp32, or auto: bf16 only where the hardware runs it natively."""
+    channels_last: bool = True
+    """NHWC memory layout (faster on CPUs and GPUs)."""
+    loader_workers: int = 1
+    """Processes decoding images."""
+    time_budget_min: float | None = None
+    """Stop after the step that passes this many minutes of training (then validate, save)."""
+    views: Literal["regular", "closeup", "all"] | None = None
+    """Camera kinds to train on; default regular for component/depth, all for damage."""
+    device: str = field(default="auto", compare=False)
+    """auto, cpu, cuda or cuda:N."""
+
+    def __post_init__(self) -> None:
+        if self.task not in TASKS:
+            raise UserError(f"--task {self.task!r}: choose one of {', '.join(TASKS)}")
+        for name, lo in (("batch_size", 1), ("val_count", 0), ("loader_workers", 0)):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < lo:
+                raise UserError(f"--{name.replace('_', '-')} {value}: give an integer >= {lo}")
+        if not self.schedule or any(lr <= 0 or n < 1 for lr, n in self.schedule):
+            raise UserError(f"--schedule {self.schedule}: give LR:EPOCHS stages with LR > 0 "
+                            "and EPOCHS >= 1, e.g. 1e-3:200,1e-4:50,1e-5:10")
+        if not self.weight_decay >= 0:
+            raise UserError(f"--weight-decay {self.weight_decay}: give a number >= 0")
+        if self.precision not in ("auto", "bf16", "fp32"):
+            raise UserError(f"--precision {self.precision!r}: choose auto, bf16 or fp32")
+        if self.time_budget_min is not None and not self.time_budget_min > 0:
+            raise UserError(f"--time-budget-min {self.time_budget_min}: give minutes > 0")
+        if self.views not in (None, "regular", "closeup", "all"):
+            raise UserError(f"--views {self.views!r}: choose regular, closeup or all")
+        if self.extra and self.task == "depth":
+            raise UserError("--extra: real image folders carry labels, not depth; drop it "
+                            "for --task depth")
+
+    @property
+    def epochs(self) -> int:
+        return sum(n for _, n in self.schedule)
+
+    def learning_rate(self, epoch: int) -> float:
+        for lr, n in self.schedule:
+            if epoch < n:
+                return lr
+            epoch -= n
+        return self.schedule[-1][0]
+
+
+def settings_from_json(data: dict[str, Any]) -> TrainSettings:
+    """Settings as stored in a run folder's settings.json."""
+    known = {f.name for f in dataclasses.fields(TrainSettings)}
+    data = {k: v for k, v in data.items() if k in known}
+    data.update(extra=tuple(data.get("extra", ())), image_size=tuple(data["image_size"]),
+                schedule=tuple(tuple(s) for s in data["schedule"]))
+    return TrainSettings(**data)

@@ -1,0 +1,80 @@
+"""Command-line options derived from settings dataclasses (glsynth.core.options)."""
+
+import argparse
+from dataclasses import dataclass, field
+from typing import Literal
+
+import pytest
+
+from glsynth.core.options import add_options, field_docs, from_options
+
+
+def _pair(text: str) -> tuple[int, int]:
+    a, b = text.split(",")
+    return int(a), int(b)
+
+
+@dataclass(frozen=True)
+class Example:
+    name: str
+    """Required: no default."""
+    mode: Literal["a", "b"] = "a"
+    """A choice."""
+    size: tuple[int, int] = field(default=(2, 3), metadata={"parse": _pair, "metavar": "A,B"})
+    """Parsed from text."""
+    folders: tuple[str, ...] = field(default=(), metadata={"parse": str, "repeat": True})
+    """Repeatable."""
+    fast: bool = True
+    """On by default."""
+    verbose: bool = False
+    """Off by default."""
+    limit: float | None = None
+    """Optional number."""
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser()
+    add_options(p, Example)
+    return p
+
+
+def test_docstrings_become_help_and_defaults_carry_over():
+    assert field_docs(Example)["size"] == "Parsed from text."
+    text = parser().format_help()
+    assert "--no-fast" in text and "--verbose" in text and "A,B" in text
+    assert "turn off: On by default." in text and "(default: a)" in text
+    settings = from_options(Example, parser().parse_args(["--name", "x"]))
+    assert settings == Example("x")
+
+
+def test_every_kind_of_field_parses():
+    args = parser().parse_args(["--name", "x", "--mode", "b", "--size", "4,5", "--folders",
+                                "p", "--folders", "q", "--no-fast", "--verbose",
+                                "--limit", "2.5"])
+    assert from_options(Example, args) == Example("x", "b", (4, 5), ("p", "q"), False, True, 2.5)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--name", "x", "--mode", "c"], "invalid choice"),
+    (["--name", "x", "--size", "four"], "--size"),
+    ([], "--name"),  # required: the field has no default
+])
+def test_bad_options_are_argparse_errors(argv, message, capsys):
+    p = argparse.ArgumentParser()
+    add_options(p, Example)
+    with pytest.raises(SystemExit):
+        p.parse_args(argv)
+    assert message in capsys.readouterr().err
+
+
+def test_the_train_command_is_built_from_train_settings():
+    from glsynth.model.settings import TrainSettings
+
+    from glsynth.cli import build_parser
+
+    args = build_parser().parse_args(["train", "--task", "depth", "--data", "d", "--out", "r",
+                                      "--image-size", "480x270", "--schedule", "1e-3:2"])
+    settings = from_options(TrainSettings, args)
+    assert settings.task == "depth" and settings.image_size == (480, 270)
+    assert settings.schedule == ((1e-3, 2),) and settings.batch_size == 8
+    assert settings.data.endswith("/d")  # resolved to an absolute folder
