@@ -2,21 +2,25 @@
 (paper Sections 4.4-4.6). Works on glsynth's data and on the released Tokaido dataset.
 """
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
-from PIL import Image
-
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
-from glsynth.assess.condition import read_rgb
 from glsynth.model.data import TokaidoDataset, image_tensor
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
-from glsynth.model.train import (CLASS_NAMES, bf16_helps, load_torch, pick_device,
-                                 predict_ids)
+from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS
+from glsynth.model.train import bf16_helps, load_torch, pick_device, predict_ids
+from PIL import Image
+
+from glsynth.assess.condition import read_rgb
+from glsynth.core.errors import UserError
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
+from glsynth.core.images import nearest_resize
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.data.tokaido import encode_depth
 
 
 @dataclass
@@ -45,14 +49,35 @@ class Predictor:
         return rgb, self(image_tensor(rgb, self.image_size)[None])[0].numpy()
 
 
+MODEL_KEYS = ("task", "out_channels", "image_size", "mfb_weights", "state_dict")
+
+
 def load_predictor(run: str | Path, device: str = "auto") -> Predictor:
+    """The trained network of a run folder, checked against the run's settings.json."""
     path = Path(run) / "model.pt"
-    if not path.exists():
-        raise FileNotFoundError(f"run {str(run)!r} has no model.pt: train it first "
-                                "(glsynth train ... --out RUN) or check the path")
+    if not path.is_file():
+        raise UserError(f"run {str(run)!r} has no model.pt: train it first "
+                        "(glsynth train ... --out RUN) or check the path")
     data = load_torch(path)
+    missing = [k for k in MODEL_KEYS if k not in data]
+    if missing or data["task"] not in N_OUTPUTS or \
+            data["out_channels"] != N_OUTPUTS[data["task"]]:
+        raise UserError(f"{str(path)!r} is not a glsynth model (missing {missing or 'nothing'}, "
+                        f"task {data.get('task')!r}); train again into a new --out folder")
+    settings = Path(run) / "settings.json"
+    if settings.is_file():
+        task = json.loads(settings.read_text()).get("task")
+        if task != data["task"]:
+            raise UserError(f"run {str(run)!r}: model.pt is a {data['task']} network but "
+                            f"settings.json says {task}; the folder mixes two runs: train "
+                            "again into a new --out folder")
     model = FCN58(int(data["out_channels"]))
-    model.load_state_dict(data["state_dict"])
+    try:
+        model.load_state_dict(data["state_dict"])
+    except (RuntimeError, TypeError, AttributeError) as err:
+        raise UserError(f"{str(path)!r}: its weights do not fit FCN58 "
+                        f"({str(err).splitlines()[0]}); train again into a new --out "
+                        "folder") from err
     dev = pick_device(device)
     model = model.to(memory_format=torch.channels_last).to(dev).eval()
     weights = data["mfb_weights"]
@@ -64,11 +89,10 @@ def resize_map(values: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """A prediction map brought to (width, height): nearest for ids, bilinear for depth."""
     if values.shape[::-1] == tuple(size):
         return values
-    resample = Image.Resampling.BILINEAR if values.dtype.kind == "f" else \
-        Image.Resampling.NEAREST
-    mode_values = values.astype(np.float32) if values.dtype.kind == "f" else \
-        values.astype(np.uint8)
-    return np.asarray(Image.fromarray(mode_values).resize(size, resample))
+    if values.dtype.kind != "f":
+        return nearest_resize(values, (size[1], size[0]))
+    return np.asarray(Image.fromarray(values.astype(np.float32)).resize(
+        size, Image.Resampling.BILINEAR))
 
 
 def picture(task: str, rgb: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -82,8 +106,9 @@ def picture(task: str, rgb: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 def predict_files(run: str | Path, images: list[str], out: str | Path,
                   device: str = "auto") -> list[Path]:
-    """Per photo: <stem>_<task>.png (ids, or uint16 depth in the Tokaido code) and .npy depth,
-    at a third of the run's image size, plus <stem>_<task>_overlay.png at the photo's size."""
+    """Per photo, at a third of the run's image size: <stem>_<task>.png (uint8 ids, or uint16
+    depth in the Tokaido code) and, for depth, <stem>_depth.npy (float32 metres); plus
+    <stem>_<task>_overlay.png at the photo's size."""
     predictor = load_predictor(run, device)
     out = Path(out)
     written = []
@@ -92,6 +117,7 @@ def predict_files(run: str | Path, images: list[str], out: str | Path,
         stem = f"{Path(path).stem}_{predictor.task}"
         if predictor.task == "depth":
             atomic_write_bytes(out / f"{stem}.npy", npy_bytes(values.astype(np.float32)))
+            atomic_write_bytes(out / f"{stem}.png", png_bytes(encode_depth(values)))
         else:
             atomic_write_bytes(out / f"{stem}.png", png_bytes(values.astype(np.uint8)))
         atomic_write_bytes(out / f"{stem}_overlay.png",
@@ -111,7 +137,7 @@ def evaluate(run: str | Path, data: str | Path, split: str = "test",
     dataset = TokaidoDataset(data, split, task, image_size=predictor.image_size,
                              puretex=puretex and task == "damage")
     if len(dataset) == 0:
-        raise ValueError(f"--data {str(data)!r} has no {split} images for task {task!r}")
+        raise UserError(f"--data {str(data)!r} has no {split} images for task {task!r}")
     out = Path(out) if out is not None else Path(run) / f"eval_{split}"
     n = predictor.model.out_channels
     matrix = np.zeros((n, n), np.int64)

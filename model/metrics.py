@@ -2,9 +2,20 @@
 confusion matrix, and depth MAE, RMSE and ARD. Plain numpy; label 0 is never counted.
 """
 
+from typing import Any
+
 import numpy as np
 
-DEPTH_RANGE_M = (0.5, 30.0)
+from glsynth.data.tokaido import DEPTH_FAR_M, DEPTH_NEAR_M
+
+DEPTH_RANGE_M = (DEPTH_NEAR_M, DEPTH_FAR_M)
+"""The Tokaido depth code's range; its ends are clips (too near, sky), not measured depths."""
+
+
+def depth_valid(truth: Any) -> Any:
+    """Pixels whose true depth is a measurement: strictly inside DEPTH_RANGE_M. The one rule
+    for training (berHu) and evaluation; works on numpy arrays and torch tensors alike."""
+    return (truth > DEPTH_RANGE_M[0]) & (truth < DEPTH_RANGE_M[1])
 
 
 def confusion(truth: np.ndarray, predicted: np.ndarray, n_classes: int) -> np.ndarray:
@@ -51,15 +62,14 @@ def segmentation_scores(matrix: np.ndarray, names: list[str]) -> dict:
             "mean": {"precision": mean(precision), "recall": mean(recall), "iou": mean(iou)}}
 
 
-def depth_errors(predicted: np.ndarray, truth: np.ndarray,
-                 depth_range: tuple[float, float] = DEPTH_RANGE_M) -> dict:
-    """MAE and RMSE [m] and ARD (mean |e| / truth) over pixels whose truth lies in
-    [near, far): the far end of the Tokaido code (30 m) is the clip for sky and anything
-    beyond, not a measured depth. Sums are returned so that images can be pooled."""
+def depth_errors(predicted: np.ndarray, truth: np.ndarray) -> dict:
+    """MAE and RMSE [m] and ARD (mean |e| / truth) over the pixels of depth_valid (the clipped
+    ends of the Tokaido code, 0.5 m and 30 m, are not measured depths). Sums are returned so
+    that images can be pooled."""
     p, t = np.asarray(predicted, np.float64).ravel(), np.asarray(truth, np.float64).ravel()
     if p.shape != t.shape:
         raise ValueError(f"depth prediction has {p.size} pixels, truth {t.size}")
-    keep = (t >= depth_range[0]) & (t < depth_range[1]) & np.isfinite(p)
+    keep = depth_valid(t) & np.isfinite(p)
     e = p[keep] - t[keep]
     return {"pixels": int(keep.sum()), "abs": float(np.abs(e).sum()),
             "sq": float((e * e).sum()), "rel": float((np.abs(e) / t[keep]).sum())}

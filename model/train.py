@@ -9,104 +9,66 @@ end, model.pt. Checkpoints hold only tensors and plain data, so they load with
 ``weights_only=True``. Under torchrun each process trains on its own shard through
 DistributedDataParallel; rank 0 writes the files.
 
-Shuffling and flips come from generators seeded by (seed, epoch), so a resumed run sees the same
-batches as an uninterrupted one.
+Every random draw (validation split, initial weights, shuffles, flips) is seeded from
+glsynth.core.seeding by (seed, epoch, rank), so a resumed run sees the same batches as an
+uninterrupted one. Depth is trained and evaluated on the same pixels (metrics.depth_valid).
 """
 
 import bisect
+import contextlib
 import dataclasses
 import io
 import json
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
-from torch.utils.data import ConcatDataset, DataLoader, Dataset, Subset
-
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
-from glsynth.data.tokaido import FrameRecord
-from glsynth.model.data import N_OUTPUTS, TASKS, ImageFolder, TokaidoDataset, target_size
+from glsynth.model.data import ImageFolder, TokaidoDataset
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
-from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
+from glsynth.model.metrics import (
+    confusion,
+    depth_errors,
+    depth_valid,
+    pooled_depth,
+    segmentation_scores,
+)
+from glsynth.model.settings import (
+    CLASS_NAMES,
+    N_OUTPUTS,
+    TrainSettings,
+    settings_from_json,
+    target_size,
+)
+from torch.utils.data import ConcatDataset, DataLoader, Dataset, DistributedSampler, Subset
 
-PAPER_SCHEDULE = ((1e-3, 200), (1e-4, 50), (1e-5, 10))
-CLASS_NAMES = {"component": ["nonbridge", "slab", "beam", "column", "nonstructural", "rail",
-                             "sleeper", "other"],
-               "damage": ["no_damage", "concrete", "rebar"]}
+from glsynth.core.errors import UserError
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK, RunLock
+from glsynth.core.seeding import Stream, make_rng, make_seed
+from glsynth.data.tokaido import FrameRecord
 
-
-@dataclass(frozen=True)
-class TrainSettings:
-    task: str
-    data: str
-    """Tokaido-layout dataset root (glsynth's output or the released dataset)."""
-    extra: tuple[str, ...] = ()
-    """Folders of real labelled photos mixed into training (images/ + labels/)."""
-    image_size: tuple[int, int] = (1920, 1080)
-    """(width, height) images are resized to; targets are a third, rounded up."""
-    batch_size: int = 8
-    schedule: tuple[tuple[float, int], ...] = PAPER_SCHEDULE
-    """(learning rate, epochs) stages."""
-    weight_decay: float = 1e-4
-    val_count: int = 300
-    """Training images held out for validation (at most a fifth of them)."""
-    puretex: bool = True
-    """Damage task: add the pure-texture plates to training."""
-    seed: int = 0
-    precision: str = "auto"
-    """'bf16' (autocast), 'fp32', or 'auto': bf16 where the hardware has it (see bf16_helps)."""
-    channels_last: bool = True
-    loader_workers: int = 1
-    time_budget_s: float | None = None
-    """Stop after the step that passes this many seconds of training (then validate, save)."""
-    views: str | None = None
-    """'regular', 'closeup' or 'all'; default per task (paper Section 4.2)."""
-    device: str = field(default="auto", compare=False)
-
-    def __post_init__(self) -> None:
-        if self.task not in TASKS:
-            raise ValueError(f"--task {self.task!r}: choose one of {', '.join(TASKS)}")
-        if self.batch_size < 1:
-            raise ValueError(f"--batch-size {self.batch_size}: give at least 1")
-        if not self.schedule or any(lr <= 0 or n < 1 for lr, n in self.schedule):
-            raise ValueError(f"--schedule {self.schedule}: give LR:EPOCHS stages with LR > 0 "
-                             "and EPOCHS >= 1, e.g. 1e-3:200,1e-4:50,1e-5:10")
-        if self.precision not in ("auto", "bf16", "fp32"):
-            raise ValueError(f"--precision {self.precision!r}: choose auto, bf16 or fp32")
-        if self.extra and self.task == "depth":
-            raise ValueError("--extra: real image folders carry labels, not depth; drop it "
-                             "for --task depth")
-
-    @property
-    def epochs(self) -> int:
-        return sum(n for _, n in self.schedule)
-
-    def learning_rate(self, epoch: int) -> float:
-        for lr, n in self.schedule:
-            if epoch < n:
-                return lr
-            epoch -= n
-        return self.schedule[-1][0]
+# Items of the training stream (glsynth.core.seeding.Stream.TRAINING).
+_SPLIT, _WEIGHTS, _SHUFFLE, _FLIPS = range(4)
 
 
-def parse_schedule(text: str) -> tuple[tuple[float, int], ...]:
-    try:
-        return tuple((float(lr), int(n)) for lr, n in
-                     (stage.split(":") for stage in text.split(",")))
-    except ValueError:
-        raise ValueError(f"--schedule {text!r}: write LR:EPOCHS stages separated by commas, "
-                         "e.g. 1e-3:200,1e-4:50,1e-5:10") from None
+def torch_generator(seed: int) -> torch.Generator:
+    """A CPU torch generator from a glsynth.core.seeding seed."""
+    return torch.Generator().manual_seed(seed)
 
 
-def settings_from_json(data: dict) -> TrainSettings:
-    data = {**data, "extra": tuple(data["extra"]), "image_size": tuple(data["image_size"]),
-            "schedule": tuple(tuple(s) for s in data["schedule"])}
-    return TrainSettings(**data)
+@contextlib.contextmanager
+def seeded_torch(seed: int) -> Iterator[None]:
+    """torch's global generator seeded for the block (layer initialisation draws from it),
+    then put back as it was: nothing outside the block sees the seed."""
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)  # noqa: TID251 - the one place; seeds come from make_seed
+        yield
 
 
 def pick_device(name: str) -> torch.device:
@@ -139,9 +101,9 @@ def training_sets(s: TrainSettings) -> tuple[Dataset, Dataset]:
                            puretex=s.task == "damage" and s.puretex)
     frames = [i for i, r in enumerate(split.items) if isinstance(r, FrameRecord)]
     if not frames:
-        raise ValueError(f"--data {s.data!r} has no training images for task {s.task!r}")
+        raise UserError(f"--data {s.data!r} has no training images for task {s.task!r}")
     n_val = min(s.val_count, len(frames) // 5)
-    order = np.random.default_rng(np.random.SeedSequence([s.seed, 1])).permutation(len(frames))
+    order = make_rng(s.seed, 0, Stream.TRAINING, _SPLIT).permutation(len(frames))
     held_out = {frames[i] for i in order[:n_val]}
     val = Subset(split, sorted(held_out))
     parts: list[Dataset] = [Subset(split, [i for i in range(len(split)) if i not in held_out])]
@@ -190,7 +152,7 @@ def flip_batch(images: torch.Tensor, targets: torch.Tensor,
 def task_loss(task: str, output: torch.Tensor, target: torch.Tensor,
               weights: torch.Tensor | None) -> torch.Tensor:
     if task == "depth":
-        return berhu(output[:, 0], target)
+        return berhu(output[:, 0], target, depth_valid(target))
     return weighted_cross_entropy(output, target, weights)
 
 
@@ -246,10 +208,23 @@ def save_torch(path: Path, data: dict) -> None:
 
 
 def load_torch(path: Path) -> dict:
-    return torch.load(path, map_location="cpu", weights_only=True)
+    """A file written by save_torch; anything else (truncated, foreign, not torch at all) is a
+    UserError naming the file, never an invitation to unpickle arbitrary code."""
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise
+    except Exception as err:  # torch raises RuntimeError, UnpicklingError, EOFError, ...
+        raise UserError(f"{str(path)!r} is not a readable glsynth checkpoint "
+                        f"({type(err).__name__}); it is damaged or from elsewhere: train "
+                        "again into a new --out folder") from err
+    if not isinstance(data, dict):
+        raise UserError(f"{str(path)!r} holds {type(data).__name__}, not a glsynth checkpoint")
+    return data
 
 
 def _distributed() -> tuple[int, int]:
+    """(rank, world size); joins the process group under torchrun."""
     world = int(os.environ.get("WORLD_SIZE", "1"))
     if world > 1 and not torch.distributed.is_initialized():
         backend = "nccl" if torch.cuda.is_available() else "gloo"
@@ -275,42 +250,61 @@ def open_run(run: Path, settings: TrainSettings) -> dict | None:
     if stored.exists():
         previous = settings_from_json(json.loads(stored.read_text()))
         if previous != settings:
-            raise ValueError(f"--out {str(run)!r} holds a run with other settings; use a new "
-                             "folder, or the same options to resume it")
+            raise UserError(f"--out {str(run)!r} holds a run with other settings; use a new "
+                            "folder, or the same options to resume it")
         checkpoint = run / "checkpoint.pt"
         return load_torch(checkpoint) if checkpoint.exists() else None
-    if run.exists() and any(run.iterdir()):
-        raise ValueError(f"--out {str(run)!r} is not empty and holds no training run")
+    if any(p.name not in (DRIVER_LOCK, WORKERS_LOCK) for p in run.iterdir()):
+        raise UserError(f"--out {str(run)!r} is not empty and holds no training run")
     atomic_write_json(stored, dataclasses.asdict(settings))
     return None
 
 
-def train(settings: TrainSettings, run: str | Path, log=print) -> dict:
-    """Train (or resume) a run; returns the final history entry."""
-    run = Path(run)
-    rank, world = _distributed()
+@dataclass
+class _Run:
+    """What one process of a training run holds between epochs."""
+
+    settings: TrainSettings
+    folder: Path
+    rank: int
+    world: int
+    device: torch.device
+    model: torch.nn.Module
+    net: torch.nn.Module
+    """The model, wrapped in DistributedDataParallel under torchrun."""
+    optimizer: torch.optim.Optimizer
+    weights: torch.Tensor | None
+    bf16: bool
+    history: list[dict]
+
+    def autocast(self) -> torch.autocast:
+        return torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.bf16)
+
+
+def _class_weights(settings: TrainSettings, run: Path, train_set: Dataset, rank: int,
+                   device: torch.device) -> torch.Tensor | None:
+    """MFB weights, counted once per run folder (class_weights.json) from the targets."""
+    if settings.task == "depth":
+        return None
+    stats_file = run / "class_weights.json"
+    if stats_file.exists():
+        stats = json.loads(stats_file.read_text())
+    else:
+        stats = class_statistics(train_set, N_OUTPUTS[settings.task])
+        if rank == 0:
+            atomic_write_json(stats_file, {"classes": CLASS_NAMES[settings.task], **stats})
+    return torch.tensor(stats["weights"], dtype=torch.float32, device=device)
+
+
+def _start(settings: TrainSettings, run: Path, train_set: Dataset, rank: int, world: int,
+           checkpoint: dict | None) -> tuple[_Run, int]:
+    """The model, optimizer and history of a new or resumed run, and the first epoch to train."""
     device = pick_device(settings.device)
     if device.type == "cuda" and world > 1:
         device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
-    checkpoint = open_run(run, settings) if rank == 0 else None
-    if world > 1:
-        torch.distributed.barrier()
-        if rank:
-            path = run / "checkpoint.pt"
-            checkpoint = load_torch(path) if path.exists() else None
-    train_set, val_set = training_sets(settings)
-    weights = None
-    if settings.task != "depth":
-        stats_file = run / "class_weights.json"
-        if stats_file.exists():
-            stats = json.loads(stats_file.read_text())
-        else:
-            stats = class_statistics(train_set, N_OUTPUTS[settings.task])
-            if rank == 0:
-                atomic_write_json(stats_file, {"classes": CLASS_NAMES[settings.task], **stats})
-        weights = torch.tensor(stats["weights"], dtype=torch.float32, device=device)
-    torch.manual_seed(settings.seed)
-    model = FCN58(N_OUTPUTS[settings.task])
+    weights = _class_weights(settings, run, train_set, rank, device)
+    with seeded_torch(make_seed(settings.seed, 0, Stream.TRAINING, _WEIGHTS)):
+        model = FCN58(N_OUTPUTS[settings.task])
     if settings.channels_last:
         model = model.to(memory_format=torch.channels_last)
     model.to(device)
@@ -325,86 +319,129 @@ def train(settings: TrainSettings, run: str | Path, log=print) -> dict:
         if checkpoint.get("stopped_by_budget"):
             start_epoch = settings.epochs  # the budget ended this run
     net = torch.nn.parallel.DistributedDataParallel(model) if world > 1 else model
-    bf16 = use_bf16(settings.precision, device)
+    state = _Run(settings, run, rank, world, device, model, net, optimizer, weights,
+                 use_bf16(settings.precision, device), history)
+    return state, start_epoch
 
-    def autocast():
-        return torch.autocast(device.type, dtype=torch.bfloat16, enabled=bf16)
 
-    loader_options = dict(batch_size=settings.batch_size, num_workers=settings.loader_workers,
-                          pin_memory=device.type == "cuda",
-                          persistent_workers=settings.loader_workers > 0)
-    val_loader = DataLoader(val_set, shuffle=False, **loader_options) if len(val_set) else None
+def _train_epoch(state: _Run, loader: DataLoader, epoch: int, deadline_s: float | None
+                 ) -> tuple[list[float], int, bool]:
+    """One pass over this rank's shard: (losses, images seen, whether the time budget ended
+    it)."""
+    s = state.settings
+    for group in state.optimizer.param_groups:
+        group["lr"] = s.learning_rate(epoch)
+    flips = torch_generator(make_seed(s.seed, 0, Stream.TRAINING, _FLIPS, epoch, state.rank))
+    state.net.train()
+    losses, images_seen = [], 0
     started = time.perf_counter()
-    spent = float(history[-1]["train_seconds_total"]) if history else 0.0
-    stopped = False
+    for images, targets in loader:
+        images, targets = flip_batch(images, targets, flips)
+        images = prepare(images, state.device, s.channels_last)
+        targets = targets.to(state.device, non_blocking=True)
+        with state.autocast():
+            output = state.net(images)
+        loss = task_loss(s.task, output, targets, state.weights)
+        value = loss.detach().item()
+        if not math.isfinite(value):
+            raise FloatingPointError(f"training loss became {value} at epoch {epoch + 1}; lower "
+                                     "the learning rate or use --precision fp32")
+        state.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        state.optimizer.step()
+        losses.append(value)
+        images_seen += images.shape[0]
+        out_of_time = deadline_s is not None and time.perf_counter() - started > deadline_s
+        if _all_agree(out_of_time, state.world, state.device):
+            return losses, images_seen, True
+    return losses, images_seen, False
+
+
+def _save_epoch(state: _Run, entry: dict, stopped: bool, log: Callable[[str], None]) -> None:
+    """Checkpoint, history and curves after an epoch (rank 0 only)."""
+    state.history.append(entry)
+    if state.rank:
+        return
+    save_torch(state.folder / "checkpoint.pt",
+               {"model": state.model.state_dict(), "optimizer": state.optimizer.state_dict(),
+                "epoch": entry["epoch"], "history": state.history, "stopped_by_budget": stopped})
+    atomic_write_json(state.folder / "history.json", state.history)
+    plot_curves(state.history, state.folder / "curves.png", state.settings.task)
+    log(json.dumps(entry))
+
+
+def _save_model(state: _Run) -> None:
+    s = state.settings
+    save_torch(state.folder / "model.pt", {
+        "task": s.task, "out_channels": N_OUTPUTS[s.task], "image_size": list(s.image_size),
+        "target_size": list(target_size(s.image_size)),
+        "mfb_weights": state.weights.cpu() if state.weights is not None else None,
+        "state_dict": state.model.state_dict()})
+
+
+def train(settings: TrainSettings, run: str | Path, log: Callable[[str], None] = print) -> dict:
+    """Train (or resume) a run; returns the final history entry. Rank 0 holds the run
+    folder's lock for the whole run."""
+    run = Path(run)
+    rank, world = _distributed()
+    lock = RunLock(run).acquire() if rank == 0 else None
+    try:
+        checkpoint = open_run(run, settings) if rank == 0 else None
+        if world > 1:
+            torch.distributed.barrier()
+            if rank:
+                path = run / "checkpoint.pt"
+                checkpoint = load_torch(path) if path.exists() else None
+        return _train(settings, run, rank, world, checkpoint, log)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _train(settings: TrainSettings, run: Path, rank: int, world: int,
+           checkpoint: dict | None, log: Callable[[str], None]) -> dict:
+    train_set, val_set = training_sets(settings)
+    state, start_epoch = _start(settings, run, train_set, rank, world, checkpoint)
+    loader_options = dict(batch_size=settings.batch_size, num_workers=settings.loader_workers,
+                          pin_memory=state.device.type == "cuda",
+                          persistent_workers=settings.loader_workers > 0)
+    sampler = DistributedSampler(train_set, num_replicas=world, rank=rank, shuffle=True,
+                                 seed=make_seed(settings.seed, 0, Stream.TRAINING, _SHUFFLE),
+                                 drop_last=world > 1)
+    loader = DataLoader(train_set, sampler=sampler, **loader_options)
+    val_loader = DataLoader(val_set, shuffle=False, **loader_options) if len(val_set) else None
+    budget_s = settings.time_budget_min * 60 if settings.time_budget_min else None
+    spent = float(state.history[-1]["train_seconds_total"]) if state.history else 0.0
     for epoch in range(start_epoch, settings.epochs):
-        for group in optimizer.param_groups:
-            group["lr"] = settings.learning_rate(epoch)
-        generator = torch.Generator().manual_seed(settings.seed * 100_003 + epoch)
-        order = torch.randperm(len(train_set), generator=generator).tolist()
-        shard = order[rank::world][:len(order) // world] if world > 1 else order
-        loader = DataLoader(Subset(train_set, shard), shuffle=False, drop_last=False,
-                            **{**loader_options, "persistent_workers": False})
-        net.train()
-        t0, losses, images_seen = time.perf_counter(), [], 0
-        for images, targets in loader:
-            images, targets = flip_batch(images, targets, generator)
-            images = prepare(images, device, settings.channels_last)
-            targets = targets.to(device, non_blocking=True)
-            with autocast():
-                output = net(images)
-            loss = task_loss(settings.task, output, targets, weights)
-            value = loss.detach().item()
-            if not math.isfinite(value):
-                raise FloatingPointError(f"training loss became {value} at epoch "
-                                         f"{epoch + 1}; lower the learning rate or use "
-                                         "--precision fp32")
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            optimizer.step()
-            losses.append(value)
-            images_seen += images.shape[0]
-            if settings.time_budget_s is not None and _all_agree(
-                    spent + time.perf_counter() - started > settings.time_budget_s, world, device):
-                stopped = True
-                break
+        sampler.set_epoch(epoch)
+        t0 = time.perf_counter()
+        losses, seen, stopped = _train_epoch(
+            state, loader, epoch, None if budget_s is None else budget_s - spent)
         seconds = time.perf_counter() - t0
         entry = {"epoch": epoch + 1, "lr": settings.learning_rate(epoch),
-                 "precision": "bf16" if bf16 else "fp32",
+                 "precision": "bf16" if state.bf16 else "fp32",
                  "train_loss": float(np.mean(losses)) if losses else None,
-                 "images": images_seen * world, "seconds": round(seconds, 3),
-                 "images_per_s": round(images_seen * world / seconds, 3) if seconds else None}
+                 "images": seen * world, "seconds": round(seconds, 3),
+                 "images_per_s": round(seen * world / seconds, 3) if seconds else None}
         if val_loader is not None:
-            entry.update(validate(model, val_loader, settings.task, weights, device, autocast,
-                                  settings.channels_last))
-        spent += time.perf_counter() - started
-        started = time.perf_counter()
+            entry.update(validate(state.model, val_loader, settings.task, state.weights,
+                                  state.device, state.autocast, settings.channels_last))
+        spent += time.perf_counter() - t0
         entry["train_seconds_total"] = round(spent, 3)
-        history.append(entry)
-        if rank == 0:
-            save_torch(run / "checkpoint.pt",
-                       {"model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                        "epoch": epoch + 1, "history": history, "stopped_by_budget": stopped})
-            atomic_write_json(run / "history.json", history)
-            plot_curves(history, run / "curves.png", settings.task)
-            log(json.dumps(entry))
+        _save_epoch(state, entry, stopped, log)
         if stopped:
             break
     if rank == 0:
-        save_torch(run / "model.pt", {
-            "task": settings.task, "out_channels": N_OUTPUTS[settings.task],
-            "image_size": list(settings.image_size),
-            "target_size": list(target_size(settings.image_size)),
-            "mfb_weights": weights.cpu() if weights is not None else None,
-            "state_dict": model.state_dict()})
+        _save_model(state)
     if world > 1:
         torch.distributed.barrier()
-    return history[-1] if history else {}
+    return state.history[-1] if state.history else {}
 
 
 def plot_curves(history: list[dict], path: Path, task: str) -> None:
-    from glsynth.core.plots import save_figure
     import matplotlib.pyplot as plt
+
+    from glsynth.core.plots import save_figure
 
     epochs = [h["epoch"] for h in history]
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))

@@ -18,14 +18,28 @@ class Stream(IntEnum):
     PLATES = 4
     DAMAGE_BANK = 5
     """Damage textures of the bank: shared by all environments of a root seed (env = 0)."""
+    TRAINING = 6
+    """Network training (env = 0): validation split, initial weights, shuffles, flips."""
 
 
-def make_rng(root_seed: int, env: int, stream: Stream, item: int = 0) -> np.random.Generator:
-    """Generator for one (root seed, environment, stream, item); all four must be ints >= 0."""
-    for name, value in (("root_seed", root_seed), ("env", env), ("item", item)):
+def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]
+              ) -> np.random.SeedSequence:
+    named = [("root_seed", root_seed), ("env", env)] + [("item", i) for i in items]
+    for name, value in named:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
             raise ValueError(f"{name} = {value!r}: must be an integer >= 0")
     if not isinstance(stream, Stream):
         raise TypeError(f"stream = {stream!r}: must be a glsynth.core.seeding.Stream member")
-    seq = np.random.SeedSequence([int(root_seed), int(env), int(stream), int(item)])
-    return np.random.Generator(np.random.PCG64(seq))
+    return np.random.SeedSequence([int(root_seed), int(env), int(stream), *map(int, items)])
+
+
+def make_rng(root_seed: int, env: int, stream: Stream, item: int = 0) -> np.random.Generator:
+    """Generator for one (root seed, environment, stream, item); all four must be ints >= 0."""
+    return np.random.Generator(np.random.PCG64(_sequence(root_seed, env, stream, (item,))))
+
+
+def make_seed(root_seed: int, env: int, stream: Stream, *items: int) -> int:
+    """A 63-bit integer seed from the same sequences, for libraries that take an integer
+    (torch generators, DistributedSampler)."""
+    state = _sequence(root_seed, env, stream, items).generate_state(2, np.uint32)
+    return (int(state[0]) << 31) ^ int(state[1])
