@@ -1,1 +1,2 @@
-"""GLSL sources, installed as the glsynth.shaders package; load them with glsynth.resources."""
+"""GLSL sources, installed as the glsynth.shaders package; glsynth.render.gl.programs loads
+them (and expands their #include lines)."""

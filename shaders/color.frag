@@ -33,6 +33,8 @@ uniform float u_shadow_offset_m;   // lookups move this far along the normal (ag
 
 out vec4 f_color;
 
+#include "tonemap.glsl"
+
 const float PI = 3.14159265358979;
 
 vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
@@ -101,7 +103,5 @@ void main() {
                  + f_env * env_specular * (1.0 - 0.7 * roughness);
 
     vec3 emissive = u_emissive * srgb_to_linear(texture(u_emissive_map, v_uv).rgb);
-    vec3 color = (direct + ambient) * u_exposure + emissive;
-    color = vec3(1.0) - exp(-color);          // soft tone map: no hard clipping
-    f_color = vec4(pow(color, vec3(1.0 / 2.2)), 1.0);
+    f_color = vec4(tone_map((direct + ambient) * u_exposure + emissive), 1.0);
 }

@@ -7,22 +7,36 @@ suite and by ``glsynth bench quality`` as the accuracy reference of the rasteriz
 """
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
+from glsynth.appearance.materials import Material
+from glsynth.core.errors import UserError
+from glsynth.core.labels import Component, Damage
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
-from glsynth.render.gl.renderer import RenderOutput
-from glsynth.core.labels import Component, Damage
-from glsynth.appearance.materials import Material
+
+
+@dataclass(frozen=True)
+class RayCastTruth:
+    """Per-pixel ground truth of one camera, in the renderer's conventions but from its own
+    code: this module imports nothing of glsynth.render.gl."""
+
+    component: np.ndarray
+    """(H, W) uint8 component ids; Nonbridge where nothing is hit."""
+    damage: np.ndarray
+    """(H, W) uint8 damage ids; no damage where nothing is hit."""
+    depth: np.ndarray
+    """(H, W) float32 metres along the optical axis; zfar where nothing is hit."""
 
 
 def _intersector(mesh: trimesh.Trimesh):
     try:
         from trimesh.ray.ray_pyembree import RayMeshIntersector
     except ImportError as err:  # trimesh's pure-Python fallback would take minutes per view
-        raise RuntimeError("ray-cast ground truth needs Embree: pip install embreex "
+        raise UserError("ray-cast ground truth needs Embree: pip install embreex "
                            "(in glsynth's test and bench extras)") from err
     return RayMeshIntersector(mesh)
 
@@ -36,7 +50,7 @@ def mask_lookup(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
 
 
 def ray_cast(parts: Sequence[Part], materials: Mapping[str, Material],
-             camera: Camera) -> RenderOutput:
+             camera: Camera) -> RayCastTruth:
     """Component, damage and depth at every pixel centre (depth zfar where nothing is hit)."""
     faces_per_part = [len(p.mesh.faces) for p in parts]
     scene = trimesh.util.concatenate([trimesh.Trimesh(p.world_vertices(), p.mesh.faces,
@@ -68,5 +82,5 @@ def ray_cast(parts: Sequence[Part], materials: Mapping[str, Material],
         uv = np.einsum("nk,nkj->nj", bary, face_uv)
         damage[ray[hits]] = mask_lookup(material.damage_mask, uv * material.uv_scale)
     h, w = camera.height, camera.width
-    return RenderOutput(component=comp.reshape(h, w), damage=damage.reshape(h, w),
+    return RayCastTruth(component=comp.reshape(h, w), damage=damage.reshape(h, w),
                         depth=depth.reshape(h, w).astype(np.float32))

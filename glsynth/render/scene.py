@@ -2,8 +2,8 @@
 metallic-roughness material. Nothing here touches GL; glsynth.render.gl draws it.
 
 pyrender 0.1.45 is pinned and used only as the scene graph (Scene, Node, Mesh, Primitive,
-MetallicRoughnessMaterial with its factors). Its renderer is not used (glsynth.render.gl draws faster
-and exactly, see the README), and its bounds/centroid helpers use np.infty, which numpy 2
+MetallicRoughnessMaterial with its factors). Its renderer is not used (glsynth.render.gl draws
+faster and exactly, see the README), and its bounds/centroid helpers use np.infty, which numpy 2
 removed: glsynth never calls them. Texture maps stay in glsynth's Material beside the node:
 pyrender.Texture copies and converts every source array on construction, which cost seconds
 per environment and defeated sharing one repository image between parts.
@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import pyrender
 
-from glsynth.world.environment import Environment, Part
+from glsynth.appearance.materials import Material
 from glsynth.core.labels import Component
-from glsynth.appearance.materials import Material, plain_material
+from glsynth.world.environment import Part
 
 
 @dataclass(frozen=True)
@@ -51,11 +51,6 @@ def part_node(part: Part, material: Material) -> pyrender.Node:
         indices=mesh.faces.astype(np.uint32), material=pyrender_material(material))
     return pyrender.Node(name=part.name, mesh=pyrender.Mesh([primitive], name=part.name),
                          matrix=part.pose)
-
-
-def default_materials(env: Environment) -> dict[str, Material]:
-    return {p.name: plain_material(p.component, emissive=p.name.startswith("scene"))
-            for p in env.parts}
 
 
 def build_scene(parts: list[Part] | tuple[Part, ...], materials: Mapping[str, Material]

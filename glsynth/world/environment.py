@@ -11,22 +11,11 @@ import numpy as np
 import trimesh
 
 from glsynth.core import design
-from glsynth.world import meshes
 from glsynth.core.config import Config
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
+from glsynth.world import meshes
 from glsynth.world.trajectory import Trajectory, generate_trajectory
-
-# Name prefix of each kind of part, as in the exported glTF nodes.
-PREFIX = {
-    Component.NONBRIDGE: "ground",  # scene panels use "scene"
-    Component.SLAB: "slab",
-    Component.BEAM: "beam",
-    Component.COLUMN: "column",
-    Component.NONSTRUCTURAL: "nonstructural",
-    Component.RAIL: "rail",
-    Component.SLEEPER: "sleeper",
-}
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """GLSL programs from the shader files in glsynth.shaders (the top-level shaders/ folder)."""
 
+import re
 from functools import cache
 
 import moderngl
@@ -8,15 +9,18 @@ from glsynth.core.paths import shader_dir
 
 # Program name -> (vertex shader file, fragment shader file).
 PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
-            "shadow": ("shadow.vert", "shadow.frag")}
+            "shadow": ("shadow.vert", "shadow.frag"), "sky": ("sky.vert", "sky.frag")}
+_INCLUDE = re.compile(r'^#include "([\w.]+)"$', re.MULTILINE)
 
 
 @cache
 def shader_source(name: str) -> str:
+    """A shader file with each ``#include "file"`` line replaced by that file (GLSL has no
+    includes; this keeps shared functions, such as the tone map, in one file)."""
     path = shader_dir() / name
     if not path.is_file():
         raise FileNotFoundError(f"shader {name!r} is missing from glsynth.shaders")
-    return path.read_text(encoding="utf-8")
+    return _INCLUDE.sub(lambda m: shader_source(m.group(1)), path.read_text(encoding="utf-8"))
 
 
 def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:

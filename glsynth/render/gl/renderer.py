@@ -10,19 +10,19 @@ Only the passes asked for are drawn. Pixels with no geometry read component 1 (N
 damage 1 (no damage) and depth = zfar.
 """
 
-import math
 from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
-from glsynth.world.cameras import Camera
+from glsynth.appearance.materials import Material
 from glsynth.core.config import RenderConfig
+from glsynth.core.errors import UserError
+from glsynth.core.labels import Component, Damage
 from glsynth.render.gl.context import create_context
 from glsynth.render.gl.programs import compile_programs
-from glsynth.core.labels import Component, Damage
-from glsynth.appearance.materials import Material
 from glsynth.render.scene import RenderScene
+from glsynth.world.cameras import Camera
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m, sun_direction
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
@@ -72,6 +72,7 @@ class Renderer:
             "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
         }
+        self._sky = self.ctx.vertex_array(self.programs["sky"], [])
         self._make_framebuffers()
 
     # --- resources --------------------------------------------------------------------------
@@ -80,7 +81,7 @@ class Renderer:
         self.color_target = ctx.renderbuffer(size, 4)
         self.color_fbo = ctx.framebuffer([self.color_target], ctx.depth_renderbuffer(size))
         if samples > ctx.max_samples:
-            raise ValueError(f"[render] msaa = {samples}: this GL ({self.platform}) supports at "
+            raise UserError(f"[render] msaa = {samples}: this GL ({self.platform}) supports at "
                              f"most {ctx.max_samples} samples; set msaa to {ctx.max_samples} "
                              "or less")
         if samples:
@@ -200,14 +201,22 @@ class Renderer:
         self.ctx.polygon_offset = (0.0, 0.0)
         return light
 
+    def _sky_pass(self) -> None:
+        """The background: the sky colour through the colour pass's tone map, behind
+        everything (no depth test or write)."""
+        prog = self.programs["sky"]
+        prog["u_sky_color"].value = tuple(float(c) for c in self.config.sky_rgb)
+        prog["u_exposure"].value = self.config.exposure
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        self._sky.render(moderngl.TRIANGLES, vertices=3)
+
     def _color_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
         light = self._shadow_pass(camera, draws)
         fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
         fbo.use()
-        sky = cfg.sky_rgb
-        fbo.clear(*(c ** (1 / 2.2) for c in (1 - math.exp(-sky[0]), 1 - math.exp(-sky[1]),
-                                              1 - math.exp(-sky[2]))), 1.0)
+        fbo.clear(depth=1.0)
+        self._sky_pass()
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         view = camera.view()
@@ -217,8 +226,9 @@ class Renderer:
         prog["u_sun_dir"].value = tuple(view3 @ sun)
         prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
         prog["u_sun_color"].value = (cfg.sun_intensity,) * 3
-        prog["u_sky_color"].value = tuple(cfg.ambient_intensity * np.array(sky))
-        prog["u_ground_color"].value = tuple(cfg.ambient_intensity * 0.35 * np.array(sky))
+        sky = np.array(cfg.sky_rgb)
+        prog["u_sky_color"].value = tuple(cfg.ambient_intensity * sky)
+        prog["u_ground_color"].value = tuple(cfg.ambient_intensity * 0.35 * sky)
         prog["u_exposure"].value = cfg.exposure
         for unit, name in enumerate(("u_base_color_map", "u_metallic_roughness_map",
                                      "u_emissive_map", "u_normal_map", "u_shadow_map")):
