@@ -21,10 +21,17 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_results  # noqa: E402
 
-from glsynth.core.config import DamageConfig  # noqa: E402
-from glsynth.appearance.damage import (SEVERITIES, compose_rgb, damage_maps, encode_normals,  # noqa: E402
-                            metallic_roughness, normal_components, sample_params)
+from glsynth.appearance.damage import (  # noqa: E402
+    SEVERITIES,
+    compose_rgb,
+    damage_maps,
+    encode_normals,
+    metallic_roughness,
+    normal_components,
+    sample_params,
+)
 from glsynth.appearance.repository import TextureRepository, generate_repository  # noqa: E402
+from glsynth.core.config import DamageConfig  # noqa: E402
 from glsynth.core.seeding import Stream, make_rng  # noqa: E402
 
 

@@ -12,8 +12,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import summary, time_calls, write_results  # noqa: E402
 
 from glsynth.core.config import Config  # noqa: E402
-from glsynth.world.environment import build_environment  # noqa: E402
 from glsynth.render.export import export_environment  # noqa: E402
+from glsynth.world.environment import build_environment  # noqa: E402
 
 
 def main() -> None:

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glsynth.appearance.noise import perlin
 from glsynth.core.config import DamageConfig
 from glsynth.core.labels import Damage
-from glsynth.appearance.noise import perlin
 
 SEVERITIES = ("slight", "medium", "severe")
 

@@ -15,13 +15,21 @@ from pathlib import Path
 
 import numpy as np
 
-from glsynth.core.config import DamageConfig
-from glsynth.appearance.damage import (SEVERITIES, DamageMaps, DamageParams, compose_rgb, damage_maps,
-                            encode_normals, metallic_roughness, normal_components,
-                            sample_params)
-from glsynth.core.fileio import atomic_write_bytes
+from glsynth.appearance.damage import (
+    SEVERITIES,
+    DamageMaps,
+    DamageParams,
+    compose_rgb,
+    damage_maps,
+    encode_normals,
+    metallic_roughness,
+    normal_components,
+    sample_params,
+)
 from glsynth.appearance.materials import Material
 from glsynth.appearance.repository import TextureRepository, cache_root
+from glsynth.core.config import DamageConfig
+from glsynth.core.fileio import atomic_write_bytes
 from glsynth.core.seeding import Stream, make_rng
 
 BANK_VERSION = 1

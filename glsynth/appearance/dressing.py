@@ -10,13 +10,13 @@ sampled damage record but is drawn with plain concrete, which no image can show.
 
 from dataclasses import dataclass, replace
 
-from glsynth.core.config import Config
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_material
-from glsynth.world.environment import Environment
 from glsynth.appearance.materials import Assignment, Material, part_kind, sample_assignment
 from glsynth.appearance.repository import TextureRepository, builtin_repository
+from glsynth.core.config import Config
 from glsynth.core.seeding import Stream, make_rng
+from glsynth.world.environment import Environment
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
 _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct

@@ -15,15 +15,15 @@ import numpy as np
 import trimesh
 from trimesh.visual import TextureVisuals
 
-from glsynth.world.cameras import Camera
-from glsynth.core.config import Config
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_material
-from glsynth.world.environment import Part
-from glsynth.core.labels import Component
 from glsynth.appearance.repository import TextureRepository
-from glsynth.render.scene import RenderScene, build_scene
+from glsynth.core.config import Config
+from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
+from glsynth.render.scene import RenderScene, build_scene
+from glsynth.world.cameras import Camera
+from glsynth.world.environment import Part
 
 MAX_TILT = math.radians(35.0)
 DISTANCE_RANGE = (0.4, 1.0)

@@ -5,8 +5,9 @@ For each sample count it renders colour (the glTF's flat preview materials, glsy
 sky) and times ``bpy.ops.render.render``. Then one label render: every material becomes an
 emission of strength = component id, 1 sample with a 0.01 px box filter (so each pixel sees its
 centre), no bounces, written with the Z pass (distance along the optical axis) to float EXR,
-and saved as raw float32 RGBA (bottom row first), as Debian's Blender has no numpy. glsynth's export keeps world coordinates through
-glTF's y-up (Blender's importer turns it back), so the camera pose is used as it is.
+and saved as raw float32 RGBA (bottom row first), as Debian's Blender has no numpy.
+glsynth's export keeps world coordinates through glTF's y-up (Blender's importer turns it
+back), so the camera pose is used as it is.
 """
 
 import json

@@ -9,16 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-from glsynth.world.cameras import CameraPlacement, environment_camera
+from glsynth.appearance.damage_bank import DamageBank
+from glsynth.appearance.dressing import Dressing, dress, open_repository
 from glsynth.core.config import Config
-from glsynth.world.environment import Environment, build_environment
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
-from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
-from glsynth.appearance.dressing import Dressing, dress, open_repository
-from glsynth.appearance.damage_bank import DamageBank
+from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
+from glsynth.world.cameras import CameraPlacement, environment_camera
+from glsynth.world.environment import Environment, build_environment
 from glsynth.world.visibility import shadowing_parts, visible_parts
 
 

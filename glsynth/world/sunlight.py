@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from glsynth.world.cameras import Camera
 from glsynth.core.config import RenderConfig
+from glsynth.world.cameras import Camera
 
 
 def sun_direction(render: RenderConfig) -> np.ndarray:

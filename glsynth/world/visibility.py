@@ -8,8 +8,8 @@ may shadow a view are needed as well (glsynth.world.sunlight).
 
 import numpy as np
 
-from glsynth.world.cameras import Camera
 from glsynth.core.config import RenderConfig
+from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
 from glsynth.world.sunlight import shadow_casters
 
