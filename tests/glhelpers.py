@@ -6,12 +6,12 @@ import numpy as np
 import trimesh
 from trimesh.visual import TextureVisuals
 
-from glsynth.world.cameras import Camera
+from glsynth.appearance.materials import Material, plain_material
 from glsynth.core.config import RenderConfig
-from glsynth.world.environment import Part
 from glsynth.core.labels import Component
-from glsynth.appearance.materials import Material
 from glsynth.render.scene import build_scene
+from glsynth.world.cameras import Camera
+from glsynth.world.environment import Environment, Part
 
 
 def quad(corners: np.ndarray, uv: np.ndarray | None = None) -> trimesh.Trimesh:
@@ -36,3 +36,9 @@ def camera(width: int = 64, height: int = 48, focal_mm: float = 36.0,
 
 def render_config(width: int = 64, height: int = 48, msaa: int = 0) -> RenderConfig:
     return dataclasses.replace(RenderConfig(), width=width, height=height, msaa=msaa)
+
+
+def plain_materials(env: Environment) -> dict[str, Material]:
+    """Untextured materials for every part of an environment (scene panels emissive)."""
+    return {p.name: plain_material(p.component, emissive=p.name.startswith("scene"))
+            for p in env.parts}

@@ -4,12 +4,12 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from glsynth.appearance.dressing import dress, open_repository
-from glsynth.core.config import Config, DamageConfig, MaterialsConfig
 from glsynth.appearance.damage_bank import DamageBank
-from glsynth.world.environment import build_environment
-from glsynth.core.labels import Damage
+from glsynth.appearance.dressing import dress, open_repository
 from glsynth.appearance.materials import part_kind
+from glsynth.core.config import Config, DamageConfig, MaterialsConfig
+from glsynth.core.labels import Damage
+from glsynth.world.environment import build_environment
 
 CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=64),
                              materials=MaterialsConfig(texture_size=32, images_per_category=4))

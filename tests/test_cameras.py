@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from glsynth.world.cameras import Camera, environment_camera, euler_xyz, sample_camera
 from glsynth.core.config import CameraConfig, Config, RenderConfig
 from glsynth.core.seeding import Stream, make_rng
+from glsynth.world.cameras import Camera, environment_camera, euler_xyz, sample_camera
 
 CFG = Config()
 

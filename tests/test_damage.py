@@ -3,12 +3,21 @@ import dataclasses
 import numpy as np
 import pytest
 
-from glsynth.core.config import DamageConfig
-from glsynth.appearance.damage import (SEVERITIES, DamageParams, concrete_profile, damage_maps,
-                            encode_normals, metallic_roughness, normal_components, rebar_depth,
-                            sample_params, threshold_for_area)
-from glsynth.core.labels import Damage
+from glsynth.appearance.damage import (
+    SEVERITIES,
+    DamageParams,
+    concrete_profile,
+    damage_maps,
+    encode_normals,
+    metallic_roughness,
+    normal_components,
+    rebar_depth,
+    sample_params,
+    threshold_for_area,
+)
 from glsynth.appearance.noise import perlin
+from glsynth.core.config import DamageConfig
+from glsynth.core.labels import Damage
 from glsynth.core.seeding import Stream, make_rng
 
 SIZE = 128
@@ -73,21 +82,26 @@ def test_threshold_counts_exactly():
         threshold_for_area(values, 1.5)
 
 
-def test_rebar_is_exposed_only_where_damage_is_deeper_than_its_surface():
+def test_damage_maps_keep_the_papers_rules():
+    """Section 3.3 as stated, not as composed: the damaged share is the sampled area exactly,
+    intact concrete is not displaced, nothing is deeper than d, and rebar shows only below
+    its cover and inside damage deeper than that cover."""
+    exposed_somewhere = 0
     for item in range(10):
         r = rng(100 + item)
         p = sample_params(CFG, "severe", r)
         maps = damage_maps(p, CFG, r)
-        noise_rng = rng(100 + item)
-        sample_params(CFG, "severe", noise_rng)
-        noise = perlin(SIZE, *p.period_px, CFG.octaves, noise_rng)
-        concrete, _ = concrete_profile(noise, p.area, p.depth_m)
-        rebar = rebar_depth(SIZE, p, CFG, noise_rng)
+        intact = maps.mask == Damage.NO_DAMAGE
         exposed = maps.mask == Damage.REBAR
-        assert np.array_equal(exposed, concrete > rebar)
-        assert np.all(concrete[exposed] > p.stirrup_cover_m)  # deeper than any bar surface
-        assert np.allclose(maps.displacement_m[exposed], rebar[exposed])
-        assert np.array_equal(maps.displacement_m[~exposed], concrete[~exposed])
+        assert set(np.unique(maps.mask)) <= {1, 2, 3}
+        assert int((~intact).sum()) == round(p.area * SIZE * SIZE)
+        assert np.all(maps.displacement_m[intact] == 0)
+        assert np.all(maps.displacement_m[~intact] > 0)
+        assert maps.displacement_m.max() <= p.depth_m * (1 + 1e-6)
+        bar = maps.displacement_m[exposed]
+        assert np.all(bar >= p.stirrup_cover_m) and np.all(bar < p.depth_m)
+        exposed_somewhere += int(exposed.any())
+    assert exposed_somewhere >= 5  # severe damage (2-10 cm deep) usually reaches the bars
 
 
 def test_rebar_geometry_cover_radius_and_ripple():

@@ -6,8 +6,8 @@ import trimesh
 from conftest import env_config
 
 from glsynth.core.config import Config
-from glsynth.world.environment import build_environment
 from glsynth.core.labels import Component
+from glsynth.world.environment import build_environment
 
 PREFIXES = {"column", "beam", "slab", "rail", "sleeper", "nonstructural", "ground", "scene"}
 EXPECTED_COMPONENT = {"column": Component.COLUMN, "beam": Component.BEAM, "slab": Component.SLAB,

@@ -21,17 +21,16 @@ import math
 
 import numpy as np
 import pytest
-import torch
 from glhelpers import camera, quad, render_config, scene_of
 
-from glsynth.core.config import Config, DamageConfig, EnvironmentConfig
 from glsynth.appearance.damage import damage_maps, sample_params
+from glsynth.appearance.materials import Material
+from glsynth.core.config import Config, DamageConfig, EnvironmentConfig
+from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS, Component
+from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.filters import pixels_per_cm, removal_reason, rrdr
 from glsynth.render.gl.renderer import Renderer
-from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS, Component
-from glsynth.appearance.materials import Material
 from glsynth.render.view import EnvironmentView, preview_config
-from glsynth.core.seeding import Stream, make_rng
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 
@@ -79,17 +78,22 @@ def test_viaduct_views_at_the_extremes(focal, height, radius):
             placement, out = view.render(index)
             assert placement.camera.focal_mm == focal
             assert_sane(out)
-            ppcm = pixels_per_cm(out.depth, placement.camera.fx)
-            assert np.isfinite(ppcm).all() and rrdr(out.depth, placement.camera.fx).dtype == bool
+            fx = placement.camera.fx
+            assert np.isfinite(pixels_per_cm(out.depth, fx)).all()
+            # 1.5 px/cm = f_px / (100 depth) <=> depth <= f_px / 150 (float32 rounding aside).
+            near = out.depth.astype(np.float64) <= fx / 150
+            edge = np.isclose(out.depth, fx / 150, rtol=1e-6)
+            assert np.array_equal(rrdr(out.depth, fx)[~edge], near[~edge])
     finally:
         view.renderer.release()
 
 
 @pytest.mark.parametrize("area", [0.0, 1.0])
 def test_zero_and_full_damaged_area_render_as_such(small, area):
+    import tempfile
+
     from glsynth.appearance.damage_bank import BankEntry, damage_material
     from glsynth.appearance.repository import TextureRepository, generate_repository
-    import tempfile
 
     cfg = DamageConfig(resolution=64)
     rng = make_rng(0, 0, Stream.DAMAGE, 0)
@@ -147,7 +151,7 @@ def test_camera_seeing_only_sky(small):
     out = small.render(camera(pose=pose))
     assert_sane(out)
     assert (out.component == 1).all() and (out.damage == 1).all() and (out.depth == 2000).all()
-    assert removal_reason(out.color, out.component, out.depth) in ("dark", "single_component")
+    assert removal_reason(out.color, out.component, out.depth) == "single_component"
 
 
 def test_pixels_per_cm_at_zero_and_huge_depth():
@@ -162,6 +166,7 @@ def test_pixels_per_cm_at_zero_and_huge_depth():
 
 
 def test_losses_with_zero_error_and_absent_classes():
+    torch = pytest.importorskip("torch", reason="needs the [model] extra")
     from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
 
     prediction = torch.zeros(1, 4, 4, requires_grad=True)
@@ -178,18 +183,20 @@ def test_losses_with_zero_error_and_absent_classes():
 
 
 def test_bf16_against_fp32_network_outputs():
+    torch = pytest.importorskip("torch", reason="needs the [model] extra")
     from glsynth.model.fcn58 import FCN58
+    from glsynth.model.train import seeded_torch
 
-    torch.manual_seed(0)
-    model = FCN58(8).eval()
-    images = torch.rand(2, 3, 108, 192)
+    with seeded_torch(0):
+        model = FCN58(8).eval()
+        images = torch.rand(2, 3, 108, 192)
     with torch.no_grad():
         reference = model(images)
         with torch.autocast("cpu", dtype=torch.bfloat16):
             half = model(images).float()
     assert torch.isfinite(half).all()
-    assert float((half - reference).abs().max()) < 0.05 * float(reference.std()) * 10
-    assert float((half - reference).abs().mean()) < 0.05 * float(reference.std())
+    # Measured: the largest difference is 3.0-3.2 % of the spread over three seeds.
+    assert float((half - reference).abs().max()) < 0.05 * float(reference.std())
 
 
 @pytest.mark.parametrize("elevation", [90.0, 50.0, 1.0, -5.0])

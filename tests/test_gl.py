@@ -1,16 +1,21 @@
 """Renderer tests on Mesa (llvmpipe in CI) at small sizes, against analytic depth, a CPU ray
 cast (trimesh) and constructed label textures. The GL error state is checked around each test."""
 
+import dataclasses
+import re
+
 import numpy as np
 import pytest
-from glhelpers import camera, quad, render_config, scene_of
+from glhelpers import camera, plain_materials, quad, render_config, scene_of
 
-from glsynth.render.gl import context as gl_context
-from glsynth.render.gl.programs import PROGRAMS, compile_programs
-from glsynth.render.gl.renderer import Renderer
-from glsynth.core.labels import Component
 from glsynth.appearance.materials import Material, plain_material
+from glsynth.core.errors import UserError
+from glsynth.core.labels import Component
 from glsynth.core.paths import shader_dir
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.render.gl import context as gl_context
+from glsynth.render.gl.programs import PROGRAMS, compile_programs, shader_source
+from glsynth.render.gl.renderer import Renderer
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 
@@ -37,8 +42,26 @@ def test_every_shader_compiles_and_every_file_is_used(renderer):
     programs = compile_programs(renderer.ctx)
     assert set(programs) == set(PROGRAMS)
     used = {f for pair in PROGRAMS.values() for f in pair}
+    included = {m for f in used for m in re.findall(r'#include "([\w.]+)"',
+                                                    (shader_dir() / f).read_text())}
     on_disk = {p.name for p in shader_dir().iterdir() if p.suffix in {".vert", ".frag", ".glsl"}}
-    assert on_disk == used
+    assert on_disk == used | included
+    assert "#include" not in shader_source("color.frag")  # expanded before compiling
+
+
+def test_the_sky_goes_through_the_colour_pass_tone_map(renderer):
+    """One tone map (shaders/tonemap.glsl) for geometry and sky: the empty view's colour is
+    (1 - exp(-exposure * sky)) ** (1 / 2.2), exposure included."""
+    for exposure in (1.0, 2.5):
+        config = dataclasses.replace(render_config(), exposure=exposure)
+        r = Renderer(config)
+        try:
+            r.load(scene_of())
+            color = r.render(camera(), {"color"}).color
+        finally:
+            r.release()
+        expected = (1 - np.exp(-exposure * np.array(config.sky_rgb))) ** (1 / 2.2) * 255
+        assert np.abs(color.reshape(-1, 3) - expected).max() <= 0.5 + 1e-3
 
 
 @pytest.mark.parametrize("distance", [0.5, 5.0, 30.0, 100.0, 1000.0])
@@ -104,7 +127,7 @@ def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
     x0, x1 = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
     y1, y0 = -(-0.5 - k[1, 2]) / k[1, 1] * d, -(47.5 - k[1, 2]) / k[1, 1] * d
     corners = [[x0, y0, -d], [x1, y0, -d], [x1, y1, -d], [x0, y1, -d]]
-    rng = np.random.default_rng(5)  # test data only
+    rng = make_rng(5, 0, Stream.DAMAGE)
     mask = rng.choice(np.array([1, 2, 3], np.uint8), size=(48, 64), p=[0.6, 0.3, 0.1])
     bumps = np.zeros((48, 64, 3), np.uint8)
     tilt = rng.normal(0, 0.5, (48, 64, 2))
@@ -154,7 +177,7 @@ def test_msaa_changes_colour_edges_only_never_labels_or_depth():
 
 
 def test_unknown_platform_and_failure_message(monkeypatch):
-    with pytest.raises(ValueError, match="GL platform = 'vulkan'"):
+    with pytest.raises(UserError, match="GL platform 'vulkan'"):
         gl_context.create_context("vulkan")
 
     def broken(name):
@@ -166,15 +189,16 @@ def test_unknown_platform_and_failure_message(monkeypatch):
     message = str(info.value)
     assert "EGL: OSError" in message and "OSMESA: OSError" in message
     assert "libegl1" in message and "libosmesa6" in message
+    assert "\n" not in message and isinstance(info.value, UserError)  # one line for the CLI
 
 
 def test_egl_and_osmesa_render_the_same(env0):
-    from glsynth.world.cameras import environment_camera
     from glsynth.core.config import Config
-    from glsynth.render.scene import build_scene, default_materials
+    from glsynth.render.scene import build_scene
+    from glsynth.world.cameras import environment_camera
 
     rc = render_config(96, 54)
-    scene = build_scene(env0.parts, default_materials(env0))
+    scene = build_scene(env0.parts, plain_materials(env0))
     cam = environment_camera(env0.trajectory, Config().cameras, rc, 0, 0, 60).camera
     outs = {}
     for platform in ("egl", "osmesa"):
@@ -191,9 +215,9 @@ def test_egl_and_osmesa_render_the_same(env0):
 
 def test_rendered_damage_plate_shows_ids_exactly_where_the_mask_says(tmp_path):
     """A real bank texture (64 px) on a plate that maps texels to pixels one to one."""
-    from glsynth.core.config import DamageConfig
     from glsynth.appearance.damage_bank import DamageBank, damage_material
     from glsynth.appearance.repository import TextureRepository, generate_repository
+    from glsynth.core.config import DamageConfig
 
     repo = TextureRepository(generate_repository(tmp_path / "r", 0, 2, 16), 16)
     cfg = DamageConfig(resolution=64)

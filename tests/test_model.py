@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 import torch
-
-from glsynth.cli import main
 from glsynth.model.fcn58 import FCN58, count_macs, parameter_count
 from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
-from glsynth.model.train import flip_batch, predict_ids
+from glsynth.model.train import flip_batch, predict_ids, seeded_torch, torch_generator
+
+from glsynth.cli import main
 
 
 # --- network ---------------------------------------------------------------------------------
@@ -20,12 +20,8 @@ def test_parameter_counts_match_the_independent_reading_of_table_6():
 
 
 def test_macs_at_full_size():
-    macs = count_macs(FCN58(8), 1080, 1920)
-    # Conv0 + Conv1 by hand; the rest is 9.55 G - 2.89 G as measured independently.
-    conv0 = 360 * 640 * 16 * 3 * 49
-    conv1 = 180 * 320 * 64 * 16 * 49
-    assert conv1 == 2_890_137_600 and conv0 < macs
-    assert abs(macs / 9.55e9 - 1) < 1e-3
+    # 9.55 G: an independent count of the same reading of Table 6 (docs/design.md).
+    assert abs(count_macs(FCN58(8), 1080, 1920) / 9.55e9 - 1) < 1e-3
 
 
 @pytest.mark.parametrize("height, width", [(1080, 1920), (97, 131), (360, 640), (96, 96)])
@@ -104,7 +100,7 @@ def test_component_prediction_divides_by_the_weights_and_never_picks_absent_clas
 def test_flips_move_image_and_target_together():
     images = torch.arange(2 * 3 * 2 * 4, dtype=torch.float32).view(2, 3, 2, 4)
     targets = torch.arange(2 * 2 * 4).view(2, 2, 4)
-    flipped, moved = flip_batch(images, targets, torch.Generator().manual_seed(3))
+    flipped, moved = flip_batch(images, targets, torch_generator(3))
     for i in range(2):
         same = torch.equal(flipped[i], images[i])
         assert same or torch.equal(flipped[i], images[i].flip(-1))
@@ -133,8 +129,9 @@ def test_absent_class_has_no_score_and_stays_out_of_the_means():
 
 
 def test_depth_errors_by_hand_within_the_range():
-    truth = np.array([1.0, 2.0, 4.0, 30.0, 0.2])  # 30 m is the far clip, 0.2 m below range
-    predicted = np.array([1.5, 2.0, 3.0, 10.0, 5.0])
+    # 30 m and 0.5 m are the code's clips (sky, too near); 0.2 m lies below the range.
+    truth = np.array([1.0, 2.0, 4.0, 30.0, 0.2, 0.5])
+    predicted = np.array([1.5, 2.0, 3.0, 10.0, 5.0, 3.0])
     d = pooled_depth([depth_errors(predicted, truth)])
     assert d["pixels"] == 3
     assert d["mae_m"] == pytest.approx(0.5) and d["rmse_m"] == pytest.approx(math.sqrt(1.25 / 3))
@@ -144,9 +141,9 @@ def test_depth_errors_by_hand_within_the_range():
 
 # --- training --------------------------------------------------------------------------------
 def test_overfitting_one_tiny_batch_drives_the_loss_down():
-    torch.manual_seed(0)
-    model = FCN58(3)
-    images = torch.rand(2, 3, 96, 96)
+    with seeded_torch(0):
+        model = FCN58(3)
+        images = torch.rand(2, 3, 96, 96)
     labels = torch.ones(2, 32, 32, dtype=torch.long)
     labels[:, :, 16:] = 2
     labels[0, :8] = 3
@@ -215,6 +212,7 @@ def test_a_run_folder_with_other_settings_is_refused(tiny_dataset, component_run
 def test_evaluate_and_predict_on_generated_data(tiny_dataset, component_run, tmp_path):
     from PIL import Image
 
+    from glsynth.core.images import nearest_resize
     from glsynth.data.tokaido import read_manifest
 
     assert main(["evaluate", "--run", str(component_run), "--data", str(tiny_dataset),
@@ -223,8 +221,14 @@ def test_evaluate_and_predict_on_generated_data(tiny_dataset, component_run, tmp
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["images"] == sum(r.regular for r in read_manifest(tiny_dataset,
                                                                       "files_test.csv"))
-    assert np.asarray(metrics["confusion"]).sum() == sum(
-        v["pixels"] for v in metrics["per_class"].values())
+    # Every labelled pixel of the test targets (read from the BMPs, at the 64x36 output size)
+    # is counted once.
+    labelled = 0
+    for row in read_manifest(tiny_dataset, "files_test.csv"):
+        if row.regular:
+            ids = nearest_resize(np.asarray(Image.open(tiny_dataset / row.component)), (36, 64))
+            labelled += int((ids > 0).sum())
+    assert np.asarray(metrics["confusion"]).sum() == labelled > 0
     assert (out / "confusion.png").is_file() and (out / "examples" / "example_0.png").is_file()
     image = tiny_dataset / read_manifest(tiny_dataset, "files_test.csv")[0].image
     assert main(["predict", "--run", str(component_run), str(image), "--out",
@@ -251,9 +255,8 @@ def test_damage_and_depth_train_and_evaluate(tiny_dataset, tmp_path, task):
 
 
 def test_extra_real_folders_are_mixed_in(tiny_dataset, tmp_path):
-    from PIL import Image
-
     from glsynth.model.data import ImageFolder
+    from PIL import Image
 
     real = tmp_path / "real"
     (real / "images").mkdir(parents=True)
@@ -294,3 +297,19 @@ def test_torchrun_two_processes_train_with_distributed_data_parallel(tiny_datase
     history = json.loads((run / "history.json").read_text())
     assert len(history) == 1 and math.isfinite(history[0]["train_loss"])
     assert (run / "model.pt").is_file()
+
+
+def test_depth_training_ignores_the_clipped_pixels_evaluation_ignores():
+    """Sky (30 m) and too-near (0.5 m) truths are clips: the loss does not see them, as the
+    metrics do not."""
+    from glsynth.model.metrics import depth_valid
+    from glsynth.model.train import task_loss
+
+    truth = torch.tensor([[[2.0, 30.0], [0.5, 7.0]]])
+    output = torch.tensor([[[[2.5, 1.0], [9.0, 6.0]]]])
+    moved = output.clone()
+    moved[0, 0, 0, 1] = 50.0  # predictions at clipped pixels change nothing
+    moved[0, 0, 1, 0] = -3.0
+    assert task_loss("depth", output, truth, None) == task_loss("depth", moved, truth, None)
+    assert depth_valid(truth).tolist() == [[[True, False], [False, True]]]
+    assert depth_valid(truth.numpy()).tolist() == depth_valid(truth).tolist()

@@ -2,11 +2,39 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from glsynth.cli import main
 from glsynth.core.config import Config
-from glsynth.measure.quality import QUALITY, apply_quality
+from glsynth.measure.quality import QUALITY, apply_quality, compare
+from glsynth.render.gl.renderer import RenderOutput
+
+
+def test_compare_scores_by_hand():
+    zfar = 100.0
+    color = np.full((8, 12, 3), 100, np.uint8)  # SSIM needs 7x7 windows
+    ids = np.ones((8, 12), np.uint8)
+    depth = np.full((8, 12), 10.0, np.float32)
+    reference = RenderOutput(color, ids, ids, depth)
+    same = compare(reference, reference, zfar)
+    assert same["psnr_db"] == 99.0 and same["ssim"] == pytest.approx(1.0)
+    brighter = color.copy()
+    brighter[0, 0] = 110  # squared error 3 x 100 over 96 pixels x 3 channels
+    damage = ids.copy()
+    damage[:4, :6] = 2  # 24 of 96 pixels damaged
+    component = ids.copy()
+    component[7] = 4  # 12 of 96 pixels differ
+    far = depth.copy()
+    far[:2] = 11.0  # 24 pixels 10 % too far
+    far[2:4] = 12.0  # 24 pixels 20 % too far: sorted, the 48th and 49th of 96 are 0 and 0.1
+    scores = compare(RenderOutput(brighter, component, damage, far), reference, zfar)
+    assert scores["psnr_db"] == pytest.approx(10 * np.log10(255**2 / (300 / 288)))
+    assert scores["component_agreement"] == 0.875 and scores["damage_agreement"] == 0.75
+    assert scores["damaged_area_error_pp"] == pytest.approx(25.0)
+    assert scores["depth_median_rel_error"] == pytest.approx(0.05)
+    half = RenderOutput(color[::2, ::2], ids[::2, ::2], ids[::2, ::2], depth[::2, ::2])
+    assert compare(half, reference, zfar)["component_agreement"] == 1.0  # nearest upsampling
 
 
 def test_presets_set_every_knob():
@@ -33,11 +61,11 @@ def test_bench_quality_on_real_renders(tmp_path, capsys):
     result = json.loads((out / "quality.json").read_text())
     rows = result["presets"]
     ref, preview = rows["reference"], rows["preview"]
-    assert ref["psnr_db"] == 99.0 and ref["ssim"] == pytest.approx(1.0)
-    assert ref["component_agreement"] == ref["damage_agreement"] == 1.0
-    assert ref["damaged_area_error_pp"] == 0.0 and ref["depth_median_rel_error"] == 0.0
-    assert preview["psnr_db"] < 99.0 and 0.5 < preview["component_agreement"] < 1.0
-    assert preview["render_s"] < ref["render_s"]
+    # preview renders the same scene at a quarter of the size without MSAA: close to the
+    # reference (22.9 dB at the paper preset) but not equal to it.
+    assert 15.0 < preview["psnr_db"] < 99.0 and 0.5 < preview["ssim"] < 1.0
+    assert 0.5 < preview["component_agreement"] < 1.0
+    assert preview["time_per_sample_s"] > 0 and ref["time_per_sample_s"] > 0
     assert (out / "quality.png").is_file()
     # The ray cast agrees with the reference render but for edge pixels; preview less so.
     truth = ref["vs_raycast"]

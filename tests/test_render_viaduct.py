@@ -5,17 +5,17 @@ import json
 
 import numpy as np
 import pytest
-from glhelpers import render_config
+from glhelpers import plain_materials, render_config
 from PIL import Image
 
-from glsynth.world.cameras import environment_camera
 from glsynth.cli import main
 from glsynth.core.config import Config
-from glsynth.render.gl.renderer import Renderer
 from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import mask_lookup
 from glsynth.render.raycast import ray_cast as glsynth_ray_cast
-from glsynth.render.scene import build_scene, default_materials
+from glsynth.render.scene import build_scene
+from glsynth.world.cameras import environment_camera
 
 RC = render_config(160, 90)
 CAMERAS = Config().cameras
@@ -24,7 +24,7 @@ CAMERAS = Config().cameras
 @pytest.fixture(scope="module")
 def loaded(env0):
     r = Renderer(RC)
-    r.load(build_scene(env0.parts, default_materials(env0)))
+    r.load(build_scene(env0.parts, plain_materials(env0)))
     yield r
     assert r.ctx.error == "GL_NO_ERROR"
     r.release()
@@ -36,7 +36,7 @@ def cam(env0, index):
 
 def ray_cast(env0, camera):
     """Nearest hit per pixel centre: (depth along the optical axis, component id), sky = inf."""
-    truth = glsynth_ray_cast(env0.parts, default_materials(env0), camera)
+    truth = glsynth_ray_cast(env0.parts, plain_materials(env0), camera)
     return np.where(truth.depth < camera.zfar, truth.depth, np.inf), truth.component
 
 
@@ -51,7 +51,8 @@ def test_depth_and_labels_match_a_cpu_ray_cast(env0, loaded, index):
     same = np.ones(depth[core].shape, bool)
     for dr in (-1, 0, 1):
         for dc in (-1, 0, 1):
-            shifted = (slice(1 + dr, depth.shape[0] - 1 + dr), slice(1 + dc, depth.shape[1] - 1 + dc))
+            shifted = (slice(1 + dr, depth.shape[0] - 1 + dr),
+                       slice(1 + dc, depth.shape[1] - 1 + dc))
             same &= comp[shifted] == comp[core]
             same &= np.isclose(depth[shifted], depth[core], rtol=0.05) | (
                 np.isinf(depth[shifted]) & np.isinf(depth[core]))
@@ -76,7 +77,7 @@ def test_label_maps_hold_only_valid_ids(env0, loaded):
 def test_a_camera_renders_the_same_bytes_alone_or_in_a_batch(env0, loaded):
     batch = [loaded.render(cam(env0, i)) for i in range(4)]
     alone = Renderer(RC)
-    alone.load(build_scene(env0.parts, default_materials(env0)))
+    alone.load(build_scene(env0.parts, plain_materials(env0)))
     single = alone.render(cam(env0, 2))
     alone.release()
     for name in ("color", "component", "damage", "depth"):
@@ -148,8 +149,8 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
 def test_parts_that_only_cast_shadows_into_a_view_are_kept():
     import dataclasses
 
-    from glsynth.render.view import EnvironmentView, preview_config
     from glsynth.render.scene import build_scene
+    from glsynth.render.view import EnvironmentView, preview_config
     from glsynth.world.visibility import visible_parts
 
     config = preview_config(Config(), 160)

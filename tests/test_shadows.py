@@ -7,12 +7,18 @@ import numpy as np
 import pytest
 from glhelpers import camera, quad, render_config, scene_of
 
-from glsynth.core.config import RenderConfig
-from glsynth.render.gl.renderer import Renderer
-from glsynth.core.labels import Component
 from glsynth.appearance.materials import Material
-from glsynth.world.sunlight import (frustum_corners, light_frame, shadow_casters, shadow_matrix,
-                              shadow_texel_m, sun_direction)
+from glsynth.core.config import RenderConfig
+from glsynth.core.labels import Component
+from glsynth.render.gl.renderer import Renderer
+from glsynth.world.sunlight import (
+    frustum_corners,
+    light_frame,
+    shadow_casters,
+    shadow_matrix,
+    shadow_texel_m,
+    sun_direction,
+)
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 # The sun straight along +z: behind the default camera, which looks down -z.
