@@ -25,6 +25,7 @@ from glsynth.core.config import Config  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
 
+
 def median_ms(values: list[float]) -> float:
     return round(statistics.median(values) * 1000, 1)
 
