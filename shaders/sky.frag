@@ -1,5 +1,6 @@
 #version 330 core
-// The background where no geometry is drawn: the sky colour through the shared tone map.
+// The background where no geometry is drawn: the sky colour through the shared tone map. The
+// renderer draws it once into one pixel and clears each colour target to that value.
 #include "tonemap.glsl"
 
 uniform vec3 u_sky_color;  // linear RGB

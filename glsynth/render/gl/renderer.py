@@ -72,8 +72,8 @@ class Renderer:
             "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
         }
-        self._sky = self.ctx.vertex_array(self.programs["sky"], [])
         self._make_framebuffers()
+        self._sky_rgb = self._tone_mapped_sky()
 
     # --- resources --------------------------------------------------------------------------
     def _make_framebuffers(self) -> None:
@@ -201,22 +201,31 @@ class Renderer:
         self.ctx.polygon_offset = (0.0, 0.0)
         return light
 
-    def _sky_pass(self) -> None:
-        """The background: the sky colour through the colour pass's tone map, behind
-        everything (no depth test or write)."""
+    def _tone_mapped_sky(self) -> tuple[float, float, float]:
+        """The background colour: the sky through the colour pass's tone map (the shader's,
+        not a copy of it), drawn once into one pixel. Clearing to value/255 then writes the
+        same bytes as drawing the sky at every pixel, at the cost of a clear."""
         prog = self.programs["sky"]
         prog["u_sky_color"].value = tuple(float(c) for c in self.config.sky_rgb)
         prog["u_exposure"].value = self.config.exposure
+        target = self.ctx.renderbuffer((1, 1), 4)
+        fbo = self.ctx.framebuffer([target])
+        fbo.use()
         self.ctx.disable(moderngl.DEPTH_TEST)
-        self._sky.render(moderngl.TRIANGLES, vertices=3)
+        vao = self.ctx.vertex_array(prog, [])
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        rgb = fbo.read(components=3, alignment=1)
+        self.color_fbo.use()  # never leave a released framebuffer bound
+        for obj in (vao, fbo, target):
+            obj.release()
+        return tuple(b / 255 for b in rgb)
 
     def _color_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
         light = self._shadow_pass(camera, draws)
         fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
         fbo.use()
-        fbo.clear(depth=1.0)
-        self._sky_pass()
+        fbo.clear(*self._sky_rgb, 1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         view = camera.view()
