@@ -313,3 +313,36 @@ def test_workers_end_with_a_killed_driver(small_config, tmp_path):
                    for p in workers)
     assert main(["generate", "--preset", "demo", "--config", str(small_config), "--seed", "3",
                  "--out", str(out)]) == 0  # the folder is free again and the run resumes
+
+
+def test_two_runs_started_together_leave_one_writer(small_config, tmp_path):
+    out = tmp_path / "ds"
+    cmd = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
+           str(small_config), "--seed", "4", "--out", str(out)]
+    runs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            for _ in range(2)]
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and all(r.poll() is None for r in runs):
+            time.sleep(0.05)
+        losers = [r for r in runs if r.poll() is not None]
+        assert len(losers) == 1, "both runs are writing, or both ended"
+        assert losers[0].returncode == 2
+        assert "is in use by another glsynth run (pid" in losers[0].stderr.read()
+    finally:
+        for r in runs:
+            if r.poll() is None:
+                r.kill()
+            r.wait()
+
+
+def test_written_files_get_the_usual_mode(tmp_path):
+    mask = os.umask(0o022)
+    try:
+        atomic_write_bytes(tmp_path / "a.txt", b"x")
+        assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644
+        os.umask(0o002)
+        atomic_write_bytes(tmp_path / "b.txt", b"x")
+        assert (tmp_path / "b.txt").stat().st_mode & 0o777 == 0o664
+    finally:
+        os.umask(mask)
