@@ -15,18 +15,28 @@ def placements(env0, indices):
             for i in indices]
 
 
-def test_section_3_4_ranges(env0):
+@pytest.mark.parametrize("placement", ["within", "at"])
+def test_section_3_4_ranges(env0, placement):
     traj = env0.trajectory
-    for p in placements(env0, range(100)):
+    cameras = CameraConfig(placement=placement)
+    lateral = {"regular": [], "closeup": []}
+    for i in range(100):
+        p = environment_camera(traj, cameras, CFG.render, 0, 0, i)
         regular = p.index < 50
+        d = 10.0 if regular else 5.0
         cam = p.camera
         assert p.kind == ("regular" if regular else "closeup")
         assert 15.0 <= cam.focal_mm <= 55.0 and cam.sensor_mm == 36.0
         assert (cam.width, cam.height) == (1920, 1080)
         point, _, normal = traj.frame(np.array([p.s_m]))
         offset = cam.pose[:2, 3] - point[0, :2]
-        assert np.isclose(np.linalg.norm(offset), 10.0 if regular else 5.0)
-        assert np.isclose(offset @ normal[0, :2], p.side * (10.0 if regular else 5.0))
+        assert np.isclose(np.linalg.norm(offset), p.distance_m)
+        assert np.isclose(offset @ normal[0, :2], p.side * p.distance_m)
+        if placement == "at":
+            assert p.distance_m == d
+        else:
+            assert 0 <= p.distance_m <= d
+        lateral[p.kind].append(p.side * p.distance_m / d)
         ground = traj.ground_at(np.array([p.s_m]))[0]
         lo, hi = (1.0, 10.0) if regular else (1.0, 6.5)
         assert lo <= cam.pose[2, 3] - ground <= hi
@@ -35,6 +45,10 @@ def test_section_3_4_ranges(env0):
         assert abs(rz) <= math.pi / 2
         assert np.allclose(cam.pose[:3, :3] @ cam.pose[:3, :3].T, np.eye(3))
         assert np.isclose(np.linalg.det(cam.pose[:3, :3]), 1.0)
+    if placement == "within":  # uniform over [-D, D]: both sides, near and far
+        for values in lateral.values():
+            assert min(values) < -0.5 and max(values) > 0.5
+            assert sum(abs(v) < 0.5 for v in values) >= 10
 
 
 def test_euler_zero_offsets_look_horizontally_at_the_centre_line(env0):

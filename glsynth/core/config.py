@@ -70,6 +70,10 @@ class EnvironmentConfig:
         check_number(s, "cylinder_segments", self.cylinder_segments, 3, 256, integer=True)
 
 
+PLACEMENTS = ("within", "at")
+HEIGHTS_FROM = ("origin", "ground")
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """Synthetic cameras (paper Section 3.4)."""
@@ -81,8 +85,18 @@ class CameraConfig:
     focal_mm: tuple[float, float] = (15.0, 55.0)
     sensor_mm: float = 36.0
     """Sensor width; it spans the image width."""
+    placement: str = "within"
+    """How D is read (docs/design.md): 'within', a camera anywhere within D of the centre line
+    (lateral offset uniform in [-D, D]: under the deck, among the columns, above the track);
+    'at', exactly D to one side."""
     regular_distance_m: float = 10.0
+    """D of the regular cameras."""
+    height_from: str = "origin"
+    """What [h0, h1] is measured from (docs/design.md): 'origin', the world's z = 0, which is
+    the ground under the first viaduct (a Blender location); 'ground', the ground under the
+    camera."""
     regular_height_m: tuple[float, float] = (1.0, 10.0)
+    """[h0, h1] of the regular cameras."""
     closeup_distance_m: float = 5.0
     closeup_height_m: tuple[float, float] = (1.0, 6.5)
     rot_x_deg: tuple[float, float] = (45.0, 135.0)
@@ -95,6 +109,10 @@ class CameraConfig:
         s = "cameras"
         check_number(s, "n_regular", self.n_regular, 0, 100000, integer=True)
         check_number(s, "n_closeup", self.n_closeup, 0, 100000, integer=True)
+        if self.placement not in PLACEMENTS:
+            fail(s, "placement", self.placement, f"one of {', '.join(PLACEMENTS)}")
+        if self.height_from not in HEIGHTS_FROM:
+            fail(s, "height_from", self.height_from, f"one of {', '.join(HEIGHTS_FROM)}")
         check_interval(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
         check_number(s, "sensor_mm", self.sensor_mm, 1.0, 100.0)
         check_number(s, "regular_distance_m", self.regular_distance_m, 0.0, 1000.0)

@@ -76,7 +76,7 @@ def write_render(out_dir: str | Path, placement: CameraPlacement, output: Render
     info = placement.camera.to_json()
     info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,
                 side=placement.side, distance_m=placement.distance_m,
-                height_above_ground_m=placement.height_above_ground_m,
+                height_m=placement.height_m,
                 euler_xyz_rad=list(placement.euler_xyz_rad), **meta)
     atomic_write_json(out / "camera.json", info)
 

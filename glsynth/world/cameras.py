@@ -5,10 +5,11 @@ and the principal point is the image centre ((W - 1) / 2, (H - 1) / 2); fy = fx 
 with the 36 mm sensor spanning the image width. The pose is world-from-camera in pyrender's (and
 Blender's) convention: the camera looks down its -z axis with +y up; world is z up.
 
-Placement: a camera stands at distance D from the viaduct centre line, on a random side, at a
-uniform arc length along the trajectory and a uniform height h above the ground. Rotations are
-Blender XYZ Euler angles: X in [pi/4, 3pi/4] (pi/2 looks horizontally), Y in [-pi/12, pi/12], and
-Z in [-pi/2, pi/2] measured from the direction that points to the centre line.
+Placement: at a uniform arc length along the trajectory, a uniform lateral offset within D of
+the viaduct centre line ([cameras] placement = "within", the default; "at" puts it exactly D to
+a random side) and a uniform height h above the ground there. Rotations are Blender XYZ Euler
+angles: X in [pi/4, 3pi/4] (pi/2 looks horizontally), Y in [-pi/12, pi/12], and Z in
+[-pi/2, pi/2] measured from the direction that points to the centre line.
 """
 
 import math
@@ -94,7 +95,9 @@ class CameraPlacement:
     side: int
     """+1: left of the centre line, -1: right."""
     distance_m: float
-    height_above_ground_m: float
+    """Horizontal distance from the centre line."""
+    height_m: float
+    """The sampled h, above the world origin or the ground ([cameras] height_from)."""
     euler_xyz_rad: tuple[float, float, float]
     """Z relative to the direction that points to the centre line."""
     camera: Camera
@@ -112,13 +115,18 @@ def sample_camera(traj: Trajectory, cameras: CameraConfig, render: RenderConfig,
     h_range = cameras.regular_height_m if regular else cameras.closeup_height_m
     focal = rng.uniform(*cameras.focal_mm)
     s = rng.uniform(0.0, traj.total_length_m)
-    side = 1 if rng.random() < 0.5 else -1
+    if cameras.placement == "within":
+        lateral = rng.uniform(-distance, distance)
+        side = 1 if lateral >= 0 else -1
+        distance = abs(lateral)
+    else:
+        side = 1 if rng.random() < 0.5 else -1
     h = rng.uniform(*h_range)
     rx, ry, rz = (math.radians(rng.uniform(*r)) for r in
                   (cameras.rot_x_deg, cameras.rot_y_deg, cameras.rot_z_deg))
     point, _, normal = traj.frame(np.array([s]))
     position = point[0] + side * distance * normal[0]
-    position[2] = traj.ground_at(np.array([s]))[0] + h
+    position[2] = h if cameras.height_from == "origin" else traj.ground_at(np.array([s]))[0] + h
     to_line = -side * normal[0]
     azimuth = math.atan2(to_line[1], to_line[0])
     # Blender's camera at Z = 0 (and X = pi/2) looks along +y, i.e. azimuth pi/2.
