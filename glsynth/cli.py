@@ -187,12 +187,24 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
                    worker_seconds_by_phase={k: round(v, 2) for k, v in timings.items()})
     atomic_write_json(out / "report.json", summary)
     atomic_write_bytes(out / "contact_sheet.png", png_bytes(contact_sheet(out)))
-    removed = ", ".join(f"{k} {v}" for k, v in summary["removed"].items())
-    dmg = summary["damage_fraction"]
-    print(f"kept {summary['kept']} views (removed: {removed}), {summary['plates']} plates; "
-          f"concrete damage {100 * dmg['concrete']:.1f} %, exposed rebar "
-          f"{100 * dmg['rebar']:.2f} % of damage-task pixels; "
-          f"{summary['images_per_s'] or 0:.2f} images/s -> {out}")
+    stats = summary["statistics"]
+    keep = ", ".join(f"{k} {100 * v:.1f} %" for k, v in stats["keep_rate"].items()
+                     if v is not None)
+    dmg = stats["damage_share"]
+    print(f"kept {summary['kept']} views (keep rate {keep}), {summary['plates']} plates; "
+          f"concrete damage {100 * (dmg['concrete'] or 0):.1f} %, exposed rebar "
+          f"{100 * (dmg['rebar'] or 0):.2f} % of damage-task pixels; "
+          f"{summary['images_per_s'] or 0:.2f} images/s -> {out} (glsynth stats {out} for "
+          "the table beside the paper's)")
+
+
+def cmd_stats(args: argparse.Namespace) -> None:
+    from glsynth.data.statistics import statistics_table, write_statistics
+
+    out = Path(args.out)
+    stats = write_statistics(args.dataset, out)
+    print(statistics_table(stats), end="")
+    print(f"-> {out}/stats.json, stats.md, stats.png")
 
 
 def cmd_train(args: argparse.Namespace) -> None:
@@ -371,6 +383,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Ray cluster address ('auto', 'host:6379', 'ray://host:10001'); "
                         "default starts a local Ray. --out must be shared by all nodes")
     p.set_defaults(func=cmd_generate)
+
+    p = sub.add_parser("stats", help="a dataset's statistics beside the paper's (glsynth's or "
+                                     "the released Tokaido dataset)")
+    p.add_argument("dataset", help="Tokaido-layout dataset root")
+    p.add_argument("--out", required=True, help="folder for stats.json, stats.md, stats.png")
+    p.set_defaults(func=cmd_stats)
 
     p = sub.add_parser("train", help="train FCN58 on a Tokaido-layout dataset (needs torch)")
     add_options(p, TrainSettings)

@@ -67,8 +67,11 @@ def test_format_compliance(reference):
         assert np.asarray(Image.open(root / r.damage)).shape == (360, 640)
     report = json.loads((root / "report.json").read_text())
     assert report["kept"] == len(train) + len(test)
-    assert report["kept"] + sum(report["removed"].values()) == 2 * 5
-    assert abs(sum(report["damage_fraction"].values()) - 1.0) < 1e-9
+    stats = report["statistics"]
+    removed = sum(sum(r.values()) for r in stats["removed"].values())
+    assert report["kept"] + removed == 2 * 5
+    assert stats["images"]["regular"] + sum(stats["removed"]["regular"].values()) == 2 * 3
+    assert 0 <= stats["damage_share"]["concrete"] + stats["damage_share"]["rebar"] <= 1
     assert (root / "contact_sheet.png").stat().st_size > 1000
 
 

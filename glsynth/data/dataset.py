@@ -27,9 +27,15 @@ from glsynth.core.fileio import (
     jsonable,
     png_bytes,
 )
-from glsynth.core.labels import Component, Damage
+from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.filters import mask_damage, removal_reason, rrdr
+from glsynth.data.statistics import (
+    ImageCounts,
+    dataset_statistics,
+    image_counts,
+    read_removals,
+)
 from glsynth.data.tokaido import (
     LABEL_STRIDE,
     FrameRecord,
@@ -84,12 +90,10 @@ def plan(config: Config) -> list[Task]:
     return tasks
 
 
-def _counts(ids: np.ndarray, n: int) -> list[int]:
-    return np.bincount(ids.ravel(), minlength=n)[:n].tolist()
-
-
 def run_environment(config: Config, root_seed: int, env: int, out: Path, renderer) -> dict:
-    """Render, filter and write every camera of one environment; returns its marker data."""
+    """Render, filter and write every camera of one environment; returns its marker data:
+    manifest rows, the counts of each written image (glsynth.data.statistics) and the views
+    removed by camera kind and reason."""
     from glsynth.render.view import EnvironmentView
     from glsynth.world.visibility import visible_parts
 
@@ -98,51 +102,53 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     clock.lap("environment, materials and damage textures")
     split = environment_split(config, env)
     cams = config.cameras
-    rows, removed = [], dict.fromkeys(REASONS, 0)
-    comp_px, dmg_px = [0] * len(Component), [0] * len(Damage)
+    rows, counts = [], []
+    removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
     for index in range(cams.n_regular + cams.n_closeup):
         placement, output = view.render(index)
         clock.lap("render and read back")
         reason = removal_reason(output.color, output.component, output.depth)
         if reason is not None:
-            removed[reason] += 1
+            removed[placement.kind][reason] += 1
             clock.lap("filters, RRDR and labels")
             continue
         camera = placement.camera
-        reliable = rrdr(output.depth, camera.fx)
-        masked = mask_damage(output.damage, reliable)
+        masked = mask_damage(output.damage, rrdr(output.depth, camera.fx))
         paths = frame_paths(split, env, index)
         component = downsample_labels(output.component)
-        damage = downsample_labels(masked.labels)
+        damage = downsample_labels(masked)
+        depth = downsample_labels(encode_depth(output.depth))
+        # The flag describes the map that is written: damage inside the RRDR at full size can
+        # vanish in the 3x downsampling.
+        in_rrdr = bool(np.any(damage >= Damage.CONCRETE))
         clock.lap("filters, RRDR and labels")
         atomic_write_bytes(out / paths["image"], png_bytes(output.color))
         atomic_write_bytes(out / paths["component"], image_bytes(component, "BMP"))
         atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
-        atomic_write_bytes(out / paths["depth"],
-                           png_bytes(downsample_labels(encode_depth(output.depth))))
+        atomic_write_bytes(out / paths["depth"], png_bytes(depth))
         seen = visible_parts(columns, [camera])
         meta = {"root_seed": root_seed, "env": env, "camera_index": index,
                 "kind": placement.kind, "split": split, "camera": camera.to_json(),
                 "placement": {"s_m": placement.s_m, "side": placement.side,
                               "distance_m": placement.distance_m,
-                              "height_above_ground_m": placement.height_above_ground_m,
+                              "height_m": placement.height_m,
                               "euler_xyz_rad": list(placement.euler_xyz_rad)},
-                "damage_in_rrdr": masked.damage_in_rrdr,
+                "damage_in_rrdr": in_rrdr,
                 "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
                                     for n in sorted(seen)}}
         atomic_write_json(out / "meta" / split / f"image_case{env}_frame{index}.json", meta)
+        focal = round(camera.focal_mm, 6)
         rows.append(dataclasses.asdict(FrameRecord(
-            paths["image"], paths["component"], paths["damage"], paths["depth"],
-            round(camera.focal_mm, 6), placement.kind == "regular", masked.damage_in_rrdr)))
-        comp_px = [a + b for a, b in zip(comp_px, _counts(component, len(Component)))]
-        if masked.damage_in_rrdr:
-            dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]
+            paths["image"], paths["component"], paths["damage"], paths["depth"], focal,
+            placement.kind == "regular", in_rrdr)))
+        counts.append(dataclasses.asdict(image_counts(placement.kind, split, component, damage,
+                                                      depth, focal, in_rrdr)))
         clock.lap("encode and write files")
     atomic_write_json(out / "meta" / f"env_{env}.json", _env_description(view))
     clock.lap("encode and write files")
-    return {"kind": "env", "env": env, "split": split, "rows": rows, "removed": removed,
-            "component_pixels": comp_px, "damage_pixels": dmg_px, "timings": clock.totals}
+    return {"kind": "env", "env": env, "split": split, "rows": rows, "counts": counts,
+            "removed": removed, "timings": clock.totals}
 
 
 def _env_description(view) -> dict:
@@ -162,8 +168,8 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
     clock = _Clock()
     repository = open_repository(config)
     bank = DamageBank(config.damage, root_seed)
-    rows = {"train": [], "test": []}
-    dmg_px = [0] * len(Damage)
+    rows: dict[str, list] = {"train": [], "test": []}
+    counts = []
     for index in range(task.first, task.first + task.count):
         shot = plate_shot(config, root_seed, index, repository, bank)
         renderer.load(shot.scene)
@@ -177,10 +183,12 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
         atomic_write_json(out / "meta" / "puretex" / f"image_{index}.json",
                           {"root_seed": root_seed, **jsonable(shot.meta),
                            "camera": shot.camera.to_json()})
-        rows[plate_split(config, index)].append([paths["image"], paths["damage"]])
-        dmg_px = [a + b for a, b in zip(dmg_px, _counts(damage, len(Damage)))]
+        split = plate_split(config, index)
+        rows[split].append([paths["image"], paths["damage"]])
+        counts.append(dataclasses.asdict(image_counts("plate", split, None, damage, None, None,
+                                                      True)))
         clock.lap("encode and write files")
-    return {"kind": "plates", "first": task.first, "rows": rows, "damage_pixels": dmg_px,
+    return {"kind": "plates", "first": task.first, "rows": rows, "counts": counts,
             "timings": clock.totals}
 
 
@@ -261,37 +269,35 @@ def prepare_output(out: Path, config: Config, root_seed: int) -> None:
 
 
 def merge(config: Config, out: Path) -> dict:
-    """Write the four manifests from the markers, sorted; return the dataset's counts."""
-    frames = {"train": [], "test": []}
-    plates = {"train": [], "test": []}
-    removed = dict.fromkeys(REASONS, 0)
-    comp_px, dmg_px = np.zeros(len(Component), np.int64), np.zeros(len(Damage), np.int64)
+    """Write the four manifests from the markers, sorted; return the dataset's counts and its
+    statistics (glsynth.data.statistics, the code behind ``glsynth stats``)."""
+    frames: dict[str, list] = {"train": [], "test": []}
+    plates: dict[str, list] = {"train": [], "test": []}
+    counts: list[ImageCounts] = []
     for task in plan(config):
         data = json.loads((out / task.marker).read_text())
+        counts += [ImageCounts(**{**c, "component": _tuple(c["component"]),
+                                  "damage": tuple(c["damage"]), "depth": _tuple(c["depth"])})
+                   for c in data["counts"]]
         if data["kind"] == "env":
             frames[data["split"]] += [(data["env"], r["image"], r) for r in data["rows"]]
-            for k, v in data["removed"].items():
-                removed[k] += v
-            comp_px += data["component_pixels"]
         else:
             for split in ("train", "test"):
                 plates[split] += data["rows"][split]
-        dmg_px += data["damage_pixels"]
     for split in ("train", "test"):
         ordered = [FrameRecord(**r) for _, _, r in sorted(
             frames[split], key=lambda x: (x[0], _frame_number(x[1])))]
         atomic_write_bytes(out / f"files_{split}.csv", manifest_text(ordered).encode())
         pure = [PuretexRecord(*r) for r in sorted(plates[split], key=lambda r: _plate_no(r[0]))]
         atomic_write_bytes(out / f"files_puretex_{split}.csv", manifest_text(pure).encode())
-    kept = sum(len(v) for v in frames.values())
-    labelled = dmg_px[1:].sum()
-    return {"kept": kept, "removed": removed,
-            "plates": sum(len(v) for v in plates.values()),
-            "component_fraction": {Component(i).name.lower(): float(c / max(1, comp_px.sum()))
-                                   for i, c in enumerate(comp_px) if i},
-            "damage_fraction": {Damage(i).name.lower(): float(c / max(1, labelled))
-                                for i, c in enumerate(dmg_px) if i},
+    stats = dataset_statistics(counts, read_removals(out))
+    return {"kept": stats["images"]["regular"] + stats["images"]["closeup"],
+            "plates": stats["images"]["plate"], "statistics": stats,
             "label_size": [1920 // LABEL_STRIDE, 1080 // LABEL_STRIDE]}
+
+
+def _tuple(values: list | None) -> tuple | None:
+    return None if values is None else tuple(values)
 
 
 def _frame_number(image: str) -> int:

@@ -1,8 +1,6 @@
 """Post-processing of rendered views: the Section 3.4 filters and the region of reliable damage
 recognition (RRDR, Section 4.2), as pure functions of the maps."""
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from glsynth.core.labels import Damage
@@ -50,19 +48,11 @@ def rrdr(depth_m: np.ndarray, focal_px: float | None, *,
     return pixels_per_cm(depth_m, focal_px) >= min_px_per_cm
 
 
-@dataclass(frozen=True)
-class MaskedDamage:
-    labels: np.ndarray
-    """Damage ids with 0 (unlabelled) where damage lies outside the RRDR."""
-    damage_in_rrdr: bool
-    """Any concrete damage or exposed rebar inside the RRDR."""
-
-
-def mask_damage(damage: np.ndarray, reliable: np.ndarray) -> MaskedDamage:
-    """Section 4.2: discard damage labels outside the RRDR (they become 0, ignored)."""
+def mask_damage(damage: np.ndarray, reliable: np.ndarray) -> np.ndarray:
+    """Section 4.2: damage labels outside the RRDR become 0 (unlabelled, ignored). Whether an
+    image has damage in the RRDR is read from the map as written (after downsampling)."""
     if damage.shape != reliable.shape:
         raise ValueError(f"damage map {damage.shape} and RRDR {reliable.shape} differ in size")
-    damaged = damage >= Damage.CONCRETE
     out = damage.copy()
-    out[damaged & ~reliable] = Damage.UNLABELLED
-    return MaskedDamage(out, bool(np.any(damaged & reliable)))
+    out[(damage >= Damage.CONCRETE) & ~reliable] = Damage.UNLABELLED
+    return out
