@@ -192,3 +192,27 @@ def test_damage_labels_match_the_ray_cast_through_the_damage_masks():
         assert damaged > 0.05
     finally:
         view.renderer.release()
+
+
+def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
+    """A worker's peak memory holds one environment's textures, not two."""
+    import glsynth.render.view as view_module
+    from glsynth.render.view import EnvironmentView, preview_config
+
+    config = preview_config(Config(), 96)
+    renderer = Renderer(config.render)
+    try:
+        EnvironmentView.open(config, 0, 0, renderer)
+        assert renderer._draws
+        real_dress = view_module.dress
+
+        def dress_after_release(*args, **kwargs):
+            assert not renderer._draws
+            assert len(renderer._textures) == 2  # only the two 1x1 defaults remain
+            return real_dress(*args, **kwargs)
+
+        monkeypatch.setattr(view_module, "dress", dress_after_release)
+        EnvironmentView.open(config, 0, 1, renderer)
+        assert renderer._draws
+    finally:
+        renderer.release()

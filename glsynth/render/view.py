@@ -40,6 +40,10 @@ class EnvironmentView:
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
         renders the same bytes alone or in a batch, and the same as with ``cull=False``
         (everything uploaded; for measuring)."""
+        if renderer is not None:
+            # Free the previous environment's textures (and the arrays behind them) before
+            # dressing this one: a worker then peaks at one environment, not two.
+            renderer.release_scene()
         env = build_environment(config, root_seed, env_index)
         n_cameras = config.cameras.n_regular + config.cameras.n_closeup
         cameras = [environment_camera(env.trajectory, config.cameras, config.render,
