@@ -61,6 +61,9 @@ def test_stats_of_a_hand_built_dataset_are_the_counts_built_in(tmp_path, capsys)
     assert "keep_rate" not in stats  # no progress markers: released-layout rows only
     assert stats["views_showing"]["rail"] == 0.5 and stats["views_showing"]["sleeper"] == 0.5
     assert stats["views_showing"]["column"] == 0.5 and stats["views_showing"]["slab"] == 0.0
+    assert stats["views_showing_by_kind"]["regular"]["rail"] == 1.0
+    assert stats["views_showing_by_kind"]["closeup"]["rail"] == 0.0
+    assert stats["views_showing_by_kind"]["closeup"]["column"] == 1.0
     assert stats["component_pixel_share"]["rail"] == pytest.approx(115_200 / (2 * n))
     assert stats["component_pixel_share"]["column"] == pytest.approx(0.5)
     # Damage task: view a (flagged) and the plate; view b is not flagged.
@@ -74,7 +77,8 @@ def test_stats_of_a_hand_built_dataset_are_the_counts_built_in(tmp_path, capsys)
     assert stats["focal_histogram"]["images"] == [0, 1, 0, 0, 0, 0, 0, 1]
     table = capsys.readouterr().out
     assert "| keep rate: regular | 86.5 % | no metadata |" in table
-    assert "| views showing rail | not given | 50.0 % |" in table
+    assert "| views showing rail (all / regular / close-up) | not given | 50.0 % / 100.0 % / " \
+           "0.0 % |" in table
     assert (tmp_path / "s" / "stats.png").stat().st_size > 10_000
 
 

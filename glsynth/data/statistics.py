@@ -127,16 +127,20 @@ def dataset_statistics(images: list[ImageCounts],
         stats["keep_rate"] = {k: _share(by_kind[k], by_kind[k] + sum(removals[k].values()))
                               for k in ("regular", "closeup")}
     comp = np.zeros(len(Component), np.int64)
-    shows = {c.name.lower(): 0 for c in COMPONENTS}
+    shows = {k: {c.name.lower(): 0 for c in COMPONENTS} for k in ("regular", "closeup")}
     for image in frames:
         counts = np.asarray(image.component)
         comp += counts
         for c in COMPONENTS:
-            shows[c.name.lower()] += int(counts[c] > 0)
+            shows[image.kind][c.name.lower()] += int(counts[c] > 0)
     labelled = comp[1:].sum()
     stats["component_pixel_share"] = {c.name.lower(): _share(comp[c], labelled)
                                       for c in COMPONENTS}
-    stats["views_showing"] = {name: _share(n, len(frames)) for name, n in shows.items()}
+    stats["views_showing"] = {
+        c.name.lower(): _share(sum(s[c.name.lower()] for s in shows.values()), len(frames))
+        for c in COMPONENTS}
+    stats["views_showing_by_kind"] = {
+        k: {name: _share(n, by_kind[k]) for name, n in s.items()} for k, s in shows.items()}
     task = [i for i in images if i.damage_in_rrdr]
     dmg = np.sum([i.damage for i in task], axis=0) if task else np.zeros(len(Damage), np.int64)
     stats["damage_share"] = {"concrete": _share(dmg[Damage.CONCRETE], dmg[1:].sum()),
@@ -176,8 +180,11 @@ def statistics_table(stats: dict) -> str:
             removed = ", ".join(f"{r} {v}" for r, v in sorted(stats["removed"][kind].items())
                                 if v) or "none"
             rows.append((f"removed: {kind}", "not given", removed))
+    by_kind = stats["views_showing_by_kind"]
     for name, share in stats["views_showing"].items():
-        rows.append((f"views showing {name}", "not given", _pct(share)))
+        rows.append((f"views showing {name} (all / regular / close-up)", "not given",
+                     f"{_pct(share)} / {_pct(by_kind['regular'][name])} / "
+                     f"{_pct(by_kind['closeup'][name])}"))
     for name, share in stats["component_pixel_share"].items():
         rows.append((f"pixel share: {name}", "not given", _pct(share)))
     for name in ("concrete", "rebar"):
@@ -205,7 +212,7 @@ def statistics_figure(stats: dict, path: Path) -> None:
 
     from glsynth.core.plots import save_figure
 
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8))
+    fig, axes = plt.subplots(2, 3, figsize=(15, 8), layout="constrained")
     ax = axes[0, 0]
     kinds = list(KINDS)
     ax.bar(kinds, [stats["images"][k] for k in kinds])
