@@ -48,6 +48,8 @@ class _Draw:
     name: str
     pose: np.ndarray
     vaos: dict[str, moderngl.VertexArray]
+    buffers: tuple[moderngl.Buffer, moderngl.Buffer]
+    """Vertex and index buffers: the VAOs use them, the scene owns them (release_scene)."""
     material: Material
     textures: dict[str, moderngl.Texture]
     component: float
@@ -150,14 +152,18 @@ class Renderer:
                 pose = scene.get_pose(node)
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
-                self._draws.append(_Draw(node.name, pose, vaos, mat, textures,
+                self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
                                          float(info.component), mask, center))
 
     def release_scene(self) -> None:
+        """Free every GL object the loaded scene created (moderngl frees nothing that Python
+        drops: its default gc_mode is None)."""
         defaults = {id(t) for t in self._defaults.values()}
         for draw in self._draws:
             for vao in draw.vaos.values():
                 vao.release()
+            for buffer in draw.buffers:
+                buffer.release()
         for key, (_, tex) in list(self._textures.items()):
             if id(tex) not in defaults:
                 tex.release()
