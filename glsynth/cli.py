@@ -72,13 +72,21 @@ def _config(args: argparse.Namespace) -> Config:
 
 
 def cmd_export(args: argparse.Namespace) -> None:
+    from glsynth.appearance.damage_bank import DamageBank
+    from glsynth.appearance.dressing import dress, open_repository
     from glsynth.render.export import export_environment
     from glsynth.world.environment import build_environment
 
     t0 = time.perf_counter()
-    env = build_environment(_config(args), args.seed, args.env)
+    config = _config(args)
+    env = build_environment(config, args.seed, args.env)
+    materials = None
+    if not args.flat:  # every column that may be damaged gets its damage textures
+        materials = dress(env, config, open_repository(config),
+                          DamageBank(config.damage, args.seed),
+                          {p.name for p in env.parts}).materials
     built = time.perf_counter() - t0
-    glb, js = export_environment(env, args.out)
+    glb, js = export_environment(env, args.out, materials, None if args.flat else config.render)
     triangles = sum(len(p.mesh.faces) for p in env.parts)
     print(f"environment {args.env} (seed {args.seed}): {len(env.parts)} parts, {triangles} "
           f"triangles, built in {built:.2f} s -> {glb}, {js}")
@@ -342,6 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(p)
     _add_env_args(p)
     p.add_argument("--out", required=True, help="output .glb path (scene.json goes beside it)")
+    p.add_argument("--flat", action="store_true",
+                   help="flat colours per component, no textures or light (small files)")
+    _add_quality_arg(p)
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("histograms", help="height/curvature histograms (paper Fig. 7) as PNG")

@@ -1,3 +1,4 @@
+import io
 import json
 import shutil
 import struct
@@ -99,3 +100,141 @@ def test_export_path_must_be_glb(env0, tmp_path):
 def _inside(point, polygon) -> bool:
     from matplotlib.path import Path as MplPath
     return bool(MplPath(polygon).contains_point(point))
+
+
+# --- the dressed export: the scene as glsynth renders it ------------------------------------
+def _glb_parts(data: bytes) -> tuple[dict, bytes]:
+    chunk_len = struct.unpack("<I", data[12:16])[0]
+    gltf = json.loads(data[20:20 + chunk_len])
+    binary = data[20 + chunk_len + 8:]
+    return gltf, binary
+
+
+def _view_bytes(gltf: dict, binary: bytes, view: int) -> bytes:
+    v = gltf["bufferViews"][view]
+    return binary[v.get("byteOffset", 0):v.get("byteOffset", 0) + v["byteLength"]]
+
+
+def _accessor(gltf: dict, binary: bytes, index: int) -> np.ndarray:
+    a = gltf["accessors"][index]
+    width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[a["type"]]
+    dtype = np.uint32 if a["componentType"] == 5125 else np.float32
+    return np.frombuffer(_view_bytes(gltf, binary, a["bufferView"]), dtype).reshape(-1, width)
+
+
+@pytest.fixture(scope="module")
+def dressed(tmp_path_factory):
+    import dataclasses
+
+    from glsynth.appearance.damage_bank import DamageBank
+    from glsynth.appearance.dressing import dress, open_repository
+    from glsynth.core.config import load_config
+    from glsynth.world.environment import build_environment
+
+    config = load_config("demo")
+    config = dataclasses.replace(
+        config, damage=dataclasses.replace(config.damage, resolution=64),
+        materials=dataclasses.replace(config.materials, texture_size=32))
+    env = build_environment(config, 0, 0)
+    dressing = dress(env, config, open_repository(config), DamageBank(config.damage, 0),
+                     {p.name for p in env.parts})
+    out = tmp_path_factory.mktemp("dressed") / "scene.glb"
+    export_environment(env, out, dressing.materials, config.render)
+    return env, dressing.materials, config, out
+
+
+def test_dressed_export_round_trips_every_texture(dressed):
+    from PIL import Image
+
+    env, materials, _, glb = dressed
+    gltf, binary = _glb_parts(glb.read_bytes())
+    nodes = {n["name"]: n for n in gltf["nodes"] if "mesh" in n}
+    assert set(nodes) == {p.name for p in env.parts}
+    sources = {id(a) for m in materials.values() for a in (
+        m.base_color_map, m.metallic_roughness_map, m.normal_map, m.emissive_map,
+        m.damage_mask) if a is not None}
+    assert len(gltf["images"]) == len(sources)  # shared repository images written once
+
+    def image(texture: dict) -> np.ndarray:
+        source = gltf["textures"][texture["index"]]["source"]
+        data = _view_bytes(gltf, binary, gltf["images"][source]["bufferView"])
+        return np.asarray(Image.open(io.BytesIO(data)))
+
+    damaged = [p for p in env.parts if materials[p.name].damage_mask is not None]
+    assert damaged
+    for part in damaged[:3] + [p for p in env.parts if p.name.startswith("slab")][:2]:
+        m = materials[part.name]
+        node = nodes[part.name]
+        assert node["extras"] == {"component": part.component.name.lower(),
+                                  "component_id": int(part.component)}
+        primitive = gltf["meshes"][node["mesh"]]["primitives"][0]
+        mat = gltf["materials"][primitive["material"]]
+        pbr = mat["pbrMetallicRoughness"]
+        assert np.array_equal(image(pbr["baseColorTexture"]), m.base_color_map)
+        assert pbr["metallicFactor"] == m.metallic and pbr["roughnessFactor"] == m.roughness
+        assert mat["doubleSided"] is True
+        uv = _accessor(gltf, binary, primitive["attributes"]["TEXCOORD_0"])
+        expected = part.mesh.visual.uv * m.uv_scale
+        assert np.allclose(uv[:, 0], expected[:, 0], atol=1e-5)
+        assert np.allclose(uv[:, 1], 1 - expected[:, 1], atol=1e-5)  # glTF: v from the top
+        if m.damage_mask is not None:
+            assert np.array_equal(image(mat["extras"]["glsynth_damage_mask"]), m.damage_mask)
+            assert np.array_equal(image(pbr["metallicRoughnessTexture"]),
+                                  m.metallic_roughness_map)
+            assert np.array_equal(image(mat["normalTexture"]), m.normal_map)
+            tangent = _accessor(gltf, binary, primitive["attributes"]["TANGENT"])
+            normal = _accessor(gltf, binary, primitive["attributes"]["NORMAL"])
+            assert np.allclose(np.sum(tangent[:, :3] * normal, axis=1), 0, atol=1e-5)
+            assert set(np.unique(tangent[:, 3])) <= {-1.0, 1.0}
+
+
+def test_dressed_export_carries_the_sun_and_the_sky(dressed):
+    from glsynth.world.sunlight import sun_direction
+
+    _, _, config, glb = dressed
+    gltf, _ = _glb_parts(glb.read_bytes())
+    (light,) = gltf["extensions"]["KHR_lights_punctual"]["lights"]
+    assert light["type"] == "directional" and light["intensity"] == config.render.sun_intensity
+    node = next(n for n in gltf["nodes"] if "extensions" in n)
+    x, y, z, w = node["rotation"]
+    rotation = np.array([  # quaternion to matrix
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    sun = sun_direction(config.render)
+    travel_y_up = -np.array([sun[0], sun[2], -sun[1]])
+    assert np.allclose(rotation @ [0, 0, -1], travel_y_up, atol=1e-9)
+    info = json.loads((glb.parent / "scene.json").read_text())
+    assert info["materials"] == "dressed"
+    assert info["lighting"]["sky_rgb_linear"] == list(config.render.sky_rgb)
+    assert info["lighting"]["exposure"] == config.render.exposure
+
+
+@pytest.mark.skipif(shutil.which("node") is None or not VALIDATOR.exists(),
+                    reason="Khronos glTF validator not installed (scripts/setup.sh installs it "
+                           "when npm is available)")
+def test_khronos_validator_passes_the_dressed_export(dressed):
+    script = ("const v=require(process.argv[1]);const d=new Uint8Array(require('fs')"
+              ".readFileSync(process.argv[2]));v.validateBytes(d).then(r=>console.log("
+              "JSON.stringify(r.issues)))")
+    out = subprocess.run(["node", "-e", script, str(VALIDATOR), str(dressed[3])], check=True,
+                         capture_output=True, text=True).stdout
+    issues = json.loads(out)
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:5]
+    # Information only: the damage masks are referenced from extras, which glTF does not read.
+    assert {m["code"] for m in issues["messages"]} <= {"UNUSED_OBJECT"}
+
+
+def test_tangents_follow_u_and_know_their_handedness():
+    from glsynth.render.gltf import tangents
+
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    uv = vertices[:, :2].copy()
+    assert np.allclose(tangents(vertices, normals, uv, faces), [[1, 0, 0, 1]] * 4)
+    mirrored = uv * [1, -1]  # v runs the other way: left-handed frame
+    assert np.allclose(tangents(vertices, normals, mirrored, faces), [[1, 0, 0, -1]] * 4)
+    flat = np.zeros((4, 2))  # no u gradient: any unit tangent orthogonal to the normal
+    t = tangents(vertices, normals, flat, faces)
+    assert np.allclose(np.linalg.norm(t[:, :3], axis=1), 1) and np.allclose(t[:, 2], 0)

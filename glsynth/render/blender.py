@@ -24,7 +24,8 @@ from glsynth.core.config import Config
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
-from glsynth.render.export import to_gltf_scene
+from glsynth.render.export import preview_materials
+from glsynth.render.gltf import gltf_binary
 from glsynth.world.sunlight import sun_direction
 
 JOB = Path(__file__).with_name("blender_job.py")
@@ -82,7 +83,7 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
     shown = dataclasses.replace(view.environment, parts=tuple(
         p for p in view.environment.parts if p.name in view.scene.parts))
     glb = out / "scene.glb"
-    atomic_write_bytes(glb, to_gltf_scene(shown).export(file_type="glb", include_normals=True))
+    atomic_write_bytes(glb, gltf_binary(shown.parts, preview_materials(shown.parts)))
     cam = placement.camera
     render = config.render
     job = {"glb": str(glb), "out": str(out), "samples": samples,

@@ -1,28 +1,29 @@
-"""Environment export: glTF binary (one node per part) and a scene.json description.
+"""Environment export: glTF binary (glsynth.render.gltf) and a scene.json description.
 
 glTF is y-up; glsynth is z-up (as Blender, whose camera Euler angles the paper uses). Each node's
 transform therefore includes the rotation (x, y, z) -> (x, z, -y). scene.json keeps glsynth's
-z-up world coordinates and says so.
+z-up world coordinates and says so, and describes the sky and exposure that glTF cannot hold.
 """
 
 import dataclasses
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
-from trimesh.visual import TextureVisuals
-from trimesh.visual.material import PBRMaterial
 
+from glsynth.appearance.materials import Material
+from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
-from glsynth.world.environment import Environment
+from glsynth.render.gltf import gltf_binary
+from glsynth.world.environment import Environment, Part
+from glsynth.world.sunlight import sun_direction
 
-Z_UP_TO_Y_UP = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=float)
-
-# Flat preview colours so that a glTF viewer shows the components apart (not the PBR materials).
+# Flat colours per component, for viewing the geometry without the dressing (and for Blender's
+# label renders, which replace every material anyway).
 _PREVIEW_RGBA = {
     Component.NONBRIDGE: (0.45, 0.55, 0.35, 1.0),
     Component.SLAB: (0.75, 0.75, 0.72, 1.0),
@@ -34,17 +35,11 @@ _PREVIEW_RGBA = {
 }
 
 
-def to_gltf_scene(env: Environment) -> trimesh.Scene:
-    scene = trimesh.Scene()
-    for part in env.parts:
-        mesh = part.mesh.copy()
-        material = PBRMaterial(name=part.component.name.lower(),
-                               baseColorFactor=_PREVIEW_RGBA[part.component],
-                               metallicFactor=0.0, roughnessFactor=1.0)
-        mesh.visual = TextureVisuals(uv=part.mesh.visual.uv, material=material)
-        scene.add_geometry(mesh, node_name=part.name, geom_name=part.name,
-                           transform=Z_UP_TO_Y_UP @ part.pose)
-    return scene
+def preview_materials(parts: Sequence[Part]) -> dict[str, Material]:
+    """One flat, matte material per component."""
+    by_component = {c: Material(base_color=rgba, metallic=0.0, roughness=1.0)
+                    for c, rgba in _PREVIEW_RGBA.items()}
+    return {p.name: by_component[p.component] for p in parts}
 
 
 def describe(env: Environment) -> dict[str, Any]:
@@ -87,14 +82,34 @@ def describe(env: Environment) -> dict[str, Any]:
     }
 
 
-def export_environment(env: Environment, out: str | Path) -> tuple[Path, Path]:
-    """Write ``out`` (.glb) and scene.json beside it; both atomically."""
+def lighting(render: RenderConfig) -> dict[str, Any]:
+    """The scene.json description of what lights the scene beyond the glTF's sun."""
+    return {"sun_direction_zup": sun_direction(render).tolist(),
+            "sun_elevation_deg": render.sun_elevation_deg,
+            "sun_azimuth_deg": render.sun_azimuth_deg, "sun_intensity": render.sun_intensity,
+            "sky_rgb_linear": list(render.sky_rgb), "ambient_intensity": render.ambient_intensity,
+            "exposure": render.exposure,
+            "tone_map": "x * exposure (+ emission), then 1 - exp(-x), then x ** (1 / 2.2)"}
+
+
+def export_environment(env: Environment, out: str | Path,
+                       materials: Mapping[str, Material] | None = None,
+                       render: RenderConfig | None = None) -> tuple[Path, Path]:
+    """Write ``out`` (.glb) and scene.json beside it; both atomically. With ``materials`` (the
+    dressing) and ``render`` (its sun, sky and exposure) the export is the scene as glsynth
+    renders it; without, flat colours per component and no light."""
     out = Path(out)
     if out.suffix.lower() != ".glb":
         raise UserError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
                         "in .glb")
-    data = to_gltf_scene(env).export(file_type="glb", include_normals=True)
+    sun = None if render is None else sun_direction(render)
+    data = gltf_binary(env.parts, materials or preview_materials(env.parts), sun,
+                       render.sun_intensity if render is not None else 1.0)
     atomic_write_bytes(out, data)
     json_path = out.with_name("scene.json")
-    atomic_write_json(json_path, describe(env))
+    info = describe(env)
+    info["materials"] = "dressed" if materials else "flat colours per component"
+    if render is not None:
+        info["lighting"] = lighting(render)
+    atomic_write_json(json_path, info)
     return out, json_path
