@@ -91,8 +91,7 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
                       "sensor_mm": cam.sensor_mm, "width": cam.width, "height": cam.height,
                       "znear": cam.znear, "zfar": cam.zfar},
            "sun_direction": sun_direction(render).tolist(), "sun_strength": render.sun_intensity,
-           "sky_rgb": list(render.sky_rgb), "sky_strength": render.ambient_intensity,
-           "component_ids": {c.name.lower(): int(c) for c in Component}}
+           "sky_rgb": list(render.sky_rgb), "sky_strength": render.ambient_intensity}
     atomic_write_json(out / "job.json", job)
     t = time.perf_counter()
     done = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",

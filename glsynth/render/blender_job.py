@@ -71,25 +71,37 @@ def render_colour(scene: bpy.types.Scene, samples: int, path: Path) -> float:
     return time.perf_counter() - t0
 
 
-def label_materials(ids: dict[str, int]) -> None:
-    """Emission of strength = component id on every material; unknown materials fail. The
-    importer may suffix repeated names (column.001)."""
-    for mat in bpy.data.materials:
-        name = mat.name.split(".")[0]
-        if name not in ids:
-            raise SystemExit(f"material {mat.name!r} is not a glsynth component name")
-        mat.use_nodes = True
-        nodes = mat.node_tree.nodes
-        nodes.clear()
-        emission = nodes.new("ShaderNodeEmission")
-        emission.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        emission.inputs["Strength"].default_value = float(ids[name])
-        output = nodes.new("ShaderNodeOutputMaterial")
-        mat.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+def emission_material(strength: float) -> bpy.types.Material:
+    mat = bpy.data.materials.new(f"glsynth_label_{strength:g}")
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    emission.inputs["Strength"].default_value = strength
+    output = nodes.new("ShaderNodeOutputMaterial")
+    mat.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    return mat
 
 
-def render_labels(scene: bpy.types.Scene, ids: dict[str, int], out: Path) -> dict:
-    label_materials(ids)
+def label_materials(scene: bpy.types.Scene) -> None:
+    """Every mesh emits with strength = its component id, read from the glTF node's extras
+    (the importer keeps them as the object's custom properties); a mesh without one fails."""
+    made: dict[int, bpy.types.Material] = {}
+    for obj in scene.objects:
+        if obj.type != "MESH":
+            continue
+        if "component_id" not in obj:
+            raise SystemExit(f"object {obj.name!r} has no component_id in its glTF extras")
+        cid = int(obj["component_id"])
+        if cid not in made:
+            made[cid] = emission_material(float(cid))
+        obj.data.materials.clear()
+        obj.data.materials.append(made[cid])
+
+
+def render_labels(scene: bpy.types.Scene, out: Path) -> dict:
+    label_materials(scene)
     scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.cycles.samples = 1
     scene.cycles.max_bounces = 0
@@ -136,7 +148,7 @@ def main() -> None:
     for samples in job["samples"]:
         times["colour_s"][str(samples)] = render_colour(scene, samples,
                                                         out / f"blender_{samples}spp.png")
-    times.update(render_labels(scene, job["component_ids"], out))
+    times.update(render_labels(scene, out))
     (out / "blender_times.json").write_text(json.dumps(times))
 
 
