@@ -91,6 +91,10 @@ def test_removals_by_kind_come_from_the_run_markers(tmp_path):
     removals = read_removals(tmp_path)
     assert removals == {"regular": {"dark": 3, "single_component": 1},
                         "closeup": {"too_close": 2}}
+    older = tmp_path / "older"
+    (older / "progress").mkdir(parents=True)
+    (older / "progress" / "env_000000.json").write_text(json.dumps({"removed": {"dark": 1}}))
+    assert read_removals(older) is None  # no camera kind recorded: no keep rates
     write_dataset(tmp_path)
     stats = dataset_statistics(read_image_counts(tmp_path), removals)
     assert stats["keep_rate"] == {"regular": 1 / 5, "closeup": 1 / 3}

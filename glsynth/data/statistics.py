@@ -104,7 +104,10 @@ def read_removals(root: str | Path) -> dict[str, dict[str, int]] | None:
         return None
     removed: dict[str, dict[str, int]] = {"regular": {}, "closeup": {}}
     for marker in markers:
-        for kind, reasons in json.loads(marker.read_text())["removed"].items():
+        by_kind = json.loads(marker.read_text())["removed"]
+        if not all(isinstance(v, dict) for v in by_kind.values()):
+            return None  # a run from before removals were recorded by camera kind
+        for kind, reasons in by_kind.items():
             for reason, n in reasons.items():
                 removed[kind][reason] = removed[kind].get(reason, 0) + n
     return removed
