@@ -31,7 +31,7 @@ def measure(config, envs: int) -> dict:
     shows = {k: {c.name.lower(): 0 for c in CLASSES} for k in kinds}
     pixels = np.zeros(len(Component), np.int64)
     renderer = Renderer(config.render)
-    n = config.cameras.n_regular + config.cameras.n_closeup
+    n = config.cameras.total
     for env in range(envs):
         view = EnvironmentView.open(config, 0, env, renderer)
         for index in range(n):

@@ -48,13 +48,9 @@ def _count(text: str) -> int:
     return value
 
 
-def _n_cameras(config: Config) -> int:
-    return config.cameras.n_regular + config.cameras.n_closeup
-
-
 def _check_cameras(config: Config, indices: list[int]) -> None:
     """Before any work: every camera index exists in this config."""
-    n = _n_cameras(config)
+    n = config.cameras.total
     bad = [i for i in indices if i >= n]
     if bad:
         raise UserError(f"--camera {bad[0]}: this config has cameras 0 to {n - 1} "
@@ -137,7 +133,7 @@ def cmd_preview(args: argparse.Namespace) -> None:
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)
     view = EnvironmentView.open(config, args.seed, args.env)
-    cameras = np.linspace(0, _n_cameras(config) - 1, args.cameras).round().astype(int).tolist()
+    cameras = np.linspace(0, config.cameras.total - 1, args.cameras).round().astype(int).tolist()
     atomic_write_bytes(args.out, png_bytes(preview_sheet(view, cameras)))
     print(f"cameras {cameras} at {config.render.width}x{config.render.height} "
           f"(colour | components | damage | depth) in {time.perf_counter() - t0:.1f} s "
@@ -304,7 +300,7 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
     if unknown:
         raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
-    n = _n_cameras(config)
+    n = config.cameras.total
     cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1)) for i in range(args.cameras)})
     result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets)
     print(quality_table(result), end="")

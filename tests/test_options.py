@@ -60,10 +60,8 @@ def test_every_kind_of_field_parses():
     ([], "--name"),  # required: the field has no default
 ])
 def test_bad_options_are_argparse_errors(argv, message, capsys):
-    p = argparse.ArgumentParser()
-    add_options(p, Example)
     with pytest.raises(SystemExit):
-        p.parse_args(argv)
+        parser().parse_args(argv)
     assert message in capsys.readouterr().err
 
 

@@ -88,8 +88,8 @@ def test_workers_that_cannot_start_end_the_run(small_config, tmp_path, workers):
 
 
 # --- corrupt or mixed-up model files ---------------------------------------------------------
-def _run_folder(tmp_path: Path, name: str, data: bytes | None = None, *, settings_task: str
-                = "component", model_task: str = "component") -> Path:
+def _run_folder(tmp_path: Path, name: str, data: bytes | None = None, *,
+                settings_task: str = "component", model_task: str = "component") -> Path:
     torch = pytest.importorskip("torch", reason="needs the [model] extra")
     from glsynth.model.fcn58 import FCN58
     from glsynth.model.settings import N_OUTPUTS

@@ -45,7 +45,7 @@ def test_views_that_look_at_the_track_show_rails_and_sleepers():
     try:
         for env in range(ENVIRONMENTS):
             view = EnvironmentView.open(CONFIG, 0, env, renderer)
-            for index in range(CONFIG.cameras.n_regular + CONFIG.cameras.n_closeup):
+            for index in range(CONFIG.cameras.total):
                 placement = view.camera(index)
                 if not looks_at_the_track(view, placement):
                     continue

@@ -123,6 +123,11 @@ class CameraConfig:
         check_interval(s, "rot_y_deg", self.rot_y_deg, -180.0, 180.0)
         check_interval(s, "rot_z_deg", self.rot_z_deg, -180.0, 180.0)
 
+    @property
+    def total(self) -> int:
+        """Cameras per environment: indices 0 .. total - 1, the regular ones first."""
+        return self.n_regular + self.n_closeup
+
 
 @dataclass(frozen=True)
 class RenderConfig:

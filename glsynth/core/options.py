@@ -44,12 +44,11 @@ def _argparse_type(parse: typing.Callable[[str], Any], flag: str) -> typing.Call
     return convert
 
 
-def _base_type(hint: Any) -> tuple[Any, bool]:
-    """(type without None, whether None is allowed)."""
+def _base_type(hint: Any) -> Any:
+    """The type without None (``X | None`` -> X); the option's default is then None."""
     if isinstance(hint, types.UnionType) or typing.get_origin(hint) is typing.Union:
-        args = [a for a in typing.get_args(hint) if a is not type(None)]
-        return args[0], True
-    return hint, False
+        return next(a for a in typing.get_args(hint) if a is not type(None))
+    return hint
 
 
 def add_options(parser: argparse.ArgumentParser, cls: type, *, skip: tuple[str, ...] = ()
@@ -62,7 +61,7 @@ def add_options(parser: argparse.ArgumentParser, cls: type, *, skip: tuple[str, 
             continue
         meta = f.metadata
         flag = meta.get("flag", "--" + f.name.replace("_", "-"))
-        hint, _ = _base_type(hints[f.name])
+        hint = _base_type(hints[f.name])
         has_default = f.default is not dataclasses.MISSING or \
             f.default_factory is not dataclasses.MISSING
         default = f.default if f.default is not dataclasses.MISSING else (

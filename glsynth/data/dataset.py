@@ -105,7 +105,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     rows, counts = [], []
     removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
-    for index in range(cams.n_regular + cams.n_closeup):
+    for index in range(cams.total):
         placement, output = view.render(index)
         clock.lap("render and read back")
         reason = removal_reason(output.color, output.component, output.depth)
@@ -276,9 +276,7 @@ def merge(config: Config, out: Path) -> dict:
     counts: list[ImageCounts] = []
     for task in plan(config):
         data = json.loads((out / task.marker).read_text())
-        counts += [ImageCounts(**{**c, "component": _tuple(c["component"]),
-                                  "damage": tuple(c["damage"]), "depth": _tuple(c["depth"])})
-                   for c in data["counts"]]
+        counts += [ImageCounts.from_json(c) for c in data["counts"]]
         if data["kind"] == "env":
             frames[data["split"]] += [(data["env"], r["image"], r) for r in data["rows"]]
         else:
@@ -294,10 +292,6 @@ def merge(config: Config, out: Path) -> dict:
     return {"kept": stats["images"]["regular"] + stats["images"]["closeup"],
             "plates": stats["images"]["plate"], "statistics": stats,
             "label_size": [1920 // LABEL_STRIDE, 1080 // LABEL_STRIDE]}
-
-
-def _tuple(values: list | None) -> tuple | None:
-    return None if values is None else tuple(values)
 
 
 def _frame_number(image: str) -> int:

@@ -54,6 +54,14 @@ class ImageCounts:
     depth: tuple[int, ...] | None
     """Pixels per DEPTH_EDGES_M bin, then the sky (code 65535); None for plates."""
 
+    @classmethod
+    def from_json(cls, data: dict) -> "ImageCounts":
+        """Back from dataclasses.asdict, as a run's progress markers store it."""
+        def tup(values: list | None) -> tuple | None:
+            return None if values is None else tuple(values)
+        return cls(**{**data, "component": tup(data["component"]),
+                      "damage": tuple(data["damage"]), "depth": tup(data["depth"])})
+
 
 def image_counts(kind: str, split: str, component: np.ndarray | None, damage: np.ndarray,
                  depth_code: np.ndarray | None, focal_mm: float | None,

@@ -132,7 +132,7 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
         finally:
             view.renderer.release()
         outputs[name] = renders
-        n_cameras = cfg.cameras.n_regular + cfg.cameras.n_closeup
+        n_cameras = cfg.cameras.total
         render_s = statistics.median(times)
         rows[name] = {**dataclasses.asdict(QUALITY[name]),
                       "width": cfg.render.width, "height": cfg.render.height,

@@ -44,6 +44,8 @@ class _Builder:
         """id(source array) -> image index."""
         self.sources: list[np.ndarray] = []  # keeps the arrays (and their ids) alive
         self.samplers: dict[tuple[int, int], int] = {}
+        self.textures: dict[tuple[int, int], int] = {}
+        """(image, sampler) -> texture index: one texture per pair, however many users."""
 
     def view(self, data: bytes, target: int | None = None) -> int:
         pad = (-self.offset) % 4
@@ -80,9 +82,11 @@ class _Builder:
             self.tree["samplers"].append({"magFilter": filters[0], "minFilter": filters[1],
                                           "wrapS": _REPEAT, "wrapT": _REPEAT})
             self.samplers[filters] = len(self.tree["samplers"]) - 1
-        self.tree["textures"].append({"source": self.images[key],
-                                      "sampler": self.samplers[filters]})
-        return {"index": len(self.tree["textures"]) - 1}
+        texture = (self.images[key], self.samplers[filters])
+        if texture not in self.textures:
+            self.tree["textures"].append({"source": texture[0], "sampler": texture[1]})
+            self.textures[texture] = len(self.tree["textures"]) - 1
+        return {"index": self.textures[texture]}
 
     def material(self, name: str, m: Material) -> int:
         pbr: dict = {"baseColorFactor": [float(c) for c in m.base_color],

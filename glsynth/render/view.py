@@ -45,7 +45,7 @@ class EnvironmentView:
             # dressing this one: a worker then peaks at one environment, not two.
             renderer.release_scene()
         env = build_environment(config, root_seed, env_index)
-        n_cameras = config.cameras.n_regular + config.cameras.n_closeup
+        n_cameras = config.cameras.total
         cameras = [environment_camera(env.trajectory, config.cameras, config.render,
                                       root_seed, env_index, i).camera for i in range(n_cameras)]
         visible = visible_parts(env.parts, cameras)

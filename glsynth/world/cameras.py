@@ -106,7 +106,7 @@ class CameraPlacement:
 def sample_camera(traj: Trajectory, cameras: CameraConfig, render: RenderConfig,
                   index: int, rng: np.random.Generator) -> CameraPlacement:
     """Camera ``index``: the first n_regular are regular, the next n_closeup close-up."""
-    total = cameras.n_regular + cameras.n_closeup
+    total = cameras.total
     if not 0 <= index < total:
         raise ValueError(f"camera index = {index}: must be in [0, {total - 1}] "
                          f"({cameras.n_regular} regular + {cameras.n_closeup} close-up)")
