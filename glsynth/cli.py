@@ -48,6 +48,17 @@ def _count(text: str) -> int:
     return value
 
 
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        w = h = 0
+    if min(w, h) < 16:
+        raise argparse.ArgumentTypeError(f"{text!r}: write WIDTHxHEIGHT, each >= 16, "
+                                         "e.g. 480x270")
+    return w, h
+
+
 def _check_cameras(config: Config, indices: list[int]) -> None:
     """Before any work: every camera index exists in this config."""
     n = config.cameras.total
@@ -72,6 +83,7 @@ def cmd_export(args: argparse.Namespace) -> None:
     from glsynth.appearance.dressing import dress, open_repository
     from glsynth.render.export import export_environment
     from glsynth.world.environment import build_environment
+    from glsynth.world.lighting import environment_lighting
 
     t0 = time.perf_counter()
     config = _config(args)
@@ -82,7 +94,9 @@ def cmd_export(args: argparse.Namespace) -> None:
                           DamageBank(config.damage, args.seed),
                           {p.name for p in env.parts}).materials
     built = time.perf_counter() - t0
-    glb, js = export_environment(env, args.out, materials, None if args.flat else config.render)
+    light = environment_lighting(config.render, args.seed, args.env)
+    glb, js = export_environment(env, args.out, materials, None if args.flat else config.render,
+                                 light)
     triangles = sum(len(p.mesh.faces) for p in env.parts)
     print(f"environment {args.env} (seed {args.seed}): {len(env.parts)} parts, {triangles} "
           f"triangles, built in {built:.2f} s -> {glb}, {js}")
@@ -294,15 +308,18 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
 def cmd_bench_quality(args: argparse.Namespace) -> None:
     from glsynth.measure.quality import QUALITY, bench_quality, quality_table
+    from glsynth.render.cycles import require_blender
 
     presets = args.presets.split(",") if args.presets else list(QUALITY)
     unknown = set(presets) - set(QUALITY)
     if unknown:
         raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
+    blender = None if args.reference == "glsynth" else require_blender(args.blender)
     n = config.cameras.total
     cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1)) for i in range(args.cameras)})
-    result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets)
+    result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets,
+                           blender, args.size, args.reference_samples, tuple(args.samples))
     print(quality_table(result), end="")
     print(f"-> {args.out}/quality.md, quality.png, quality.json")
 
@@ -319,7 +336,8 @@ def _samples(text: str) -> list[int]:
 
 
 def cmd_bench_blender(args: argparse.Namespace) -> int:
-    from glsynth.render.blender import bench_blender, blender_table, find_blender
+    from glsynth.render.blender import bench_blender, blender_table
+    from glsynth.render.cycles import find_blender
 
     blender = find_blender(args.blender)
     if blender is None:
@@ -447,6 +465,15 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--env", type=_seed, default=0)
     q.add_argument("--cameras", type=_count, default=6, help="views spread over the environment")
     q.add_argument("--presets", default=None, help="comma-separated (default: all)")
+    q.add_argument("--reference", choices=("cycles", "glsynth"), default="cycles",
+                   help="colour reference: Blender Cycles (needs Blender) or glsynth's "
+                        "'reference' preset")
+    q.add_argument("--reference-samples", type=_count, default=128)
+    q.add_argument("--samples", type=_samples, default=[1, 4, 16, 64],
+                   help="Cycles sample counts for the time axis (default 1,4,16,64)")
+    q.add_argument("--size", type=_size, default=(480, 270),
+                   help="WIDTHxHEIGHT at which colour is compared (default 480x270)")
+    q.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
     q.add_argument("--out", required=True)
     q.set_defaults(func=cmd_bench_quality)
     b = bench.add_parser("blender", help="one camera in Blender Cycles against glsynth: time, "

@@ -1,6 +1,7 @@
 #version 330 core
-// Metallic-roughness PBR: GGX specular + Lambert diffuse under one sun and a sky/ground
-// hemisphere, plus emission (scene panels are emission-only). The normal map (the damage
+// Metallic-roughness PBR: GGX specular + Lambert diffuse under one sun, plus ambient light
+// from the sky and the ground (spherical-harmonic irradiance, or a two-colour hemisphere),
+// darkened by screen-space ambient occlusion, plus emission (scene panels are emission-only). The normal map (the damage
 // normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
 // derivatives of position and UV, so meshes need no tangent attribute. The sun is shadowed by
 // a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set.
@@ -21,9 +22,25 @@ uniform bool u_has_normal_map;
 uniform vec3 u_sun_dir;       // camera space, towards the sun
 uniform vec3 u_sun_color;
 uniform vec3 u_up;            // camera space world up
+uniform mat3 u_world_from_view;
+uniform bool u_ambient_sh;    // true: SH; false: the u_sky_color / u_ground_color hemisphere
+uniform vec3 u_sh_sky[9];     // irradiance = sum u_sh[i] Y_i(world normal) (glsynth.world.lighting)
+uniform vec3 u_sh_ground[9];
+
+// Sky visibility: depth maps of the scene seen from u_vis_count sky directions, tiled in one
+// atlas (drawn once per environment). A direction is visible where the point is not behind
+// the map's depth; its weight is the sky's luminance there times the cosine to the normal.
+uniform int u_vis_count;                // 0: no sky occlusion
+uniform sampler2DShadow u_vis_map;
+uniform mat4 u_vis_from_view[16];       // atlas coordinates and depth from camera space
+uniform vec3 u_vis_dir[16];             // camera space, towards the sky
+uniform float u_vis_weight[16];
+uniform float u_vis_offset_m;
 uniform vec3 u_sky_color;
 uniform vec3 u_ground_color;
 uniform float u_exposure;
+uniform bool u_has_ao;
+uniform sampler2D u_ao;       // per pixel, from the ssao programs; 1: unoccluded
 
 uniform bool u_has_shadows;
 uniform sampler2DShadow u_shadow_map;
@@ -37,7 +54,47 @@ out vec4 f_color;
 
 const float PI = 3.14159265358979;
 
-vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
+// The exact sRGB curve, as Blender decodes colour textures.
+vec3 srgb_to_linear(vec3 c) {
+    return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(0.04045, c));
+}
+
+float[9] sh_basis(vec3 n) {  // real SH basis, in the order of glsynth.world.lighting.sh_basis
+    return float[9](0.282095, 0.488603 * n.y, 0.488603 * n.z, 0.488603 * n.x,
+                    1.092548 * n.x * n.y, 1.092548 * n.y * n.z,
+                    0.315392 * (3.0 * n.z * n.z - 1.0), 1.092548 * n.x * n.z,
+                    0.546274 * (n.x * n.x - n.y * n.y));
+}
+
+vec3 sh_sky(vec3 n) {
+    float y[9] = sh_basis(n);
+    vec3 e = vec3(0.0);
+    for (int i = 0; i < 9; ++i) e += u_sh_sky[i] * y[i];
+    return max(e, 0.0);
+}
+
+vec3 sh_ground(vec3 n) {
+    float y[9] = sh_basis(n);
+    vec3 e = vec3(0.0);
+    for (int i = 0; i < 9; ++i) e += u_sh_ground[i] * y[i];
+    return max(e, 0.0);
+}
+
+// (sky visibility seen by normal n, mean visibility over all directions).
+vec2 sky_visibility(vec3 n) {
+    if (u_vis_count == 0) return vec2(1.0);
+    float weighted = 0.0, total = 0.0, mean = 0.0;
+    for (int k = 0; k < u_vis_count; ++k) {
+        vec4 p = u_vis_from_view[k] * vec4(v_view_pos + n * u_vis_offset_m, 1.0);
+        float v = texture(u_vis_map, p.xyz);
+        float w = u_vis_weight[k] * max(dot(n, u_vis_dir[k]), 0.0);
+        weighted += w * v;
+        total += w;
+        mean += v;
+    }
+    mean /= float(u_vis_count);
+    return vec2(total > 0.0 ? weighted / total : mean, mean);
+}
 
 vec3 perturbed_normal(vec3 n, vec3 view_dir) {
     vec3 dp1 = dFdx(v_view_pos), dp2 = dFdy(v_view_pos);
@@ -69,6 +126,7 @@ void main() {
     vec3 n = normalize(v_normal);
     if (dot(n, view_dir) < 0.0) n = -n;  // two-sided: open sheets (ground, panels)
     float sun = sun_visibility(n);       // by the mesh normal: the normal map only shades
+    vec2 vis = sky_visibility(n);
     if (u_has_normal_map) n = perturbed_normal(n, view_dir);
 
     vec4 base = u_base_color * vec4(srgb_to_linear(texture(u_base_color_map, v_uv).rgb), 1.0);
@@ -93,15 +151,29 @@ void main() {
     vec3 diffuse = (1.0 - F) * (1.0 - metallic) * base.rgb / PI;
     vec3 direct = (diffuse + specular) * u_sun_color * nl * sun;
 
-    // Hemisphere ambient: diffuse by the normal, specular by the reflected direction.
-    float up_n = dot(n, u_up) * 0.5 + 0.5;
-    float up_r = dot(reflect(-view_dir, n), u_up) * 0.5 + 0.5;
-    vec3 env_diffuse = mix(u_ground_color, u_sky_color, up_n);
-    vec3 env_specular = mix(u_ground_color, u_sky_color, up_r);
+    // Ambient: diffuse by the normal; specular by the reflected direction, where the
+    // cosine-filtered radiance (irradiance / pi) stands in for the prefiltered radiance: exact
+    // for the widest lobe and close for the rough concrete that fills these scenes.
+    vec3 r = reflect(-view_dir, n);
+    vec3 env_diffuse, env_specular;
+    if (u_ambient_sh) {
+        // The sky through its visibility. The ground's light through the point's mean
+        // openness, but at least a quarter of it: a point under the deck sees the ground the
+        // deck shades, and beyond it (for a deck as wide as it is high, about a quarter of
+        // the cosine-weighted view down) ground in full light.
+        vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
+        float ground = mix(0.25, 1.0, vis.y);
+        env_diffuse = (sh_sky(nw) * vis.x + sh_ground(nw) * ground) / PI;
+        env_specular = (sh_sky(rw) * vis.x + sh_ground(rw) * ground) / PI;
+    } else {
+        env_diffuse = mix(u_ground_color, u_sky_color, dot(n, u_up) * 0.5 + 0.5);
+        env_specular = mix(u_ground_color, u_sky_color, dot(r, u_up) * 0.5 + 0.5);
+    }
     vec3 f_env = f0 + (max(vec3(1.0 - roughness), f0) - f0) * pow(1.0 - nv, 5.0);
     vec3 ambient = (1.0 - metallic) * base.rgb * env_diffuse
                  + f_env * env_specular * (1.0 - 0.7 * roughness);
+    if (u_has_ao) ambient *= texelFetch(u_ao, ivec2(gl_FragCoord.xy), 0).r;
 
     vec3 emissive = u_emissive * srgb_to_linear(texture(u_emissive_map, v_uv).rgb);
-    f_color = vec4(tone_map((direct + ambient) * u_exposure + emissive), 1.0);
+    f_color = vec4(tone_map((direct + ambient + emissive) * u_exposure), 1.0);
 }

@@ -1,13 +1,20 @@
 #version 330 core
-// The background where no geometry is drawn: the sky colour through the shared tone map. The
-// renderer draws it once into one pixel and clears each colour target to that value.
+// The background where no geometry was drawn: the sky in this pixel's viewing direction,
+// through the shared tone map.
 #include "tonemap.glsl"
+#include "sky.glsl"
 
-uniform vec3 u_sky_color;  // linear RGB
+uniform vec4 u_intrinsics;      // fx, fy, cx, cy in pixels (image rows run top to bottom)
+uniform float u_height;         // image height in pixels
+uniform mat3 u_world_from_view;
 uniform float u_exposure;
 
 out vec4 f_color;
 
 void main() {
-    f_color = vec4(tone_map(u_sky_color * u_exposure), 1.0);
+    // Pixel centre (col, row) of the image, whose K has pixel centres at integers.
+    float col = gl_FragCoord.x - 0.5, row = u_height - gl_FragCoord.y - 0.5;
+    vec3 ray = vec3((col - u_intrinsics.z) / u_intrinsics.x,
+                    -(row - u_intrinsics.w) / u_intrinsics.y, -1.0);
+    f_color = vec4(tone_map(sky_radiance(normalize(u_world_from_view * ray)) * u_exposure), 1.0);
 }

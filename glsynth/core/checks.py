@@ -37,3 +37,8 @@ def check_vector(section: str, name: str, value: Any, size: int, lo: float, hi: 
           and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
     if not ok or not all(lo <= v <= hi for v in value):
         fail(section, name, value, f"{size} numbers in [{lo}, {hi}]")
+
+
+def check_choice(section: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        fail(section, name, value, "one of " + ", ".join(f'"{c}"' for c in choices))

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from glsynth.core import design
-from glsynth.core.checks import check_interval, check_number, check_vector, fail
+from glsynth.core.checks import check_choice, check_interval, check_number, check_vector, fail
 from glsynth.core.design import StandardDesign
 from glsynth.core.errors import UserError
 
@@ -141,13 +141,43 @@ class RenderConfig:
     znear_m: float = 0.05
     zfar_m: float = 2000.0
     """Also the depth of pixels that see no geometry (sky)."""
-    sun_elevation_deg: float = 50.0
-    sun_azimuth_deg: float = 30.0
-    """From +x (the initial track direction), counter-clockwise."""
-    sun_intensity: float = 3.0
+    sun_elevation_deg: tuple[float, float] = (20.0, 70.0)
+    """Range of the sun's elevation, drawn once per environment (docs/design.md, Lighting)."""
+    sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
+    """Range of the sun's azimuth, from +x (the initial track direction), counter-clockwise."""
+    sun_intensity: tuple[float, float] = (2.5, 3.5)
+    """Range of the sun's irradiance on a plane facing it (linear units; Blender's sun
+    strength)."""
+    sky: str = "preetham"
+    """Sky model: "preetham" (Blender's Preetham sky texture) or "uniform" (sky_rgb x
+    ambient_intensity everywhere)."""
+    turbidity: tuple[float, float] = (2.0, 4.0)
+    """Range of the Preetham sky's turbidity (2: very clear, 10: hazy)."""
+    sky_strength: float = 1.0
+    """Scale of the Preetham sky (the strength of Blender's Background node)."""
     ambient_intensity: float = 0.6
+    """Scale of the uniform sky, and of the hemisphere ambient light."""
     sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
-    """Background colour where no geometry is hit (linear RGB)."""
+    """Colour of the uniform sky and of the hemisphere ambient light (linear RGB)."""
+    ground_albedo: float = 0.2
+    """Albedo of the ground that lights surfaces from below in the SH ambient light."""
+    ambient: str = "sh"
+    """Ambient light of the rasterizer: "sh" (irradiance of the sky and the lit ground, as
+    spherical harmonics) or "hemisphere" (sky colour above, 0.35 x sky colour below)."""
+    ao: str = "ssao"
+    """Ambient occlusion of the rasterizer: "ssao" (screen space, from the label pass's depth)
+    or "off"."""
+    ao_radius_m: float = 1.0
+    """World radius within which geometry occludes ambient light."""
+    ao_samples: int = 16
+    sky_visibility_maps: int = 16
+    """Directions of the sky whose visibility the rasterizer bakes once per environment, as
+    orthographic depth maps (0: off): the sky light under the deck is then occluded by it."""
+    sky_visibility_px: int = 1024
+    """Side of each sky-visibility map."""
+    tone_map: str = "standard"
+    """Linear radiance x exposure to 8-bit sRGB: "standard" (clip, then the sRGB curve: Blender's
+    Standard view transform) or "exponential" (1 - exp(-x), then x ** (1 / 2.2))."""
     exposure: float = 1.0
     shadow_map_px: int = 2048
     """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
@@ -163,11 +193,23 @@ class RenderConfig:
             fail(s, "msaa", self.msaa, "one of 0, 2, 4, 8, 16")
         check_number(s, "znear_m", self.znear_m, 1e-4, 10.0)
         check_number(s, "zfar_m", self.zfar_m, self.znear_m, 1e7, lo_open=True)
-        check_number(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
-        check_number(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
-        check_number(s, "sun_intensity", self.sun_intensity, 0.0, 100.0)
+        check_interval(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
+        check_interval(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
+        check_interval(s, "sun_intensity", self.sun_intensity, 0.0, 100.0)
+        check_choice(s, "sky", self.sky, ("preetham", "uniform"))
+        check_interval(s, "turbidity", self.turbidity, 2.0, 10.0)
+        check_number(s, "sky_strength", self.sky_strength, 0.0, 100.0)
         check_number(s, "ambient_intensity", self.ambient_intensity, 0.0, 100.0)
         check_vector(s, "sky_rgb", self.sky_rgb, 3, 0.0, 1.0)
+        check_number(s, "ground_albedo", self.ground_albedo, 0.0, 1.0)
+        check_choice(s, "ambient", self.ambient, ("sh", "hemisphere"))
+        check_choice(s, "ao", self.ao, ("ssao", "off"))
+        check_number(s, "ao_radius_m", self.ao_radius_m, 0.01, 100.0)
+        check_number(s, "ao_samples", self.ao_samples, 1, 64, integer=True)
+        if self.sky_visibility_maps not in (0, 4, 9, 16):
+            fail(s, "sky_visibility_maps", self.sky_visibility_maps, "one of 0, 4, 9, 16")
+        check_number(s, "sky_visibility_px", self.sky_visibility_px, 64, 4096, integer=True)
+        check_choice(s, "tone_map", self.tone_map, ("standard", "exponential"))
         check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
         check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
         if 0 < self.shadow_map_px < 64:

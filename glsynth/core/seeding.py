@@ -20,6 +20,10 @@ class Stream(IntEnum):
     """Damage textures of the bank: shared by all environments of a root seed (env = 0)."""
     TRAINING = 6
     """Network training (env = 0): validation split, initial weights, shuffles, flips."""
+    LIGHTING = 7
+    """The sun and the sky of an environment."""
+    CYCLES = 8
+    """Cycles' sampling seed of one view (item = camera index; plates: 1,000,000 + N)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

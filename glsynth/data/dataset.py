@@ -172,7 +172,7 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
     counts = []
     for index in range(task.first, task.first + task.count):
         shot = plate_shot(config, root_seed, index, repository, bank)
-        renderer.load(shot.scene)
+        renderer.load(shot.scene, shot.lighting)
         clock.lap("plate damage textures")
         output = renderer.render(shot.camera, {"color", "damage"})
         clock.lap("render and read back")

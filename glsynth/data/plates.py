@@ -5,6 +5,7 @@ distance. Only the plate is built (nothing else is in the scene).
 Plate N draws from make_rng(root_seed, 0, PLATES, N): severity, bank index, in-plane rotation
 U[0, 2pi), tilt about a random in-plane axis U[0, max_tilt], focal length from the camera range,
 and a distance U[near, far] x the distance at which the plate would just span the image width.
+Its sun and sky are drawn like an environment's (glsynth.world.lighting, env 0, item N + 1).
 """
 
 import dataclasses
@@ -24,6 +25,7 @@ from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
+from glsynth.world.lighting import Lighting, environment_lighting
 
 MAX_TILT = math.radians(35.0)
 DISTANCE_RANGE = (0.4, 1.0)
@@ -36,6 +38,7 @@ class PlateShot:
     index: int
     scene: RenderScene
     camera: Camera
+    lighting: Lighting
     meta: dict
 
 
@@ -88,4 +91,5 @@ def plate_shot(config: Config, root_seed: int, index: int, repository: TextureRe
             "spin_rad": spin, "tilt_rad": tilt, "tilt_axis_rad": tilt_axis_angle,
             "focal_mm": float(focal), "distance_m": distance,
             "damage_params": dataclasses.asdict(entry.params), "images": list(entry.images)}
-    return PlateShot(index, scene, camera, meta)
+    lighting = environment_lighting(render, root_seed, 0, index + 1)
+    return PlateShot(index, scene, camera, lighting, meta)

@@ -11,6 +11,7 @@ A preset sets these knobs of a config (each documented in README.md):
 """
 
 import dataclasses
+import shutil
 import statistics
 import sys
 import time
@@ -21,7 +22,9 @@ import numpy as np
 
 from glsynth.core.config import Config
 from glsynth.core.errors import UserError
+from glsynth.core.fileio import png_bytes
 from glsynth.core.images import nearest_resize
+from glsynth.core.labels import Component
 
 
 @dataclass(frozen=True)
@@ -89,93 +92,248 @@ def label_scores(output, truth, zfar: float) -> dict:
                                                      (truth.damage >= 2).mean()))}
 
 
-def compare(output, reference, zfar: float) -> dict:
-    """Colour PSNR/SSIM and the label scores of one view against the reference preset's."""
+def colour_scores(image: np.ndarray, reference: np.ndarray, component: np.ndarray) -> dict:
+    """Colour of one image against a reference of the same size: PSNR, SSIM, mean CIEDE2000,
+    and mean CIEDE2000 inside the regions that matter: columns, the deck seen from below (slab
+    and beam pixels), and shadowed areas (reference luminance below half its median over
+    geometry)."""
+    from skimage.color import deltaE_ciede2000, rgb2lab
     from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
-    color = _upsample(output.color, reference.component.shape, nearest=False)
-    identical = np.array_equal(reference.color, color)  # PSNR is infinite: report 99 dB
-    psnr = 99.0 if identical else peak_signal_noise_ratio(reference.color, color, data_range=255)
+    identical = np.array_equal(reference, image)  # PSNR is infinite: report 99 dB
+    psnr = 99.0 if identical else peak_signal_noise_ratio(reference, image, data_range=255)
+    delta = deltaE_ciede2000(rgb2lab(reference), rgb2lab(image))
+    luminance = reference.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    geometry = component != Component.NONBRIDGE
+    dark = luminance < 0.5 * np.median(luminance[geometry]) if geometry.any() else geometry
+    regions = {"columns": component == Component.COLUMN,
+               "deck_underside": (component == Component.SLAB) | (component == Component.BEAM),
+               "shadowed": dark}
     return {"psnr_db": float(min(psnr, 99.0)),
-            "ssim": float(structural_similarity(reference.color, color, channel_axis=2,
+            "ssim": float(structural_similarity(reference, image, channel_axis=2,
                                                 data_range=255)),
-            **label_scores(output, reference, zfar)}
+            "ciede2000": float(delta.mean()),
+            **{f"ciede2000_{name}": float(delta[m].mean()) if m.any() else None
+               for name, m in regions.items()}}
 
 
-def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int],
-                  out: Path, presets: list[str] | None = None) -> dict:
-    """Render the same views under each preset; time them and compare with 'reference' and
-    with an Embree ray cast of the reference scene (labels and depth)."""
-    from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+def area_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Colour to (width, height) by pixel-area averaging (OpenCV INTER_AREA)."""
+    import cv2
+
+    if image.shape[1::-1] == tuple(size):
+        return image
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+
+
+def _median_scores(scores: list[dict]) -> dict:
+    keys = scores[0].keys()
+    return {k: (statistics.median(s[k] for s in scores)
+                if all(s[k] is not None for s in scores) else None) for k in keys}
+
+
+@dataclass
+class _PresetRun:
+    renders: list
+    placements: list
+    time_per_sample_s: float
+    row: dict
+
+
+def _run_preset(config: Config, name: str, root_seed: int, env: int, cameras: list[int],
+                keep_scene: bool) -> tuple[_PresetRun, dict | None]:
     from glsynth.render.raycast import ray_cast
     from glsynth.render.view import EnvironmentView
 
+    cfg = apply_quality(config, name)
+    t0 = time.perf_counter()
+    view = EnvironmentView.open(cfg, root_seed, env)
+    opened = time.perf_counter() - t0
+    renders, times, placements = [], [], []
+    scene = None
+    try:
+        view.render(cameras[0])  # warm-up: shader compilation and first texture use
+        for index in cameras:
+            t = time.perf_counter()
+            placement, output = view.render(index)
+            times.append(time.perf_counter() - t)
+            renders.append(output)
+            placements.append(placement)
+        if keep_scene:
+            parts = [p for p in view.environment.parts if p.name in view.scene.parts]
+            scene = {"parts": parts, "materials": view.dressing.materials,
+                     "lighting": view.lighting, "render": cfg.render,
+                     "truths": [ray_cast(view.environment.parts, view.dressing.materials,
+                                         p.camera) for p in placements]}
+    finally:
+        view.renderer.release()
+    render_s = statistics.median(times)
+    per_sample = render_s + opened / cfg.cameras.total
+    row = {**dataclasses.asdict(QUALITY[name]), "width": cfg.render.width,
+           "height": cfg.render.height, "render_s": render_s, "open_s": opened,
+           "time_per_sample_s": per_sample}
+    return _PresetRun(renders, placements, per_sample, row), scene
+
+
+def _cycles_renders(scene: dict, placements: list, samples: int, seed_offset: int,
+                    size: tuple[int, int], root_seed: int, env: int, work: Path,
+                    blender: str) -> tuple[list[np.ndarray], list[float]]:
+    """Cycles images of the reference scene's views at ``size``, tone-mapped as glsynth's."""
+    from glsynth.render.cycles import cycles_seed, display, render_linear
+
+    cams = [dataclasses.replace(p.camera, width=size[0], height=size[1]) for p in placements]
+    seeds = [cycles_seed(root_seed, env, p.index) + seed_offset for p in placements]
+    result = render_linear(scene["parts"], scene["materials"], scene["lighting"],
+                           scene["render"], cams, seeds, samples, work, blender)
+    return ([display(x, scene["lighting"], scene["render"]) for x in result.linear],
+            result.colour_s)
+
+
+def _cycles_timing(scene: dict, placement, root_seed: int, env: int, work: Path,
+                   blender: str) -> dict:
+    """Cycles' time for one 1920x1080 view as fixed + per sample: the view at 1, 1 and 4
+    samples in one process (the first render loads the scene; the next two are timed)."""
+    from glsynth.render.cycles import cycles_seed, render_linear
+
+    cam = dataclasses.replace(placement.camera, width=1920, height=1080)
+    seed = cycles_seed(root_seed, env, placement.index)
+    result = render_linear(scene["parts"], scene["materials"], scene["lighting"],
+                           scene["render"], [cam] * 3, [seed] * 3, [1, 1, 4], work, blender)
+    _, one, four = result.colour_s
+    per_sample = max(four - one, 0.0) / 3
+    return {"fixed_s": one - per_sample, "per_sample_s": per_sample,
+            "first_render_s": result.colour_s[0], "import_s": result.import_s}
+
+
+def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], out: Path,
+                  presets: list[str] | None = None, blender: str | None = None,
+                  size: tuple[int, int] = (480, 270), reference_samples: int = 128,
+                  cycles_samples: tuple[int, ...] = (1, 4, 16, 64)) -> dict:
+    """Render the same views under each preset and time them. Colour is scored at ``size``
+    against Cycles at ``reference_samples`` when ``blender`` is given (else against the
+    'reference' preset); labels and depth against an Embree ray cast of the reference
+    preset's scene. With Blender, the reference is rendered twice with different seeds (its
+    noise floor) and Cycles at each of ``cycles_samples`` joins the time axis."""
+    from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+
     presets = presets or list(QUALITY)
     order = ["reference"] + [p for p in presets if p != "reference"]
-    outputs, rows, truths = {}, {}, []
+    runs: dict[str, _PresetRun] = {}
+    scene = None
     for name in order:
-        cfg = apply_quality(config, name)
-        t0 = time.perf_counter()
-        view = EnvironmentView.open(cfg, root_seed, env)
-        opened = time.perf_counter() - t0
-        renders, times, placements = [], [], []
-        try:
-            for index in cameras:
-                t = time.perf_counter()
-                placement, output = view.render(index)
-                times.append(time.perf_counter() - t)
-                renders.append(output)
-                placements.append(placement)
-            if name == "reference":
-                parts, materials = view.environment.parts, view.dressing.materials
-                truths = [ray_cast(parts, materials, p.camera) for p in placements]
-        finally:
-            view.renderer.release()
-        outputs[name] = renders
-        n_cameras = cfg.cameras.total
-        render_s = statistics.median(times)
-        rows[name] = {**dataclasses.asdict(QUALITY[name]),
-                      "width": cfg.render.width, "height": cfg.render.height,
-                      "render_s": render_s, "open_s": opened,
-                      "time_per_sample_s": render_s + opened / n_cameras}
+        runs[name], kept = _run_preset(config, name, root_seed, env, cameras,
+                                       keep_scene=name == "reference")
+        scene = kept or scene
+    reference_run = runs["reference"]
+    components = [nearest_resize(o.component, size[::-1]) for o in reference_run.renders]
+    cycles_rows: dict[str, dict] = {}
+    if blender is not None:
+        work = out / "cycles_work"
+        reference, ref_times = _cycles_renders(scene, reference_run.placements,
+                                               reference_samples, 0, size, root_seed, env,
+                                               work, blender)
+        second, _ = _cycles_renders(scene, reference_run.placements, reference_samples,
+                                    1_000_003, size, root_seed, env, work, blender)
+        floor = _median_scores([colour_scores(b, a, c)
+                                for a, b, c in zip(reference, second, components)])
+        timing = _cycles_timing(scene, reference_run.placements[0], root_seed, env, work,
+                                blender)
+        for n in cycles_samples:
+            images, times = _cycles_renders(scene, reference_run.placements, n, 2_000_006,
+                                            size, root_seed, env, work, blender)
+            cycles_rows[str(n)] = {
+                "samples": n, "render_s_at_size": statistics.median(times),
+                "time_per_sample_s": timing["fixed_s"] + timing["per_sample_s"] * n,
+                **_median_scores([colour_scores(i, r, c)
+                                  for i, r, c in zip(images, reference, components)])}
+            atomic_write_bytes(out / f"cycles_{n}spp.png", png_bytes(images[0]))
+        shutil.rmtree(work, ignore_errors=True)
+        atomic_write_bytes(out / "cycles_reference.png", png_bytes(reference[0]))
+        reference_name = f"Cycles {reference_samples} samples"
+    else:
+        reference = [area_resize(o.color, size) for o in reference_run.renders]
+        floor, ref_times, timing = None, [], None
+        reference_name = "glsynth 'reference' preset"
     zfar = config.render.zfar_m
-    for name in order:
-        scores = [compare(o, r, zfar) for o, r in zip(outputs[name], outputs["reference"])]
-        rows[name].update({k: statistics.median(s[k] for s in scores) for k in scores[0]})
-        truth = [label_scores(o, t, zfar) for o, t in zip(outputs[name], truths)]
-        rows[name]["vs_raycast"] = {k: statistics.median(s[k] for s in truth) for k in truth[0]}
+    rows = {}
+    for name in presets:
+        run = runs[name]
+        images = [area_resize(o.color, size) for o in run.renders]
+        rows[name] = {**run.row, **_median_scores(
+            [colour_scores(i, r, c) for i, r, c in zip(images, reference, components)])}
+        truth = [label_scores(o, t, zfar) for o, t in zip(run.renders, scene["truths"])]
+        rows[name]["vs_raycast"] = _median_scores(truth)
+        if name == "default":
+            d = images[0]
+            diff = np.clip(np.abs(d.astype(int) - reference[0].astype(int)) * 4, 0, 255)
+            atomic_write_bytes(out / "side_by_side.png", png_bytes(np.concatenate(
+                [d, reference[0], diff.astype(np.uint8)], axis=1)))
+    lighting = scene["lighting"]
     result = {"command": " ".join(["glsynth", *sys.argv[1:]]), "root_seed": root_seed,
-              "env": env, "cameras": cameras,
-              "note": "time_per_sample_s = median render + environment opening / cameras "
-                      "per environment; vs_raycast: labels and depth against an Embree ray "
-                      "cast of the reference preset's scene",
-              "presets": {p: rows[p] for p in presets}}
+              "env": env, "cameras": cameras, "size": list(size),
+              "reference": reference_name, "reference_samples": reference_samples,
+              "reference_render_s_at_size": (statistics.median(ref_times) if ref_times
+                                             else None),
+              "noise_floor": floor, "cycles_1080p_timing": timing,
+              "lighting": dataclasses.asdict(lighting),
+              "render_knobs": {k: getattr(config.render, k) for k in LIGHTING_KNOBS},
+              "note": "time_per_sample_s: glsynth = median render at the preset's own size + "
+                      "environment opening / cameras per environment; Cycles = fixed + "
+                      "per-sample time of a 1920x1080 render of the first view, measured at 1 "
+                      "and 4 samples with the scene already loaded. Colour compared "
+                      "at the comparison size (glsynth area-averaged down to it); "
+                      "vs_raycast: labels and depth against an Embree ray cast of the "
+                      "reference preset's scene",
+              "presets": rows, "cycles": cycles_rows}
     atomic_write_json(out / "quality.json", result)
     atomic_write_bytes(out / "quality.md", quality_table(result).encode())
     plot_trade_curve(result, out / "quality.png")
     return result
 
 
+LIGHTING_KNOBS = ("sky", "ambient", "ao", "ao_radius_m", "ao_samples", "tone_map",
+                  "shadow_map_px")
+"""The [render] lighting settings a quality run records beside its numbers."""
+
+
+def _fmt(value: float | None, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
 def quality_table(result: dict) -> str:
-    head = ("| preset | size | msaa | textures | damage px | octaves | segments | shadow map "
-            "| time/sample | PSNR | SSIM | component agree | damage agree | depth rel err "
-            "| area err |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
-    lines = [f"| {name} | {r['width']}x{r['height']} | {r['msaa']} | {r['texture_size']} | "
-             f"{r['damage_resolution']} | {r['octaves']} | {r['cylinder_segments']} | "
-             f"{r['shadow_map_px'] or 'off'} | "
-             f"{r['time_per_sample_s']:.3f} s | {r['psnr_db']:.1f} dB | {r['ssim']:.3f} | "
-             f"{100 * r['component_agreement']:.2f} % | {100 * r['damage_agreement']:.2f} % | "
-             f"{r['depth_median_rel_error']:.1e} | {r['damaged_area_error_pp']:.3f} pp |"
-             for name, r in result["presets"].items()]
-    truth = ("\nAgainst the Embree ray cast of the reference scene (pixel centres, nearest "
-             "texel of the damage masks):\n\n| preset | component agree | damage agree "
-             "| depth rel err | area err |\n|---|---|---|---|---|\n")
-    truth += "\n".join(
-        f"| {name} | {100 * t['component_agreement']:.2f} % | "
-        f"{100 * t['damage_agreement']:.2f} % | {t['depth_median_rel_error']:.1e} | "
-        f"{t['damaged_area_error_pp']:.3f} pp |"
-        for name, t in ((n, r["vs_raycast"]) for n, r in result["presets"].items()))
-    return head + "\n".join(lines) + "\n" + truth + "\n"
+    lines = [f"Colour against {result['reference']} at {result['size'][0]}x"
+             f"{result['size'][1]}; lighting knobs {result['render_knobs']}.", "",
+             "| renderer | size | msaa | textures | damage px | shadow map | time/sample "
+             "| PSNR | SSIM | CIEDE2000 | columns | deck underside | shadowed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, r in result["presets"].items():
+        lines.append(
+            f"| glsynth {name} | {r['width']}x{r['height']} | {r['msaa']} | "
+            f"{r['texture_size']} | {r['damage_resolution']} | {r['shadow_map_px'] or 'off'} "
+            f"| {r['time_per_sample_s']:.3f} s | {r['psnr_db']:.1f} dB | {r['ssim']:.3f} | "
+            f"{r['ciede2000']:.2f} | {_fmt(r['ciede2000_columns'], '.2f')} | "
+            f"{_fmt(r['ciede2000_deck_underside'], '.2f')} | "
+            f"{_fmt(r['ciede2000_shadowed'], '.2f')} |")
+    for n, r in result["cycles"].items():
+        lines.append(
+            f"| Cycles {n} spp | 1920x1080 | - | - | - | - | "
+            f"{r['time_per_sample_s']:.1f} s | {r['psnr_db']:.1f} dB | "
+            f"{r['ssim']:.3f} | {r['ciede2000']:.2f} | {_fmt(r['ciede2000_columns'], '.2f')} "
+            f"| {_fmt(r['ciede2000_deck_underside'], '.2f')} | "
+            f"{_fmt(r['ciede2000_shadowed'], '.2f')} |")
+    if result["noise_floor"]:
+        f = result["noise_floor"]
+        lines += ["", f"Noise floor (the reference against itself, another seed): CIEDE2000 "
+                  f"{f['ciede2000']:.2f}, PSNR {f['psnr_db']:.1f} dB, SSIM {f['ssim']:.3f}."]
+    truth = ["", "Labels and depth against the Embree ray cast of the reference scene (pixel "
+             "centres, nearest texel of the damage masks):", "",
+             "| preset | component agree | damage agree | depth rel err | area err |",
+             "|---|---|---|---|---|"]
+    truth += [f"| {name} | {100 * t['component_agreement']:.2f} % | "
+              f"{100 * t['damage_agreement']:.2f} % | {t['depth_median_rel_error']:.1e} | "
+              f"{t['damaged_area_error_pp']:.3f} pp |"
+              for name, t in ((n, r["vs_raycast"]) for n, r in result["presets"].items())]
+    return "\n".join(lines + truth) + "\n"
 
 
 def plot_trade_curve(result: dict, path: Path) -> None:
@@ -183,23 +341,34 @@ def plot_trade_curve(result: dict, path: Path) -> None:
 
     from glsynth.core.plots import save_figure
 
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5), layout="constrained")
     names = list(result["presets"])
     rows = [result["presets"][n] for n in names]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
     x = [r["time_per_sample_s"] for r in rows]
-    # The reference against itself has no finite PSNR: left out of the colour panel.
-    colour = [(n, xi, r["psnr_db"]) for n, xi, r in zip(names, x, rows) if r["psnr_db"] < 99]
-    a.plot([c[1] for c in colour], [c[2] for c in colour], "o-")
-    for name, xi, psnr in colour:
-        a.annotate(name, (xi, psnr), textcoords="offset points", xytext=(4, 4))
+    a.plot(x, [r["ciede2000"] for r in rows], "o-", label="glsynth presets")
+    for name, xi, r in zip(names, x, rows):
+        a.annotate(name, (xi, r["ciede2000"]), textcoords="offset points", xytext=(4, 4))
+    if result["cycles"]:
+        cyc = list(result["cycles"].values())
+        a.plot([c["time_per_sample_s"] for c in cyc], [c["ciede2000"] for c in cyc], "s-",
+               label="Cycles")
+        for c in cyc:
+            a.annotate(f"{c['samples']} spp", (c["time_per_sample_s"], c["ciede2000"]),
+                       textcoords="offset points", xytext=(4, 4))
+    if result["noise_floor"]:
+        a.axhline(result["noise_floor"]["ciede2000"], color="grey", ls=":",
+                  label="reference noise floor")
+    a.set_xscale("log")
+    a.set_xlabel("time per 1920x1080 sample [s]")
+    a.set_ylabel(f"mean CIEDE2000 vs {result['reference']}")
+    a.legend()
     b.plot(x, [100 * r["vs_raycast"]["component_agreement"] for r in rows], "o-",
            label="components")
     b.plot(x, [100 * r["vs_raycast"]["damage_agreement"] for r in rows], "s-", label="damage")
     for name, xi, r in zip(names, x, rows):
         b.annotate(name, (xi, 100 * r["vs_raycast"]["component_agreement"]),
                    textcoords="offset points", xytext=(4, 4))
-    a.set_xlabel("time per sample [s]"), a.set_ylabel("colour PSNR vs reference [dB]")
     b.set_xlabel("time per sample [s]"), b.set_ylabel("label agreement vs ray cast [%]")
     b.legend()
-    fig.suptitle("glsynth quality presets: speed against accuracy")
+    fig.suptitle("speed against accuracy: glsynth presets and Cycles")
     save_figure(fig, path)

@@ -4,16 +4,14 @@ and by glsynth, compared in time, component labels and depth.
 Optional: Blender is found as ``blender`` on PATH (Debian package ``blender``) or given with
 ``--blender``; without it the command says so and measures nothing. The environment is
 exported as glTF (only the parts glsynth uploads for that environment) and rendered in a
-Blender subprocess by glsynth/render/blender_job.py. Blender's colour uses the export's flat
-preview materials, so its time is that of Cycles on this geometry, not on the PBR textures;
-colour is not compared. Damage labels are not compared either (the export has no damage masks).
+Blender subprocess by glsynth/render/blender_job.py, lit as glsynth lights it. Blender's
+colour uses the export's flat preview materials, so its time is that of Cycles on this
+geometry, not on the PBR textures; colour is not compared here (``glsynth bench quality`` does,
+with the real materials). Damage labels are not compared either (the export has no damage masks).
 """
 
 import dataclasses
-import json
-import shutil
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -21,25 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.config import Config
-from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
-from glsynth.render.export import preview_materials
+from glsynth.render.cycles import camera_json, cycles_seed, run_job
+from glsynth.render.export import describe_lighting, preview_materials
 from glsynth.render.gltf import gltf_binary
-from glsynth.world.sunlight import sun_direction
-
-JOB = Path(__file__).with_name("blender_job.py")
-
-
-def find_blender(path: str | None = None) -> str | None:
-    """The Blender executable: ``path`` if given (an error if it is not there), else PATH."""
-    if path is None:
-        return shutil.which("blender")
-    found = shutil.which(path)
-    if found is None:
-        raise UserError(f"--blender {path!r}: no such executable; give the path of Blender, "
-                        "or leave it out to use `blender` from PATH")
-    return found
 
 
 def read_pass(path: Path, size: list[int]) -> np.ndarray:
@@ -86,22 +70,13 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
     atomic_write_bytes(glb, gltf_binary(shown.parts, preview_materials(shown.parts)))
     cam = placement.camera
     render = config.render
-    job = {"glb": str(glb), "out": str(out), "samples": samples,
-           "camera": {"pose": cam.pose.tolist(), "focal_mm": cam.focal_mm,
-                      "sensor_mm": cam.sensor_mm, "width": cam.width, "height": cam.height,
-                      "znear": cam.znear, "zfar": cam.zfar},
-           "sun_direction": sun_direction(render).tolist(), "sun_strength": render.sun_intensity,
-           "sky_rgb": list(render.sky_rgb), "sky_strength": render.ambient_intensity}
-    atomic_write_json(out / "job.json", job)
+    job = {"mode": "bench", "glb": str(glb), "out": str(out), "samples": samples,
+           "cameras": [camera_json(cam)],
+           "seeds": [cycles_seed(root_seed, env, camera_index)],
+           "lighting": describe_lighting(view.lighting, render)}
     t = time.perf_counter()
-    done = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",
-                           "-P", str(JOB), "--", str(out / "job.json")],
-                          capture_output=True, text=True, timeout=timeout_s)
+    blender_times = run_job(blender, job, out, timeout_s)
     process_s = time.perf_counter() - t
-    if done.returncode != 0:
-        tail = "\n".join((done.stdout + done.stderr).splitlines()[-15:])
-        raise RuntimeError(f"Blender failed (exit {done.returncode}):\n{tail}")
-    blender_times = json.loads((out / "blender_times.json").read_text())
     sizes, version = blender_times.pop("sizes"), blender_times.pop("blender")
     passes = {name: read_pass(out / f"blender_{name}.f32", sizes[name])
               for name in ("labels", "depth")}

@@ -1,16 +1,24 @@
 """Runs inside Blender (``blender -b --factory-startup -P blender_job.py -- job.json``), never
-imported by glsynth: renders one exported environment from one glsynth camera in Cycles.
+imported by glsynth: renders an exported environment from glsynth cameras in Cycles.
 
-For each sample count it renders colour (the glTF's flat preview materials, glsynth's sun and
-sky) and times ``bpy.ops.render.render``. Then one label render: every material becomes an
-emission of strength = component id, 1 sample with a 0.01 px box filter (so each pixel sees its
-centre), no bounces, written with the Z pass (distance along the optical axis) to float EXR,
-and saved as raw float32 RGBA (bottom row first), as Debian's Blender has no numpy.
-glsynth's export keeps world coordinates through glTF's y-up (Blender's importer turns it
-back), so the camera pose is used as it is.
+The scene: the job's glTF (the importer keeps glsynth's z-up world; a light in the file is
+removed), glsynth's sun (a Blender sun lamp of the environment's irradiance and the real sun's
+0.526 deg disc) and sky (Blender's Sky Texture of type Preetham, or a uniform Background).
+Every render is Cycles on the CPU, seeded, without denoising or adaptive sampling.
+
+job["mode"]:
+- "twin": for each camera, colour at its job["samples"] with a 1-pixel box filter (the pixel area,
+  as glsynth's multisample resolve), saved as linear float (OpenEXR, read back here and written
+  raw); glsynth applies exposure and its tone map.
+- "bench": colour (8-bit PNG, Blender's view transform) at each sample count of job["samples"]
+  for timing, then one label render: every material becomes an emission of strength =
+  component id, 1 sample with a 0.01 px box filter (each pixel sees its centre), no bounces,
+  written with the Z pass (distance along the optical axis).
+Raw outputs are float32 RGBA, bottom row first, as Debian's Blender has no numpy.
 """
 
 import json
+import math
 import sys
 import time
 from array import array
@@ -29,12 +37,7 @@ def patch_numpy_for_gltf_importer() -> None:
         numpy.bool = numpy.bool_
 
 
-def setup_scene(job: dict) -> bpy.types.Scene:
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    patch_numpy_for_gltf_importer()
-    bpy.ops.import_scene.gltf(filepath=job["glb"])
-    scene = bpy.context.scene
-    cam = job["camera"]
+def add_camera(scene: bpy.types.Scene, cam: dict) -> bpy.types.Object:
     data = bpy.data.cameras.new("glsynth")
     data.sensor_fit = "HORIZONTAL"
     data.sensor_width, data.lens = cam["sensor_mm"], cam["focal_mm"]
@@ -42,24 +45,87 @@ def setup_scene(job: dict) -> bpy.types.Scene:
     camera = bpy.data.objects.new("glsynth", data)
     camera.matrix_world = Matrix(cam["pose"])  # world-from-camera, looking down -z, as Blender
     scene.collection.objects.link(camera)
-    scene.camera = camera
-    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
-    sun.data.energy = job["sun_strength"]
-    sun.rotation_euler = (-Vector(job["sun_direction"])).to_track_quat("-Z", "Y").to_euler()
-    scene.collection.objects.link(sun)
+    return camera
+
+
+def add_light(scene: bpy.types.Scene, light: dict) -> None:
+    for obj in [o for o in scene.objects if o.type == "LIGHT"]:
+        bpy.data.objects.remove(obj)
+    if light["sun_irradiance"] > 0:
+        sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+        sun.data.energy = light["sun_irradiance"]
+        sun.data.angle = math.radians(0.526)
+        sun.rotation_euler = (-Vector(light["sun_direction_zup"])).to_track_quat(
+            "-Z", "Y").to_euler()
+        scene.collection.objects.link(sun)
     world = bpy.data.worlds.new("sky")
     world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*job["sky_rgb"], 1.0)
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = job["sky_strength"]
+    nodes = world.node_tree.nodes
+    background = nodes["Background"]
+    background.inputs["Strength"].default_value = light["sky_strength"]
+    if light["sky"] == "preetham":
+        sky = nodes.new("ShaderNodeTexSky")
+        sky.sky_type = "PREETHAM"
+        sky.turbidity = light["preetham_turbidity"]
+        sky.sun_direction = light["preetham_sun_direction_zup"]
+        world.node_tree.links.new(sky.outputs["Color"], background.inputs["Color"])
+    else:
+        background.inputs["Color"].default_value = (*light["uniform_sky_rgb_linear"], 1.0)
     scene.world = world
+
+
+def setup_scene(job: dict) -> bpy.types.Scene:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    patch_numpy_for_gltf_importer()
+    bpy.ops.import_scene.gltf(filepath=job["glb"])
+    scene = bpy.context.scene
+    add_light(scene, job["lighting"])
+    cam = job["cameras"][0]
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.use_denoising = False
+    scene.cycles.use_animated_seed = False
     scene.render.resolution_x, scene.render.resolution_y = cam["width"], cam["height"]
     scene.render.resolution_percentage = 100
     scene.render.threads_mode = "AUTO"
+    scene.render.film_transparent = False
     return scene
+
+
+def read_raw(path: Path) -> tuple[bytes, list[int]]:
+    image = bpy.data.images.load(str(path))
+    pixels = array("f", bytes(4 * len(image.pixels)))
+    image.pixels.foreach_get(pixels)
+    size = list(image.size)
+    bpy.data.images.remove(image)
+    return pixels.tobytes(), size
+
+
+def render_twin(scene: bpy.types.Scene, job: dict, out: Path) -> dict:
+    # Keep the synchronised scene (BVH, images) between this job's renders.
+    scene.render.use_persistent_data = True
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 1.0
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.image_settings.color_mode = "RGBA"
+    times, sizes = [], []
+    for i, (cam, seed, samples) in enumerate(zip(job["cameras"], job["seeds"],
+                                                 job["samples"])):
+        scene.camera = add_camera(scene, cam)
+        scene.cycles.seed = seed
+        scene.cycles.samples = samples
+        path = out / f"cycles_{i}.exr"
+        scene.render.filepath = str(path)
+        t0 = time.perf_counter()
+        bpy.ops.render.render(write_still=True)
+        times.append(time.perf_counter() - t0)
+        data, size = read_raw(path)
+        (out / f"cycles_{i}.f32").write_bytes(data)
+        sizes.append(size)
+        path.unlink()
+    return {"colour_s": times, "sizes": sizes}
 
 
 def render_colour(scene: bpy.types.Scene, samples: int, path: Path) -> float:
@@ -129,11 +195,8 @@ def render_labels(scene: bpy.types.Scene, out: Path) -> dict:
     sizes = {}
     for name in ("labels", "depth"):
         path = out / f"{name}{frame:04d}.exr"
-        image = bpy.data.images.load(str(path))
-        pixels = array("f", bytes(4 * len(image.pixels)))
-        image.pixels.foreach_get(pixels)
-        (out / f"blender_{name}.f32").write_bytes(pixels.tobytes())
-        sizes[name] = list(image.size)
+        data, sizes[name] = read_raw(path)
+        (out / f"blender_{name}.f32").write_bytes(data)
         path.unlink()
     return {"labels_depth_s": elapsed, "sizes": sizes}
 
@@ -144,11 +207,15 @@ def main() -> None:
     t0 = time.perf_counter()
     scene = setup_scene(job)
     times = {"blender": f"Blender {bpy.app.version_string}",
-             "import_s": time.perf_counter() - t0, "colour_s": {}}
-    for samples in job["samples"]:
-        times["colour_s"][str(samples)] = render_colour(scene, samples,
-                                                        out / f"blender_{samples}spp.png")
-    times.update(render_labels(scene, out))
+             "import_s": time.perf_counter() - t0}
+    if job["mode"] == "twin":
+        times.update(render_twin(scene, job, out))
+    else:
+        scene.camera = add_camera(scene, job["cameras"][0])
+        scene.cycles.seed = job["seeds"][0]
+        times["colour_s"] = {str(n): render_colour(scene, n, out / f"blender_{n}spp.png")
+                             for n in job["samples"]}
+        times.update(render_labels(scene, out))
     (out / "blender_times.json").write_text(json.dumps(times))
 
 

@@ -2,7 +2,8 @@
 
 glTF is y-up; glsynth is z-up (as Blender, whose camera Euler angles the paper uses). Each node's
 transform therefore includes the rotation (x, y, z) -> (x, z, -y). scene.json keeps glsynth's
-z-up world coordinates and says so, and describes the sky and exposure that glTF cannot hold.
+z-up world coordinates and says so, and describes the sky, exposure and tone map that glTF
+cannot hold.
 """
 
 import dataclasses
@@ -19,8 +20,9 @@ from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
 from glsynth.render.gltf import gltf_binary
+from glsynth.render.tonemap import TONE_MAP_FORMULA
 from glsynth.world.environment import Environment, Part
-from glsynth.world.sunlight import sun_direction
+from glsynth.world.lighting import Lighting
 
 # Flat colours per component, for viewing the geometry without the dressing (and for Blender's
 # label renders, which replace every material anyway).
@@ -82,34 +84,40 @@ def describe(env: Environment) -> dict[str, Any]:
     }
 
 
-def lighting(render: RenderConfig) -> dict[str, Any]:
-    """The scene.json description of what lights the scene beyond the glTF's sun."""
-    return {"sun_direction_zup": sun_direction(render).tolist(),
-            "sun_elevation_deg": render.sun_elevation_deg,
-            "sun_azimuth_deg": render.sun_azimuth_deg, "sun_intensity": render.sun_intensity,
-            "sky_rgb_linear": list(render.sky_rgb), "ambient_intensity": render.ambient_intensity,
-            "exposure": render.exposure,
-            "tone_map": "x * exposure (+ emission), then 1 - exp(-x), then x ** (1 / 2.2)"}
+def describe_lighting(light: Lighting, render: RenderConfig) -> dict[str, Any]:
+    """The scene.json description of what lights the scene beyond the glTF's sun: enough to
+    rebuild the sky and the tone map (glsynth.world.lighting, glsynth.render.tonemap)."""
+    return {"sun_direction_zup": light.sun_direction.tolist(),
+            "sun_elevation_deg": light.sun_elevation_deg,
+            "sun_azimuth_deg": light.sun_azimuth_deg, "sun_irradiance": light.sun_irradiance,
+            "sky": light.sky, "sky_strength": light.sky_strength,
+            "preetham_turbidity": light.turbidity,
+            "preetham_sun_direction_zup": light.sky_sun_direction.tolist(),
+            "uniform_sky_rgb_linear": list(light.sky_rgb),
+            "exposure": light.exposure, "tone_map": render.tone_map,
+            "tone_map_formula": TONE_MAP_FORMULA[render.tone_map]}
 
 
 def export_environment(env: Environment, out: str | Path,
                        materials: Mapping[str, Material] | None = None,
-                       render: RenderConfig | None = None) -> tuple[Path, Path]:
+                       render: RenderConfig | None = None,
+                       light: Lighting | None = None) -> tuple[Path, Path]:
     """Write ``out`` (.glb) and scene.json beside it; both atomically. With ``materials`` (the
-    dressing) and ``render`` (its sun, sky and exposure) the export is the scene as glsynth
-    renders it; without, flat colours per component and no light."""
+    dressing), ``render`` and ``light`` (the environment's sun, sky and exposure) the export is
+    the scene as glsynth renders it; without, flat colours per component and no light."""
     out = Path(out)
     if out.suffix.lower() != ".glb":
         raise UserError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
                         "in .glb")
-    sun = None if render is None else sun_direction(render)
-    data = gltf_binary(env.parts, materials or preview_materials(env.parts), sun,
-                       render.sun_intensity if render is not None else 1.0)
+    lit = render is not None and light is not None
+    data = gltf_binary(env.parts, materials or preview_materials(env.parts),
+                       light.sun_direction if lit else None,
+                       light.sun_irradiance if lit else 1.0)
     atomic_write_bytes(out, data)
     json_path = out.with_name("scene.json")
     info = describe(env)
     info["materials"] = "dressed" if materials else "flat colours per component"
-    if render is not None:
-        info["lighting"] = lighting(render)
+    if lit:
+        info["lighting"] = describe_lighting(light, render)
     atomic_write_json(json_path, info)
     return out, json_path

@@ -19,6 +19,7 @@ from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import CameraPlacement, environment_camera
 from glsynth.world.environment import Environment, build_environment
+from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import shadowing_parts, visible_parts
 
 
@@ -30,6 +31,7 @@ class EnvironmentView:
     environment: Environment
     dressing: Dressing
     scene: RenderScene
+    lighting: Lighting
     renderer: Renderer
 
     @classmethod
@@ -48,15 +50,16 @@ class EnvironmentView:
         n_cameras = config.cameras.total
         cameras = [environment_camera(env.trajectory, config.cameras, config.render,
                                       root_seed, env_index, i).camera for i in range(n_cameras)]
+        lighting = environment_lighting(config.render, root_seed, env_index)
         visible = visible_parts(env.parts, cameras)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
-        needed = visible | shadowing_parts(env.parts, cameras, config.render)
+        needed = visible | shadowing_parts(env.parts, cameras, config.render, lighting)
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts
         scene = build_scene(parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
-        renderer.load(scene)
-        return cls(config, env, dressing, scene, renderer)
+        renderer.load(scene, lighting)
+        return cls(config, env, dressing, scene, lighting, renderer)
 
     def camera(self, index: int) -> CameraPlacement:
         cfg = self.config

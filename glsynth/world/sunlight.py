@@ -1,4 +1,4 @@
-"""The sun: its direction, and the orthographic shadow-map frustum fitted to one camera. No GL.
+"""The sun's shadow: the orthographic shadow-map frustum fitted to one camera. No GL.
 
 The shadow map covers the part of the camera's view frustum nearer than
 ``[render] shadow_distance_m``; beyond it everything is lit. Its depth range is that part's
@@ -8,18 +8,10 @@ it. The matrix thus depends on the camera alone, not on which parts were uploade
 can cast a shadow into some camera's view is answered here as well, so that culling keeps them.
 """
 
-import math
-
 import numpy as np
 
 from glsynth.core.config import RenderConfig
 from glsynth.world.cameras import Camera
-
-
-def sun_direction(render: RenderConfig) -> np.ndarray:
-    """World-space unit vector towards the sun (world z up, azimuth from +x)."""
-    el, az = math.radians(render.sun_elevation_deg), math.radians(render.sun_azimuth_deg)
-    return np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
 
 
 def light_frame(sun: np.ndarray) -> np.ndarray:
@@ -54,10 +46,11 @@ def _shadowed_box(camera: Camera, render: RenderConfig,
     return local.min(0), local.max(0)
 
 
-def shadow_matrix(camera: Camera, render: RenderConfig) -> np.ndarray:
-    """Clip-from-world orthographic matrix (4x4, float64) of the sun's shadow map for this
-    camera. Depth -1 is the sun side of the shadowed range, +1 its far side."""
-    frame = light_frame(sun_direction(render))
+def shadow_matrix(camera: Camera, render: RenderConfig, sun: np.ndarray) -> np.ndarray:
+    """Clip-from-world orthographic matrix (4x4, float64) of the shadow map of the sun in world
+    direction ``sun`` for this camera. Depth -1 is the sun side of the shadowed range, +1 its
+    far side."""
+    frame = light_frame(sun)
     lo, hi = _shadowed_box(camera, render, frame)
     z_sun, z_far = hi[2] + 1.0, lo[2] - 1.0
     # Square texels: the shorter side of the footprint is widened to the longer one.
@@ -77,12 +70,12 @@ def shadow_texel_m(matrix: np.ndarray, size_px: int) -> float:
     return 2.0 / float(np.linalg.norm(matrix[0, :3])) / size_px
 
 
-def shadow_casters(corners: np.ndarray, cameras: list[Camera],
-                   render: RenderConfig) -> np.ndarray:
+def shadow_casters(corners: np.ndarray, cameras: list[Camera], render: RenderConfig,
+                   sun: np.ndarray) -> np.ndarray:
     """For part boxes (P, 8, 3), whether each may cast a shadow into some camera's shadowed
     range: its light-space footprint overlaps the camera's, and it is not wholly on the far
     side of the camera's receivers (P,). Conservative, like the view test."""
-    frame = light_frame(sun_direction(render))
+    frame = light_frame(sun)
     local = corners @ frame.T
     p_lo, p_hi = local.min(1), local.max(1)
     casts = np.zeros(len(corners), bool)

@@ -11,6 +11,7 @@ import numpy as np
 from glsynth.core.config import RenderConfig
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
+from glsynth.world.lighting import Lighting
 from glsynth.world.sunlight import shadow_casters
 
 _CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
@@ -49,9 +50,11 @@ def visible_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera]) -
 
 
 def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
-                    render: RenderConfig) -> set[str]:
-    """Parts that may cast the sun's shadow into some camera's view (none without shadows)."""
-    if not render.shadow_map_px:
+                    render: RenderConfig, lighting: Lighting) -> set[str]:
+    """Parts that may cast the sun's shadow into some camera's view (none without shadows or
+    with the sun below the horizon)."""
+    if not render.shadow_map_px or not lighting.sun_irradiance:
         return set()
-    casts = shadow_casters(np.stack([part_corners(p) for p in parts]), cameras, render)
+    casts = shadow_casters(np.stack([part_corners(p) for p in parts]), cameras, render,
+                           lighting.sun_direction)
     return {p.name for p, c in zip(parts, casts) if c}

@@ -9,7 +9,9 @@ from glsynth.core.paths import shader_dir
 
 # Program name -> (vertex shader file, fragment shader file).
 PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
-            "shadow": ("shadow.vert", "shadow.frag"), "sky": ("sky.vert", "sky.frag")}
+            "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
+            "ssao": ("fullscreen.vert", "ssao.frag"),
+            "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}
 _INCLUDE = re.compile(r'^#include "([\w.]+)"$', re.MULTILINE)
 
 

@@ -3,11 +3,15 @@
 Passes:
 - shadow (before colour, when [render] shadow_map_px > 0): depth from the sun into a depth
   texture fitted to this camera's view (glsynth.world.sunlight);
-- colour: PBR into an RGBA8 target, multisampled when msaa > 0 and resolved before read-back;
-- labels: one draw per part into one RGBA32F target holding (component id, damage id, linear
-  depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis.
-Only the passes asked for are drawn. Pixels with no geometry read component 1 (Nonbridge),
-damage 1 (no damage) and depth = zfar.
+- labels: one draw per part into one RGBA32F texture holding (component id, damage id, linear
+  depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis;
+- ambient occlusion (before colour, when [render] ao = "ssao"): from the label texture's depth,
+  then a 4x4 blur, into a one-channel texture the colour pass reads per pixel;
+- colour: PBR into an RGBA8 target, multisampled when msaa > 0 and resolved before read-back,
+  lit by the environment's Lighting (glsynth.world.lighting); the sky is drawn last, where no
+  geometry was.
+Only the passes asked for (and those they need) are drawn. Pixels with no geometry read
+component 1 (Nonbridge), damage 1 (no damage) and depth = zfar.
 """
 
 from dataclasses import dataclass
@@ -23,11 +27,13 @@ from glsynth.render.gl.context import create_context
 from glsynth.render.gl.programs import compile_programs
 from glsynth.render.scene import RenderScene
 from glsynth.world.cameras import Camera
-from glsynth.world.sunlight import shadow_matrix, shadow_texel_m, sun_direction
+from glsynth.world.lighting import Lighting, occlusion_matrices, sky_directions
+from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
 _LABEL_PASSES = frozenset({"component", "damage", "depth"})
 _GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
+_MAX_VIS = 16  # the length of the sky-visibility arrays in color.frag
 _CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
 
 
@@ -56,6 +62,9 @@ class _Draw:
     damage_mask: moderngl.Texture | None
     center: np.ndarray
     """World-space centre of the bounding box, for front-to-back ordering."""
+    box: np.ndarray
+    """(2, 3) mesh-space bounds."""
+    box_pose: np.ndarray
 
 
 class Renderer:
@@ -74,8 +83,11 @@ class Renderer:
             "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
         }
+        self.lighting: Lighting | None = None
         self._make_framebuffers()
-        self._sky_rgb = self._tone_mapped_sky()
+        # Fullscreen passes: one triangle from gl_VertexID, no vertex buffer.
+        self._fullscreen_vaos = {name: self.ctx.vertex_array(self.programs[name], [])
+                                 for name in ("sky", "ssao", "ssao_blur")}
 
     # --- resources --------------------------------------------------------------------------
     def _make_framebuffers(self) -> None:
@@ -89,8 +101,12 @@ class Renderer:
         if samples:
             self.msaa_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4, samples=samples)],
                                             ctx.depth_renderbuffer(size, samples=samples))
-        self.label_target = ctx.renderbuffer(size, 4, dtype="f4")
+        self.label_target = ctx.texture(size, 4, dtype="f4")
+        self.label_target.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.label_fbo = ctx.framebuffer([self.label_target], ctx.depth_renderbuffer(size))
+        self.ao_raw, self.ao = (ctx.texture(size, 1, dtype="f2") for _ in range(2))
+        self.ao_raw_fbo = ctx.framebuffer([self.ao_raw])
+        self.ao_fbo = ctx.framebuffer([self.ao])
         # Without shadows a 1x1 map stays bound, so the shadow sampler always has a depth texture.
         side = self.config.shadow_map_px or 1
         self.shadow_map = ctx.depth_texture((side, side))
@@ -98,6 +114,16 @@ class Renderer:
         self.shadow_map.filter = (moderngl.LINEAR, moderngl.LINEAR)  # filters 2x2 of) results
         self.shadow_map.repeat_x = self.shadow_map.repeat_y = False
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_map)
+        # Sky-visibility maps: tiles x tiles maps of sky_visibility_px in one depth atlas.
+        count = self.config.sky_visibility_maps if self.config.ambient == "sh" else 0
+        self.vis_tiles = round(count ** 0.5)
+        side = self.vis_tiles * self.config.sky_visibility_px if count else 1
+        self.vis_map = ctx.depth_texture((side, side))
+        self.vis_map.compare_func = "<="
+        self.vis_map.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.vis_map.repeat_x = self.vis_map.repeat_y = False
+        self.vis_fbo = ctx.framebuffer(depth_attachment=self.vis_map)
+        self._vis: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
 
     def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
         key = id(array)
@@ -121,9 +147,12 @@ class Renderer:
         self._textures[key] = (source, tex)
         return tex
 
-    def load(self, render_scene: RenderScene) -> None:
-        """Upload the geometry and textures of every mesh node (replacing any earlier scene)."""
+    def load(self, render_scene: RenderScene, lighting: Lighting) -> None:
+        """Upload the geometry and textures of every mesh node (replacing any earlier scene),
+        lit by ``lighting``."""
         self.release_scene()
+        self.lighting = lighting
+        self._set_lighting(lighting)
         scene = render_scene.scene
         for node in sorted(scene.mesh_nodes, key=lambda n: n.name):
             info = render_scene.parts[node.name]
@@ -153,7 +182,8 @@ class Renderer:
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
-                                         float(info.component), mask, center))
+                                         float(info.component), mask, center, box, pose))
+        self._bake_sky_visibility()
 
     def release_scene(self) -> None:
         """Free every GL object the loaded scene created (moderngl frees nothing that Python
@@ -175,6 +205,44 @@ class Renderer:
         self.ctx.release()
 
     # --- drawing ----------------------------------------------------------------------------
+    def _bake_sky_visibility(self) -> None:
+        """Depth maps of the whole loaded scene seen from sky directions, once per scene."""
+        self._vis = None
+        if not self.vis_tiles or not self._draws:
+            return
+        cfg = self.config
+        directions = sky_directions(self.vis_tiles ** 2)
+        corners = np.concatenate([
+            (np.array([[x, y, z] for x in d.box[:, 0] for y in d.box[:, 1] for z in d.box[:, 2]])
+             @ d.box_pose[:3, :3].T + d.box_pose[:3, 3]) for d in self._draws])
+        matrices = occlusion_matrices(corners, directions)
+        prog = self.programs["shadow"]
+        self.vis_fbo.use()
+        self.vis_fbo.clear(depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        self.ctx.polygon_offset = (2.0, 4.0)
+        px = cfg.sky_visibility_px
+        for k, light in enumerate(matrices):
+            tx, ty = k % self.vis_tiles, k // self.vis_tiles
+            self.vis_fbo.viewport = (tx * px, ty * px, px, px)
+            for draw in self._draws:
+                prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
+                draw.vaos["shadow"].render()
+        self.ctx.polygon_offset = (0.0, 0.0)
+        self.vis_fbo.viewport = (0, 0, *self.vis_map.size)
+        # Atlas coordinates: the tile's [0, 1] square scaled into its place.
+        atlas = []
+        for k, light in enumerate(matrices):
+            tile = np.eye(4)
+            tile[0, 0] = tile[1, 1] = 1.0 / self.vis_tiles
+            tile[0, 3], tile[1, 3] = (k % self.vis_tiles, k // self.vis_tiles) / np.float64(
+                self.vis_tiles)
+            atlas.append(tile @ _CLIP_TO_TEXTURE @ light)
+        weights = self.lighting.sky_radiance(directions) @ np.array([0.2126, 0.7152, 0.0722])
+        texel = max(shadow_texel_m(m, px) for m in matrices)
+        self._vis = (np.array(atlas), directions, np.maximum(weights, 1e-6), texel)
+
     def _front_to_back(self, camera: Camera) -> list[_Draw]:
         """Nearest parts first: llvmpipe's early depth test then skips hidden fragments."""
         eye = camera.pose[:3, 3]
@@ -188,9 +256,9 @@ class Renderer:
 
     def _shadow_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray | None:
         """Draw the sun's depth; return the shadow map's clip-from-world matrix."""
-        if not self.config.shadow_map_px or not draws:
+        if not self.config.shadow_map_px or not draws or not self.lighting.sun_irradiance:
             return None
-        light = shadow_matrix(camera, self.config)
+        light = shadow_matrix(camera, self.config, self.lighting.sun_direction)
         prog = self.programs["shadow"]
         self.shadow_fbo.use()
         self.shadow_fbo.clear(depth=1.0)
@@ -207,49 +275,102 @@ class Renderer:
         self.ctx.polygon_offset = (0.0, 0.0)
         return light
 
-    def _tone_mapped_sky(self) -> tuple[float, float, float]:
-        """The background colour: the sky through the colour pass's tone map (the shader's,
-        not a copy of it), drawn once into one pixel. Clearing to value/255 then writes the
-        same bytes as drawing the sky at every pixel, at the cost of a clear."""
-        prog = self.programs["sky"]
-        prog["u_sky_color"].value = tuple(float(c) for c in self.config.sky_rgb)
-        prog["u_exposure"].value = self.config.exposure
-        target = self.ctx.renderbuffer((1, 1), 4)
-        fbo = self.ctx.framebuffer([target])
-        fbo.use()
-        self.ctx.disable(moderngl.DEPTH_TEST)
-        vao = self.ctx.vertex_array(prog, [])
-        vao.render(moderngl.TRIANGLES, vertices=3)
-        rgb = fbo.read(components=3, alignment=1)
-        self.color_fbo.use()  # never leave a released framebuffer bound
-        for obj in (vao, fbo, target):
-            obj.release()
-        return tuple(b / 255 for b in rgb)
+    def _set_lighting(self, lighting: Lighting) -> None:
+        """The uniforms that stay the same for every camera of an environment."""
+        cfg = self.config
+        color, sky = self.programs["color"], self.programs["sky"]
+        tone_map = {"standard": 0, "exponential": 1}[cfg.tone_map]
+        for prog in (color, sky):
+            prog["u_tone_map"].value = tone_map
+            prog["u_exposure"].value = lighting.exposure
+        color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
+        color["u_ambient_sh"].value = cfg.ambient == "sh"
+        if cfg.ambient == "sh":
+            sky_sh, ground_sh = lighting.irradiance_sh()
+            color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
+            color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
+        hemisphere = cfg.ambient_intensity * np.array(cfg.sky_rgb)
+        color["u_sky_color"].value = tuple(hemisphere)
+        color["u_ground_color"].value = tuple(0.35 * hemisphere)
+        sky["u_sky_model"].value = 0 if lighting.sky == "preetham" else 1
+        sky["u_sky_strength"].value = lighting.sky_strength
+        sky["u_sky_uniform"].value = tuple(lighting.sky_strength * np.array(lighting.sky_rgb))
+        model = lighting.preetham()
+        sky["u_sky_zenith"].value = tuple(model.zenith)
+        sky["u_sky_perez"].write(model.perez.astype("f4").tobytes())
+        sky["u_sky_sun"].value = tuple(lighting.sky_sun_direction)
 
-    def _color_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
+    def _fullscreen(self, program: str) -> None:
+        self._fullscreen_vaos[program].render(moderngl.TRIANGLES, vertices=3)
+
+    @staticmethod
+    def _intrinsics(camera: Camera) -> tuple[float, float, float, float]:
+        k = camera.K
+        return (float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]))
+
+    def _ao_pass(self, camera: Camera) -> None:
+        """Occlusion from the label texture (drawn for this camera) into self.ao."""
+        cfg, prog = self.config, self.programs["ssao"]
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        self.ao_raw_fbo.use()
+        self.label_target.use(0)
+        prog["u_labels"].value = 0
+        prog["u_intrinsics"].value = self._intrinsics(camera)
+        prog["u_size"].value = (float(self.size[0]), float(self.size[1]))
+        prog["u_radius"].value = cfg.ao_radius_m
+        prog["u_samples"].value = cfg.ao_samples
+        self._fullscreen("ssao")
+        self.ao_fbo.use()
+        self.ao_raw.use(0)
+        self.programs["ssao_blur"]["u_raw"].value = 0
+        self._fullscreen("ssao_blur")
+
+    def _draw_sky(self, camera: Camera) -> None:
+        """The sky where the colour pass drew nothing (depth still at the far plane)."""
+        prog = self.programs["sky"]
+        prog["u_intrinsics"].value = self._intrinsics(camera)
+        prog["u_height"].value = float(self.size[1])
+        prog["u_world_from_view"].write(camera.pose[:3, :3].astype("f4").T.tobytes())
+        self.ctx.depth_func = "<="
+        self._fullscreen("sky")
+        self.ctx.depth_func = "<"
+
+    def _color_pass(self, camera: Camera, draws: list[_Draw], ao: bool) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
         light = self._shadow_pass(camera, draws)
         fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
         fbo.use()
-        fbo.clear(*self._sky_rgb, 1.0)
+        fbo.clear(0.0, 0.0, 0.0, 1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         view = camera.view()
         view3 = view[:3, :3]
-        sun = sun_direction(cfg)
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
-        prog["u_sun_dir"].value = tuple(view3 @ sun)
+        prog["u_sun_dir"].value = tuple(view3 @ self.lighting.sun_direction)
         prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
-        prog["u_sun_color"].value = (cfg.sun_intensity,) * 3
-        sky = np.array(cfg.sky_rgb)
-        prog["u_sky_color"].value = tuple(cfg.ambient_intensity * sky)
-        prog["u_ground_color"].value = tuple(cfg.ambient_intensity * 0.35 * sky)
-        prog["u_exposure"].value = cfg.exposure
+        prog["u_world_from_view"].write(camera.pose[:3, :3].astype("f4").T.tobytes())
         for unit, name in enumerate(("u_base_color_map", "u_metallic_roughness_map",
-                                     "u_emissive_map", "u_normal_map", "u_shadow_map")):
+                                     "u_emissive_map", "u_normal_map", "u_shadow_map", "u_ao")):
             prog[name].value = unit
         prog["u_has_shadows"].value = light is not None
         self.shadow_map.use(4)
+        prog["u_has_ao"].value = ao
+        self.ao.use(5)
+        prog["u_vis_map"].value = 6
+        self.vis_map.use(6)
+        prog["u_vis_count"].value = 0 if self._vis is None else len(self._vis[1])
+        if self._vis is not None:
+            atlas, directions, weights, texel = self._vis
+            pad = _MAX_VIS - len(directions)  # the shader's arrays hold 16
+            from_view = (atlas @ camera.pose).transpose(0, 2, 1)
+            prog["u_vis_from_view"].write(np.concatenate(
+                [from_view, np.zeros((pad, 4, 4))]).astype("f4").tobytes())
+            prog["u_vis_dir"].write(np.concatenate(
+                [directions @ view3.T, np.zeros((pad, 3))]).astype("f4").tobytes())
+            prog["u_vis_weight"].write(np.concatenate([weights, np.zeros(pad)]).astype("f4")
+                                       .tobytes())
+            # 1.5 texels along the normal, as for the sun's map.
+            prog["u_vis_offset_m"].value = 1.5 * texel
         if light is not None:
             shadow_from_view = _CLIP_TO_TEXTURE @ light @ camera.pose
             prog["u_shadow_from_view"].write(shadow_from_view.astype("f4").T.tobytes())
@@ -272,12 +393,13 @@ class Renderer:
             tex.get("emissive", self._defaults["white"]).use(2)
             tex.get("normal", self._defaults["flat"]).use(3)
             draw.vaos["color"].render()
+        self._draw_sky(camera)
         if cfg.msaa:
             self.ctx.copy_framebuffer(self.color_fbo, self.msaa_fbo)
         raw = self.color_fbo.read(components=3, alignment=1)
         return np.frombuffer(raw, np.uint8).reshape(self.size[1], self.size[0], 3)[::-1]
 
-    def _label_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray:
+    def _label_pass(self, camera: Camera, draws: list[_Draw]) -> None:
         prog = self.programs["labels"]
         self.label_fbo.use()
         self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
@@ -295,8 +417,6 @@ class Renderer:
             if draw.damage_mask is not None:
                 draw.damage_mask.use(0)
             draw.vaos["labels"].render()
-        raw = self.label_fbo.read(components=4, dtype="f4")
-        return np.frombuffer(raw, np.float32).reshape(self.size[1], self.size[0], 4)[::-1]
 
     def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES) -> RenderOutput:
         unknown = set(passes) - PASSES
@@ -306,15 +426,23 @@ class Renderer:
             raise ValueError(f"camera size {camera.width}x{camera.height} differs from the "
                              f"renderer's {self.size[0]}x{self.size[1]}: make the camera with "
                              "the same [render] width and height")
+        if self.lighting is None:
+            raise ValueError("no scene loaded: call load(scene, lighting) first")
         draws = self._front_to_back(camera)
-        color = self._color_pass(camera, draws) if "color" in passes else None
+        ao = "color" in passes and self.config.ao == "ssao"
         out: dict[str, np.ndarray] = {}
+        if passes & _LABEL_PASSES or ao:
+            self._label_pass(camera, draws)
         if passes & _LABEL_PASSES:
-            labels = self._label_pass(camera, draws)
+            raw = self.label_fbo.read(components=4, dtype="f4")
+            labels = np.frombuffer(raw, np.float32).reshape(self.size[1], self.size[0], 4)[::-1]
             if "component" in passes:
                 out["component"] = labels[..., 0].astype(np.uint8)
             if "damage" in passes:
                 out["damage"] = labels[..., 1].astype(np.uint8)
             if "depth" in passes:
                 out["depth"] = np.ascontiguousarray(labels[..., 2])
+        if ao:
+            self._ao_pass(camera)
+        color = self._color_pass(camera, draws, ao) if "color" in passes else None
         return RenderOutput(color=None if color is None else np.ascontiguousarray(color), **out)

@@ -1,6 +1,0 @@
-#version 330 core
-// One triangle covering the whole viewport, from gl_VertexID alone (no vertex buffer).
-void main() {
-    vec2 corner = vec2(float((gl_VertexID & 1) << 2), float((gl_VertexID & 2) << 1)) - 1.0;
-    gl_Position = vec4(corner, 0.0, 1.0);
-}
