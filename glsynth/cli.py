@@ -1,6 +1,7 @@
 """The ``glsynth`` command line. Each subcommand parses arguments and calls library functions."""
 
 import argparse
+import dataclasses
 import sys
 import time
 from collections.abc import Sequence
@@ -27,6 +28,14 @@ def _add_quality_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quality", choices=list(QUALITY), default=None,
                    help="quality preset overriding resolution, MSAA, textures, octaves, "
                         "tessellation (README: Quality presets)")
+
+
+def _add_renderer_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--renderer", choices=("gl", "cycles"), default=None,
+                   help="colour by the GL rasterizer or by Blender Cycles (labels and depth "
+                        "always by GL; default: [render] renderer)")
+    p.add_argument("--samples", type=_count, default=None,
+                   help="Cycles samples per pixel (default: [render] cycles_samples)")
 
 
 def _add_env_args(p: argparse.ArgumentParser) -> None:
@@ -75,6 +84,16 @@ def _config(args: argparse.Namespace) -> Config:
         from glsynth.measure.quality import apply_quality
 
         config = apply_quality(config, args.quality)
+    overrides = {k: v for k, v in (("renderer", getattr(args, "renderer", None)),
+                                   ("cycles_samples", getattr(args, "samples", None)))
+                 if v is not None}
+    if overrides:
+        config = dataclasses.replace(config,
+                                     render=dataclasses.replace(config.render, **overrides))
+    if config.render.renderer == "cycles":
+        from glsynth.render.cycles import require_blender
+
+        require_blender(getattr(args, "blender", None))
     return config
 
 
@@ -130,12 +149,25 @@ def cmd_render(args: argparse.Namespace) -> None:
     _check_cameras(config, args.camera)
     view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
     print(f"GL platform: {view.renderer.platform}")
+    rendered = []
     for index in args.camera:
         t0 = time.perf_counter()
         placement, output = view.render(index)
-        elapsed = time.perf_counter() - t0
+        rendered.append((placement, output, time.perf_counter() - t0))
+    if config.render.renderer == "cycles":
+        from glsynth.render.cycles import cycles_colour
+
+        t0 = time.perf_counter()
+        colours = cycles_colour(view, [p for p, _, _ in rendered], Path(args.out) / ".cycles",
+                                args.blender)
+        each = (time.perf_counter() - t0) / len(rendered)
+        rendered = [(p, dataclasses.replace(o, color=c), t + each)
+                    for (p, o, t), c in zip(rendered, colours)]
+    for placement, output, elapsed in rendered:
+        index = placement.index
         out = Path(args.out) if len(args.camera) == 1 else Path(args.out) / f"camera_{index:03d}"
-        write_render(out, placement, output, {"root_seed": args.seed, "env": args.env})
+        write_render(out, placement, output, {"root_seed": args.seed, "env": args.env,
+                                              "renderer": config.render.renderer})
         print(f"camera {index} ({placement.kind}, f = {placement.camera.focal_mm:.1f} mm): "
               f"{describe_output(output)}; rendered in {elapsed:.2f} s -> {out}")
 
@@ -384,6 +416,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--camera", type=_seed, nargs="+", required=True,
                    help="camera index: the [cameras] n_regular regular ones first, then the "
                         "close-ups (paper preset: 0-49, 50-99); several make subfolders")
+    _add_renderer_args(p)
+    p.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=cmd_render)
 
@@ -398,6 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("generate", help="render a dataset in the released Tokaido layout")
     _add_config_args(p)
     _add_quality_arg(p)
+    _add_renderer_args(p)
     p.add_argument("--seed", type=_seed, required=True, help="root seed")
     p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
     p.add_argument("--workers", type=_count, default=1,

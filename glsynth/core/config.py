@@ -179,6 +179,11 @@ class RenderConfig:
     """Linear radiance x exposure to 8-bit sRGB: "standard" (clip, then the sRGB curve: Blender's
     Standard view transform) or "exponential" (1 - exp(-x), then x ** (1 / 2.2))."""
     exposure: float = 1.0
+    renderer: str = "gl"
+    """Colour by "gl" (the rasterizer) or "cycles" (the Cycles twin, glsynth.render.cycles;
+    needs Blender). Labels and depth always come from GL."""
+    cycles_samples: int = 128
+    """Samples per pixel of the Cycles twin."""
     shadow_map_px: int = 2048
     """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
     the shadowed range divided by this."""
@@ -211,6 +216,8 @@ class RenderConfig:
         check_number(s, "sky_visibility_px", self.sky_visibility_px, 64, 4096, integer=True)
         check_choice(s, "tone_map", self.tone_map, ("standard", "exponential"))
         check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
+        check_choice(s, "renderer", self.renderer, ("gl", "cycles"))
+        check_number(s, "cycles_samples", self.cycles_samples, 1, 1 << 16, integer=True)
         check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
         if 0 < self.shadow_map_px < 64:
             fail(s, "shadow_map_px", self.shadow_map_px, "0 (no shadows) or 64 to 16384")

@@ -18,6 +18,7 @@ from trimesh.visual import TextureVisuals
 
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_material
+from glsynth.appearance.materials import Material
 from glsynth.appearance.repository import TextureRepository
 from glsynth.core.config import Config
 from glsynth.core.labels import Component
@@ -39,6 +40,8 @@ class PlateShot:
     scene: RenderScene
     camera: Camera
     lighting: Lighting
+    part: Part
+    material: Material
     meta: dict
 
 
@@ -92,4 +95,4 @@ def plate_shot(config: Config, root_seed: int, index: int, repository: TextureRe
             "focal_mm": float(focal), "distance_m": distance,
             "damage_params": dataclasses.asdict(entry.params), "images": list(entry.images)}
     lighting = environment_lighting(render, root_seed, 0, index + 1)
-    return PlateShot(index, scene, camera, lighting, meta)
+    return PlateShot(index, scene, camera, lighting, part, material, meta)

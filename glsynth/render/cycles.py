@@ -126,3 +126,21 @@ def render_linear(parts: Sequence[Part], materials: dict[str, Material], lightin
 def display(linear: np.ndarray, lighting: Lighting, render: RenderConfig) -> np.ndarray:
     """Cycles' linear radiance through glsynth's exposure and tone map: uint8 sRGB."""
     return tone_map(linear, render.tone_map, lighting.exposure)
+
+
+def cycles_colour(view, placements: Sequence, work: Path, blender: str | None = None
+                  ) -> list[np.ndarray]:
+    """The Cycles twin's uint8 colour of views of an open EnvironmentView (its uploaded parts,
+    dressing and lighting; [render] cycles_samples), one Blender process for all of them;
+    ``work`` is removed afterwards."""
+    render = view.config.render
+    env = view.environment
+    parts = [p for p in env.parts if p.name in view.scene.parts]
+    seeds = [cycles_seed(env.root_seed, env.env_index, p.index) for p in placements]
+    try:
+        result = render_linear(parts, view.dressing.materials, view.lighting, render,
+                               [p.camera for p in placements], seeds, render.cycles_samples,
+                               work, require_blender(blender))
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return [display(x, view.lighting, render) for x in result.linear]
