@@ -139,7 +139,10 @@ def dressed(tmp_path_factory):
     dressing = dress(env, config, open_repository(config), DamageBank(config.damage, 0),
                      {p.name for p in env.parts})
     out = tmp_path_factory.mktemp("dressed") / "scene.glb"
-    export_environment(env, out, dressing.materials, config.render)
+    from glsynth.world.lighting import environment_lighting
+
+    export_environment(env, out, dressing.materials, config.render,
+                       environment_lighting(config.render, 0, 0))
     return env, dressing.materials, config, out
 
 
@@ -189,25 +192,29 @@ def test_dressed_export_round_trips_every_texture(dressed):
 
 
 def test_dressed_export_carries_the_sun_and_the_sky(dressed):
-    from glsynth.world.sunlight import sun_direction
+    from glsynth.world.lighting import environment_lighting
 
     _, _, config, glb = dressed
+    lighting = environment_lighting(config.render, 0, 0)  # the environment's own sun
     gltf, _ = _glb_parts(glb.read_bytes())
     (light,) = gltf["extensions"]["KHR_lights_punctual"]["lights"]
-    assert light["type"] == "directional" and light["intensity"] == config.render.sun_intensity
+    assert light["type"] == "directional" and light["intensity"] == lighting.sun_irradiance
     node = next(n for n in gltf["nodes"] if "extensions" in n)
     x, y, z, w = node["rotation"]
     rotation = np.array([  # quaternion to matrix
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    sun = sun_direction(config.render)
+    sun = lighting.sun_direction
     travel_y_up = -np.array([sun[0], sun[2], -sun[1]])
     assert np.allclose(rotation @ [0, 0, -1], travel_y_up, atol=1e-9)
     info = json.loads((glb.parent / "scene.json").read_text())
     assert info["materials"] == "dressed"
-    assert info["lighting"]["sky_rgb_linear"] == list(config.render.sky_rgb)
+    assert info["lighting"]["sky"] == "preetham"
+    assert info["lighting"]["preetham_turbidity"] == lighting.turbidity
+    assert info["lighting"]["sun_elevation_deg"] == lighting.sun_elevation_deg
     assert info["lighting"]["exposure"] == config.render.exposure
+    assert info["lighting"]["tone_map"] == config.render.tone_map
 
 
 @pytest.mark.skipif(shutil.which("node") is None or not VALIDATOR.exists(),

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 import pytest
-from glhelpers import camera, quad, render_config, scene_of
+from glhelpers import LIGHT, camera, quad, render_config, scene_of
 
 from glsynth.appearance.damage import damage_maps, sample_params
 from glsynth.appearance.materials import Material
@@ -55,7 +55,7 @@ def small():
 def test_depth_from_the_near_plane_to_1000_m(small, distance):
     plate = quad([[-1e4, -1e4, -distance], [1e4, -1e4, -distance], [1e4, 1e4, -distance],
                   [-1e4, 1e4, -distance]])
-    small.load(scene_of(("column", Component.COLUMN, plate, PLAIN)))
+    small.load(scene_of(("column", Component.COLUMN, plate, PLAIN)), LIGHT)
     out = small.render(camera())
     assert_sane(out)
     assert np.allclose(out.depth, distance, rtol=4 * np.finfo(np.float32).eps)
@@ -106,7 +106,7 @@ def test_zero_and_full_damaged_area_render_as_such(small, area):
                                    scale=1.0)
     plate = quad([[-50, -50, -3], [50, -50, -3], [50, 50, -3], [-50, 50, -3]],
                  uv=np.array([[0, 0], [40, 0], [40, 40], [0, 40]], float))
-    small.load(scene_of(("column", Component.COLUMN, plate, material)))
+    small.load(scene_of(("column", Component.COLUMN, plate, material)), LIGHT)
     out = small.render(camera())
     assert_sane(out)
     if area == 0.0:
@@ -135,7 +135,7 @@ def test_camera_inside_a_closed_mesh_sees_its_inner_faces(small):
     box.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(box.vertices), 2)))
     wall = quad([[-1e3, -1e3, -50], [1e3, -1e3, -50], [1e3, 1e3, -50], [-1e3, 1e3, -50]])
     small.load(scene_of(("column", Component.COLUMN, box, PLAIN),
-                        ("slab", Component.SLAB, wall, PLAIN)))
+                        ("slab", Component.SLAB, wall, PLAIN)), LIGHT)
     out = small.render(camera())
     assert_sane(out)
     # No face culling: the inner faces of the box, 1 m away along the axis, hide the wall.
@@ -147,7 +147,7 @@ def test_camera_seeing_only_sky(small):
     pose = np.eye(4)
     pose[:3, 3] = (0.0, 0.0, 5.0)  # above the floor, looking up (+z) at the sky
     pose[:3, :3] = np.diag([1.0, -1.0, -1.0])
-    small.load(scene_of(("ground", Component.NONBRIDGE, floor, PLAIN)))
+    small.load(scene_of(("ground", Component.NONBRIDGE, floor, PLAIN)), LIGHT)
     out = small.render(camera(pose=pose))
     assert_sane(out)
     assert (out.component == 1).all() and (out.damage == 1).all() and (out.depth == 2000).all()
@@ -203,12 +203,13 @@ def test_bf16_against_fp32_network_outputs():
 def test_shadows_only_darken_with_the_sun_anywhere(elevation):
     config = preview_config(Config(), 160)
     config = dataclasses.replace(
-        config, render=dataclasses.replace(config.render, sun_elevation_deg=elevation),
+        config, render=dataclasses.replace(config.render,
+                                           sun_elevation_deg=(elevation, elevation)),
         cameras=dataclasses.replace(config.cameras, n_regular=2, n_closeup=2))
     view = EnvironmentView.open(config, 0, 0)
     unshadowed = Renderer(dataclasses.replace(config.render, shadow_map_px=0))
     try:
-        unshadowed.load(view.scene)
+        unshadowed.load(view.scene, view.lighting)
         darker = 0
         for index in range(4):
             placement, out = view.render(index)
@@ -218,7 +219,7 @@ def test_shadows_only_darken_with_the_sun_anywhere(elevation):
                 assert np.array_equal(getattr(out, name), getattr(lit, name))
             assert np.all(out.color.astype(int) <= lit.color.astype(int) + 1)
             darker += int((out.color.astype(int) < lit.color.astype(int) - 8).any(axis=2).sum())
-        if elevation == 50.0:  # the default sun: the deck's shadow is in these views
+        if elevation == 50.0:  # a mid-height sun: the deck's shadow is in these views
             assert darker > 0
     finally:
         unshadowed.release()

@@ -1,12 +1,11 @@
 """Renderer tests on Mesa (llvmpipe in CI) at small sizes, against analytic depth, a CPU ray
 cast (trimesh) and constructed label textures. The GL error state is checked around each test."""
 
-import dataclasses
 import re
 
 import numpy as np
 import pytest
-from glhelpers import camera, plain_materials, quad, render_config, scene_of
+from glhelpers import LIGHT, camera, plain_materials, quad, render_config, scene_of
 
 from glsynth.appearance.materials import Material, plain_material
 from glsynth.core.errors import UserError
@@ -49,27 +48,12 @@ def test_every_shader_compiles_and_every_file_is_used(renderer):
     assert "#include" not in shader_source("color.frag")  # expanded before compiling
 
 
-def test_the_sky_goes_through_the_colour_pass_tone_map(renderer):
-    """One tone map (shaders/tonemap.glsl) for geometry and sky: the empty view's colour is
-    (1 - exp(-exposure * sky)) ** (1 / 2.2), exposure included."""
-    for exposure in (1.0, 2.5):
-        config = dataclasses.replace(render_config(), exposure=exposure)
-        r = Renderer(config)
-        try:
-            r.load(scene_of())
-            color = r.render(camera(), {"color"}).color
-        finally:
-            r.release()
-        expected = (1 - np.exp(-exposure * np.array(config.sky_rgb))) ** (1 / 2.2) * 255
-        assert np.abs(color.reshape(-1, 3) - expected).max() <= 0.5 + 1e-3
-
-
 @pytest.mark.parametrize("distance", [0.5, 5.0, 30.0, 100.0, 1000.0])
 def test_fronto_parallel_plane_depth_is_exact(renderer, distance):
     h = 2.0 * distance
     plane = quad([[-h, -h, -distance], [h, -h, -distance], [h, h, -distance],
                   [-h, h, -distance]])
-    renderer.load(scene_of(("slab_plane", Component.SLAB, plane, PLAIN)))
+    renderer.load(scene_of(("slab_plane", Component.SLAB, plane, PLAIN)), LIGHT)
     out = renderer.render(camera())
     assert out.depth.dtype == np.float32
     # Float32 precision: within 2 ulp of the exact distance, everywhere.
@@ -86,7 +70,7 @@ def test_tilted_plane_matches_ray_plane_intersection(renderer, distance):
     p0 = np.array([0.0, 0.0, -distance])
     s = 3.0 * distance
     corners = [p0 - s * u - s * v, p0 + s * u - s * v, p0 + s * u + s * v, p0 - s * u + s * v]
-    renderer.load(scene_of(("beam_tilted", Component.BEAM, quad(corners), PLAIN)))
+    renderer.load(scene_of(("beam_tilted", Component.BEAM, quad(corners), PLAIN)), LIGHT)
     cam = camera()
     out = renderer.render(cam)
     _, dirs = cam.rays()
@@ -104,7 +88,7 @@ def test_image_labels_and_depth_are_aligned(renderer):
     b = box((1.0, 1.0, 1.0))
     b.apply_transform(pose(0.0, [-2.0, 1.2, -8.0]))
     renderer.load(scene_of(("column_box", Component.COLUMN, b,
-                            Material(base_color=(1.0, 0.2, 0.1, 1.0)))))
+                            Material(base_color=(1.0, 0.2, 0.1, 1.0)))), LIGHT)
     out = renderer.render(camera())
     hit = out.component == Component.COLUMN
     rows, cols = np.nonzero(hit)
@@ -137,9 +121,9 @@ def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
     plate = quad(corners)
     base = Material(base_color=(0.7, 0.7, 0.7, 1.0), damage_mask=mask)
     bumpy = Material(base_color=(0.7, 0.7, 0.7, 1.0), damage_mask=mask, normal_map=bumps)
-    renderer.load(scene_of(("column_plate", Component.COLUMN, plate, base)))
+    renderer.load(scene_of(("column_plate", Component.COLUMN, plate, base)), LIGHT)
     flat = renderer.render(cam)
-    renderer.load(scene_of(("column_plate", Component.COLUMN, plate, bumpy)))
+    renderer.load(scene_of(("column_plate", Component.COLUMN, plate, bumpy)), LIGHT)
     shaded = renderer.render(cam)
     # Image row 0 is the top; the mask's row 0 is the top of the texture (v = 1).
     assert np.array_equal(flat.damage, mask)
@@ -159,7 +143,7 @@ def test_msaa_changes_colour_edges_only_never_labels_or_depth():
     outs = []
     for msaa in (0, 4):
         r = Renderer(render_config(64, 48, msaa=msaa))
-        r.load(scene)
+        r.load(scene, LIGHT)
         outs.append(r.render(camera()))
         assert r.ctx.error == "GL_NO_ERROR"
         r.release()
@@ -204,7 +188,7 @@ def test_egl_and_osmesa_render_the_same(env0):
     for platform in ("egl", "osmesa"):
         r = Renderer(rc, platform=platform)
         assert r.platform == platform
-        r.load(scene)
+        r.load(scene, LIGHT)
         outs[platform] = r.render(cam)
         assert r.ctx.error == "GL_NO_ERROR"
         r.release()
@@ -228,7 +212,7 @@ def test_rendered_damage_plate_shows_ids_exactly_where_the_mask_says(tmp_path):
     k, d = cam.K, 4.0
     lo, hi = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
     plate = quad([[lo, -hi, -d], [hi, -hi, -d], [hi, hi, -d], [lo, hi, -d]])
-    r.load(scene_of(("column_plate", Component.COLUMN, plate, material)))
+    r.load(scene_of(("column_plate", Component.COLUMN, plate, material)), LIGHT)
     out = r.render(cam)
     assert r.ctx.error == "GL_NO_ERROR"
     r.release()

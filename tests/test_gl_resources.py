@@ -41,7 +41,7 @@ def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
         highest = 0
         rss = []
         for cycle in range(CYCLES):
-            renderer.load(view.scene)
+            renderer.load(view.scene, view.lighting)
             renderer.render(camera)
             probe = renderer.ctx.buffer(reserve=4)  # GL names the newest buffer highest
             highest = max(highest, probe.glo)

@@ -29,7 +29,7 @@ def setup(tmp_path_factory):
 def shoot(setup, index):
     repo, bank, renderer = setup
     shot = plate_shot(CONFIG, 0, index, repo, bank)
-    renderer.load(shot.scene)
+    renderer.load(shot.scene, shot.lighting)
     return shot, renderer.render(shot.camera)
 
 

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from glhelpers import plain_materials, render_config
+from glhelpers import LIGHT, plain_materials, render_config
 from PIL import Image
 
 from glsynth.cli import main
@@ -25,7 +25,7 @@ CAMERAS = Config().cameras
 @pytest.fixture(scope="module")
 def loaded(env0):
     r = Renderer(RC)
-    r.load(build_scene(env0.parts, plain_materials(env0)))
+    r.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
     yield r
     assert r.ctx.error == "GL_NO_ERROR"
     r.release()
@@ -78,7 +78,7 @@ def test_label_maps_hold_only_valid_ids(env0, loaded):
 def test_a_camera_renders_the_same_bytes_alone_or_in_a_batch(env0, loaded):
     batch = [loaded.render(cam(env0, i)) for i in range(4)]
     alone = Renderer(RC)
-    alone.load(build_scene(env0.parts, plain_materials(env0)))
+    alone.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
     single = alone.render(cam(env0, 2))
     alone.release()
     for name in ("color", "component", "damage", "depth"):
@@ -138,7 +138,7 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
         assert len(culled.scene.parts) < len(full.scene.parts) == len(full.environment.parts)
         outputs = {}
         for view in (culled, full):
-            view.renderer.load(view.scene)
+            view.renderer.load(view.scene, view.lighting)
             outputs[view is culled] = [view.render(i)[1] for i in range(6)]
         for a, b in zip(outputs[True], outputs[False]):
             for name in ("color", "component", "damage", "depth"):
@@ -163,7 +163,7 @@ def test_parts_that_only_cast_shadows_into_a_view_are_kept():
         assert seen < set(view.scene.parts) < {p.name for p in view.environment.parts}
         kept = [view.render(i)[1].color for i in range(6)]
         view.renderer.load(build_scene([p for p in view.environment.parts if p.name in seen],
-                                       view.dressing.materials))
+                                       view.dressing.materials), LIGHT)
         seen_only = [view.render(i)[1].color for i in range(6)]
         # Dropping the unseen casters would lose shadows in some view.
         assert any(not np.array_equal(a, b) for a, b in zip(kept, seen_only))

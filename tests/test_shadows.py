@@ -5,7 +5,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from glhelpers import camera, quad, render_config, scene_of
+from glhelpers import LIGHT, camera, quad, render_config, scene_of
 
 from glsynth.appearance.materials import Material
 from glsynth.core.config import RenderConfig
@@ -17,7 +17,6 @@ from glsynth.world.sunlight import (
     shadow_casters,
     shadow_matrix,
     shadow_texel_m,
-    sun_direction,
 )
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
@@ -25,12 +24,16 @@ PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 ZENITH = dict(sun_elevation_deg=90.0, sun_azimuth_deg=0.0)
 
 
+def sun_at(elevation: float, azimuth: float = 0.0) -> np.ndarray:
+    return dataclasses.replace(LIGHT, sun_elevation_deg=elevation,
+                               sun_azimuth_deg=azimuth).sun_direction
+
+
 @pytest.mark.parametrize("elevation", [90.0, 50.0, 5.0, -10.0])
 def test_light_frame_is_a_rotation_looking_away_from_the_sun(elevation):
-    render = dataclasses.replace(RenderConfig(), sun_elevation_deg=elevation)
-    frame = light_frame(sun_direction(render))
+    frame = light_frame(sun_at(elevation))
     assert np.allclose(frame @ frame.T, np.eye(3)) and np.isclose(np.linalg.det(frame), 1.0)
-    assert np.allclose(frame[2], sun_direction(render))
+    assert np.allclose(frame[2], sun_at(elevation))
 
 
 @pytest.mark.parametrize("distance", [1.0, 60.0, 5000.0])
@@ -39,25 +42,25 @@ def test_the_shadowed_frustum_fits_inside_the_shadow_map(distance):
     pose = np.eye(4)
     pose[:3, 3] = [120.0, -40.0, 6.0]
     cam = camera(1920, 1080, 15.0, pose=pose)
-    matrix = shadow_matrix(cam, render)
+    matrix = shadow_matrix(cam, render, sun_at(50.0, 30.0))
     corners = frustum_corners(cam, distance)
     clip = np.c_[corners, np.ones(8)] @ matrix.T
     assert np.all(np.abs(clip[:, :3]) < 1.0) and np.allclose(clip[:, 3], 1.0)
     # Square texels; 1000 of them span the footprint's longer side plus a 1 % margin.
-    local = corners @ light_frame(sun_direction(render)).T
+    local = corners @ light_frame(sun_at(50.0, 30.0)).T
     side = (local.max(0) - local.min(0))[:2].max()
     assert shadow_texel_m(matrix, 1000) * 1000 == pytest.approx(side * 1.01, rel=1e-3)
     assert np.isclose(np.linalg.norm(matrix[0, :3]), np.linalg.norm(matrix[1, :3]))
 
 
 def test_casters_are_the_parts_above_and_not_those_aside_or_below():
-    render = dataclasses.replace(RenderConfig(), **ZENITH, shadow_distance_m=20.0)
+    render = dataclasses.replace(RenderConfig(), shadow_distance_m=20.0)
     cam = camera()  # looking down -z from the origin: with a zenith sun, straight away from it
     box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
     above = box + [0, 0, 300]         # far towards the sun, over the view
     aside = box + [500, 0, 300]       # towards the sun, but not over the view
     below = box + [0, 0, -100]        # farther from the sun than every receiver
-    casts = shadow_casters(np.stack([above, aside, below]), [cam], render)
+    casts = shadow_casters(np.stack([above, aside, below]), [cam], render, sun_at(90.0))
     assert casts.tolist() == [True, False, False]
 
 
@@ -72,10 +75,15 @@ def _scene(with_roof: bool):
     return scene_of(*items)
 
 
-def _render(scene, **render):
-    r = Renderer(dataclasses.replace(render_config(64, 48), **render))
+def _render(scene, sun_intensity: float = 3.0, **render):
+    """The sun from kwargs sun_elevation_deg / sun_azimuth_deg; no occlusion of the ambient
+    light, so that only the sun's shadow changes pixels."""
+    light = {k: render.pop(k) for k in ("sun_elevation_deg", "sun_azimuth_deg") if k in render}
+    lighting = dataclasses.replace(LIGHT, sun_irradiance=sun_intensity, **light)
+    r = Renderer(dataclasses.replace(render_config(64, 48), ao="off", sky_visibility_maps=0,
+                                     **render))
     try:
-        r.load(scene)
+        r.load(scene, lighting)
         out = r.render(camera())
         assert r.ctx.error == "GL_NO_ERROR"
         return out
