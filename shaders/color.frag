@@ -1,5 +1,5 @@
 #version 330 core
-// Metallic-roughness PBR: GGX specular + Lambert diffuse under one sun, plus ambient light
+// Metallic-roughness PBR: GGX specular + Burley diffuse under one sun, plus ambient light
 // from the sky and the ground (spherical-harmonic irradiance, or a two-colour hemisphere),
 // darkened by screen-space ambient occlusion, plus emission (scene panels are emission-only). The normal map (the damage
 // normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
@@ -148,7 +148,12 @@ void main() {
     float G = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k));
     vec3 F = f0 + (1.0 - f0) * pow(1.0 - vh, 5.0);
     vec3 specular = D * G * F / max(4.0 * nl * nv, 1e-4);
-    vec3 diffuse = (1.0 - F) * (1.0 - metallic) * base.rgb / PI;
+    // Burley's diffuse with retro-reflection, as Cycles' Principled BSDF evaluates it (the
+    // glTF importer's material): not reduced by the specular layer's Fresnel.
+    float fl = pow(1.0 - nl, 5.0), fv = pow(1.0 - nv, 5.0);
+    float rr = roughness * (1.0 + dot(l, view_dir));
+    float burley = (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1.0));
+    vec3 diffuse = burley * (1.0 - metallic) * base.rgb / PI;
     vec3 direct = (diffuse + specular) * u_sun_color * nl * sun;
 
     // Ambient: diffuse by the normal; specular by the reflected direction, where the

@@ -52,8 +52,10 @@ def _floor(material: Material, size: float = 50.0):
 
 def _ggx_radiance(base: float, metallic: float, roughness: float, n, v, to_sun,
                   sun: float, env: float) -> float:
-    """The shader's BRDF in closed form for a uniform environment of radiance ``env`` (every
-    direction, so its irradiance is pi * env for any normal) and a sun of irradiance ``sun``."""
+    """The shader's BRDF (Burley diffuse as Cycles' Principled BSDF, GGX specular with Schlick
+    Fresnel and Smith-Schlick shadowing) in closed form for a uniform environment of radiance
+    ``env`` (every direction, so its irradiance is pi * env for any normal) and a sun of
+    irradiance ``sun``."""
     n, v, s = (np.asarray(x, float) / np.linalg.norm(x) for x in (n, v, to_sun))
     h = (v + s) / np.linalg.norm(v + s)
     nl, nv = max(n @ s, 0.0), max(n @ v, 1e-4)
@@ -66,7 +68,10 @@ def _ggx_radiance(base: float, metallic: float, roughness: float, n, v, to_sun,
     f0 = 0.04 * (1 - metallic) + base * metallic
     f = f0 + (1 - f0) * (1 - vh) ** 5
     specular = d * g * f / max(4 * nl * nv, 1e-4)
-    diffuse = (1 - f) * (1 - metallic) * base / math.pi
+    fl, fv = (1 - nl) ** 5, (1 - nv) ** 5
+    rr = r * (1 + s @ v)
+    burley = (1 - 0.5 * fl) * (1 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1))
+    diffuse = burley * (1 - metallic) * base / math.pi
     f_env = f0 + (max(1 - r, f0) - f0) * (1 - nv) ** 5
     ambient = (1 - metallic) * base * env + f_env * env * (1 - 0.7 * r)
     return (diffuse + specular) * sun * nl + ambient
@@ -74,8 +79,9 @@ def _ggx_radiance(base: float, metallic: float, roughness: float, n, v, to_sun,
 
 @pytest.mark.parametrize("metallic,roughness", [(0.0, 1.0), (0.0, 0.35), (1.0, 0.5)])
 def test_a_plane_under_a_known_sun_and_sky_has_the_closed_form_radiance(metallic, roughness):
-    """A Lambert-like rough plane and GGX planes, lit by a sun and a uniform environment (the
-    uniform sky above, a ground of the same radiance below), within one 8-bit step."""
+    """A rough dielectric plane (Burley diffuse) and GGX planes, lit by a sun and a uniform
+    environment (the uniform sky above, a ground of the same radiance below), within one
+    8-bit step."""
     sky_radiance, sun = 0.12, 2.0
     elevation = 60.0
     # The ground's radiance albedo / pi x (pi x sky + sun x sin(elevation)) equals the sky's.
