@@ -36,7 +36,7 @@ def main() -> None:
     is_buffer.restype = ctypes.c_ubyte
     start, highest = rss_mb(), 0
     for _ in range(args.cycles):
-        renderer.load(view.scene)
+        renderer.load(view.scene, view.lighting)
         renderer.render(camera)
         probe = renderer.ctx.buffer(reserve=4)
         highest = max(highest, probe.glo)

@@ -57,7 +57,7 @@ def time_shadow_sizes(view: EnvironmentView, cameras: list[int], repeats: int) -
     for px in (0, 1024, 2048, 4096):
         renderer = Renderer(dataclasses.replace(view.config.render, msaa=0, shadow_map_px=px),
                             platform="egl")
-        renderer.load(view.scene)
+        renderer.load(view.scene, view.lighting)
         out[f"shadow_map_px={px}"] = render_ms(renderer, view, cameras, repeats, {"color"})
         renderer.release()
     return out

@@ -84,9 +84,10 @@ def _config(args: argparse.Namespace) -> Config:
         from glsynth.measure.quality import apply_quality
 
         config = apply_quality(config, args.quality)
-    overrides = {k: v for k, v in (("renderer", getattr(args, "renderer", None)),
-                                   ("cycles_samples", getattr(args, "samples", None)))
-                 if v is not None}
+    # Only commands with the renderer options (render, generate) override [render] with them.
+    given = (("renderer", args.renderer), ("cycles_samples", args.samples)) \
+        if hasattr(args, "renderer") else ()
+    overrides = {k: v for k, v in given if v is not None}
     if overrides:
         config = dataclasses.replace(config,
                                      render=dataclasses.replace(config.render, **overrides))
