@@ -127,9 +127,13 @@ def area_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 
 
 def _median_scores(scores: list[dict]) -> dict:
-    keys = scores[0].keys()
-    return {k: (statistics.median(s[k] for s in scores)
-                if all(s[k] is not None for s in scores) else None) for k in keys}
+    """Per key, the median over the views that have it (a region may be absent from a view);
+    None where no view has it."""
+    out = {}
+    for k in scores[0]:
+        values = [s[k] for s in scores if s[k] is not None]
+        out[k] = statistics.median(values) if values else None
+    return out
 
 
 @dataclass
