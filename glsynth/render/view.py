@@ -20,7 +20,7 @@ from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import CameraPlacement, environment_camera
 from glsynth.world.environment import Environment, build_environment
 from glsynth.world.lighting import Lighting, environment_lighting
-from glsynth.world.visibility import shadowing_parts, visible_parts
+from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
 
 @dataclass
@@ -58,7 +58,7 @@ class EnvironmentView:
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts
         scene = build_scene(parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
-        renderer.load(scene, lighting)
+        renderer.load(scene, lighting, occlusion_extent(env.parts))
         return cls(config, env, dressing, scene, lighting, renderer)
 
     def camera(self, index: int) -> CameraPlacement:

@@ -11,7 +11,7 @@ import numpy as np
 from glsynth.core.config import RenderConfig
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
-from glsynth.world.lighting import Lighting
+from glsynth.world.lighting import Lighting, sky_directions
 from glsynth.world.sunlight import shadow_casters
 
 _CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
@@ -51,10 +51,24 @@ def visible_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera]) -
 
 def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
                     render: RenderConfig, lighting: Lighting) -> set[str]:
-    """Parts that may cast the sun's shadow into some camera's view (none without shadows or
-    with the sun below the horizon)."""
-    if not render.shadow_map_px or not lighting.sun_irradiance:
+    """Parts that may cast the sun's shadow into some camera's view (with shadows and the sun
+    above the horizon), or hide the sky from it along one of the sky-visibility directions
+    (with those maps)."""
+    directions = []
+    if render.shadow_map_px and lighting.sun_irradiance:
+        directions.append(lighting.sun_direction)
+    if render.ambient == "sh" and render.sky_visibility_maps:
+        directions.extend(sky_directions(render.sky_visibility_maps))
+    if not directions:
         return set()
-    casts = shadow_casters(np.stack([part_corners(p) for p in parts]), cameras, render,
-                           lighting.sun_direction)
+    corners = np.stack([part_corners(p) for p in parts])
+    casts = np.zeros(len(parts), bool)
+    for direction in directions:
+        casts |= shadow_casters(corners, cameras, render, direction)
     return {p.name for p, c in zip(parts, casts) if c}
+
+
+def occlusion_extent(parts: tuple[Part, ...] | list[Part]) -> np.ndarray:
+    """Corners (8 P, 3) of every part's box: what the sky-visibility maps are fitted to, so
+    that they are the same whichever parts are uploaded."""
+    return np.concatenate([part_corners(p) for p in parts])

@@ -55,6 +55,14 @@ class _OSMesaLoader:
     def load_opengl_function(self, name: str) -> int:
         return self.lib.OSMesaGetProcAddress(name.encode()) or 0
 
+    def __enter__(self) -> None:
+        """Make this context current (moderngl's Context.__enter__ calls it)."""
+        if not self.lib.OSMesaMakeCurrent(self.ctx, self.buffer, self._UNSIGNED_BYTE, 1, 1):
+            raise RuntimeError("OSMesaMakeCurrent failed")
+
+    def __exit__(self, *args: object) -> None:
+        """Leave the context current: glsynth makes its context current before each use."""
+
     def release(self) -> None:
         if self.ctx:
             self.lib.OSMesaDestroyContext(self.ctx)

@@ -147,9 +147,12 @@ class Renderer:
         self._textures[key] = (source, tex)
         return tex
 
-    def load(self, render_scene: RenderScene, lighting: Lighting) -> None:
+    def load(self, render_scene: RenderScene, lighting: Lighting,
+             extent: np.ndarray | None = None) -> None:
         """Upload the geometry and textures of every mesh node (replacing any earlier scene),
-        lit by ``lighting``."""
+        lit by ``lighting``. The sky-visibility maps are fitted to the points ``extent`` (N, 3)
+        (default: the uploaded meshes' boxes)."""
+        self.make_current()
         self.release_scene()
         self.lighting = lighting
         self._set_lighting(lighting)
@@ -183,11 +186,18 @@ class Renderer:
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
                                          float(info.component), mask, center, box, pose))
-        self._bake_sky_visibility()
+        self._bake_sky_visibility(extent)
+
+    def make_current(self) -> None:
+        """This renderer's context becomes the thread's current one: another Renderer in the
+        process (created, or released, since) may have left its own current, and drawing into
+        a context that is not current crashes the driver."""
+        self.ctx.__enter__()
 
     def release_scene(self) -> None:
         """Free every GL object the loaded scene created (moderngl frees nothing that Python
         drops: its default gc_mode is None)."""
+        self.make_current()
         defaults = {id(t) for t in self._defaults.values()}
         for draw in self._draws:
             for vao in draw.vaos.values():
@@ -205,14 +215,14 @@ class Renderer:
         self.ctx.release()
 
     # --- drawing ----------------------------------------------------------------------------
-    def _bake_sky_visibility(self) -> None:
+    def _bake_sky_visibility(self, extent: np.ndarray | None) -> None:
         """Depth maps of the whole loaded scene seen from sky directions, once per scene."""
         self._vis = None
         if not self.vis_tiles or not self._draws:
             return
         cfg = self.config
         directions = sky_directions(self.vis_tiles ** 2)
-        corners = np.concatenate([
+        corners = extent if extent is not None else np.concatenate([
             (np.array([[x, y, z] for x in d.box[:, 0] for y in d.box[:, 1] for z in d.box[:, 2]])
              @ d.box_pose[:3, :3].T + d.box_pose[:3, 3]) for d in self._draws])
         matrices = occlusion_matrices(corners, directions)
@@ -428,6 +438,7 @@ class Renderer:
                              "the same [render] width and height")
         if self.lighting is None:
             raise ValueError("no scene loaded: call load(scene, lighting) first")
+        self.make_current()
         draws = self._front_to_back(camera)
         ao = "color" in passes and self.config.ao == "ssao"
         out: dict[str, np.ndarray] = {}
