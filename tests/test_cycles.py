@@ -25,7 +25,7 @@ needs_blender = pytest.mark.skipif(
 MATTE = Material(base_color=(0.5, 0.5, 0.5, 1.0), metallic=0.0, roughness=1.0)
 MATTE_TOLERANCE = 12.0
 """Mean absolute difference (8-bit levels) promised between glsynth's default lighting and
-Cycles at 64 samples on the matte scene below. Measured 9.6 (18.0 with Lambert instead of
+Cycles at 64 samples on the matte scene below. Measured 9.3 (18.0 with Lambert instead of
 Cycles' Burley diffuse): what remains is Cycles' noise, its multiple bounces and the order-2
 SH sky. docs/design.md states it."""
 
@@ -69,9 +69,12 @@ def test_a_matte_scene_agrees_with_cycles(tmp_path):
     diff = np.abs(gl.color.astype(float) - cycles.astype(float))
     print(f"matte scene: mean |glsynth - Cycles 64 spp| = {diff.mean():.2f} levels")
     assert diff.mean() <= MATTE_TOLERANCE
-    # Same ground truth: the sky is where GL's depth says nothing was hit.
+    # The same sky where GL's depth says nothing was hit, away from the horizon's edge
+    # pixels (Cycles averages the pixel area there, GL's label pass its centre).
     sky = gl.depth >= cam.zfar
-    assert sky.any() and np.abs(cycles[sky].astype(int) - gl.color[sky]).max() <= 3
+    inner = sky[1:-1, 1:-1] & sky[:-2, 1:-1] & sky[2:, 1:-1] & sky[1:-1, :-2] & sky[1:-1, 2:]
+    c, g = cycles[1:-1, 1:-1][inner].astype(int), gl.color[1:-1, 1:-1][inner].astype(int)
+    assert inner.sum() > 100 and np.abs(c - g).max() <= 3
 
 
 @needs_blender
