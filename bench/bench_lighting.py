@@ -9,6 +9,7 @@ there) / cameras per environment. Needs Blender.
 
 import argparse
 import dataclasses
+import shutil
 import statistics
 import sys
 import time
@@ -94,6 +95,7 @@ def main() -> None:
                                  "ciede2000": statistics.median(s["ciede2000"] for s in scores),
                                  "psnr_db": statistics.median(s["psnr_db"] for s in scores)}
         print(name, results["rows"][name], flush=True)
+    shutil.rmtree(RESULTS / "lighting_work", ignore_errors=True)
     write_results("lighting", results)
 
 
