@@ -20,7 +20,7 @@ from common import RESULTS, write_results  # noqa: E402
 
 from glsynth.core.config import load_config  # noqa: E402
 from glsynth.core.images import nearest_resize  # noqa: E402
-from glsynth.measure.quality import area_resize, colour_scores  # noqa: E402
+from glsynth.measure.quality import area_resize, colour_scores, spread_cameras  # noqa: E402
 from glsynth.render.cycles import (  # noqa: E402
     cycles_seed,
     display,
@@ -78,9 +78,7 @@ def main() -> None:
     args = parser.parse_args()
     blender = require_blender()
     base = load_config(args.preset)
-    n = base.cameras.total
-    cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1))
-                      for i in range(args.cameras)})
+    cameras = spread_cameras(base.cameras.total, args.cameras)
     results = {"cameras": cameras, "size": list(SIZE), "reference_samples": args.samples,
                "rows": {}}
     reference = None

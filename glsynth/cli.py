@@ -340,7 +340,7 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_quality(args: argparse.Namespace) -> None:
-    from glsynth.measure.quality import QUALITY, bench_quality, quality_table
+    from glsynth.measure.quality import QUALITY, bench_quality, quality_table, spread_cameras
     from glsynth.render.cycles import require_blender
 
     presets = args.presets.split(",") if args.presets else list(QUALITY)
@@ -349,8 +349,7 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
         raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
     blender = None if args.reference == "glsynth" else require_blender(args.blender)
-    n = config.cameras.total
-    cameras = sorted({round(i * (n - 1) / max(1, args.cameras - 1)) for i in range(args.cameras)})
+    cameras = spread_cameras(config.cameras.total, args.cameras)
     result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets,
                            blender, args.size, args.reference_samples, tuple(args.samples))
     print(quality_table(result), end="")

@@ -66,17 +66,10 @@ float[9] sh_basis(vec3 n) {  // real SH basis, in the order of glsynth.world.lig
                     0.546274 * (n.x * n.x - n.y * n.y));
 }
 
-vec3 sh_sky(vec3 n) {
+vec3 sh_irradiance(vec3 c[9], vec3 n) {
     float y[9] = sh_basis(n);
     vec3 e = vec3(0.0);
-    for (int i = 0; i < 9; ++i) e += u_sh_sky[i] * y[i];
-    return max(e, 0.0);
-}
-
-vec3 sh_ground(vec3 n) {
-    float y[9] = sh_basis(n);
-    vec3 e = vec3(0.0);
-    for (int i = 0; i < 9; ++i) e += u_sh_ground[i] * y[i];
+    for (int i = 0; i < 9; ++i) e += c[i] * y[i];
     return max(e, 0.0);
 }
 
@@ -168,8 +161,10 @@ void main() {
         // the cosine-weighted view down) ground in full light.
         vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
         float ground = mix(0.25, 1.0, vis.y);
-        env_diffuse = (sh_sky(nw) * vis.x + sh_ground(nw) * ground) / PI;
-        env_specular = (sh_sky(rw) * vis.x + sh_ground(rw) * ground) / PI;
+        env_diffuse = (sh_irradiance(u_sh_sky, nw) * vis.x
+                       + sh_irradiance(u_sh_ground, nw) * ground) / PI;
+        env_specular = (sh_irradiance(u_sh_sky, rw) * vis.x
+                        + sh_irradiance(u_sh_ground, rw) * ground) / PI;
     } else {
         env_diffuse = mix(u_ground_color, u_sky_color, dot(n, u_up) * 0.5 + 0.5);
         env_specular = mix(u_ground_color, u_sky_color, dot(r, u_up) * 0.5 + 0.5);

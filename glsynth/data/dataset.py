@@ -105,7 +105,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     rows, counts = [], []
     removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
-    kept = []  # (placement, image path, GL colour) of the written views
+    to_cycles = []  # (placement, image path) of the kept views, with --renderer cycles
     for index in range(cams.total):
         placement, output = view.render(index)
         clock.lap("render and read back")
@@ -124,7 +124,10 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
         # vanish in the 3x downsampling.
         in_rrdr = bool(np.any(damage >= Damage.CONCRETE))
         clock.lap("filters, RRDR and labels")
-        kept.append((placement, paths["image"], output.color))
+        if config.render.renderer == "cycles":
+            to_cycles.append((placement, paths["image"]))
+        else:
+            atomic_write_bytes(out / paths["image"], png_bytes(output.color))
         atomic_write_bytes(out / paths["component"], image_bytes(component, "BMP"))
         atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
         atomic_write_bytes(out / paths["depth"], png_bytes(depth))
@@ -146,16 +149,16 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
         counts.append(dataclasses.asdict(image_counts(placement.kind, split, component, damage,
                                                       depth, focal, in_rrdr)))
         clock.lap("encode and write files")
-    colours = [c for _, _, c in kept]
-    if config.render.renderer == "cycles" and kept:
+    if to_cycles:
         from glsynth.render.cycles import cycles_colour
 
         # The same views the GL filters kept, coloured by Cycles; labels stay GL's.
-        colours = cycles_colour(view, [p for p, _, _ in kept], out / ".tmp" / f"cycles_{env}")
+        colours = cycles_colour(view, [p for p, _ in to_cycles],
+                                out / ".tmp" / f"cycles_{env}")
         clock.lap("Cycles colour")
-    for (_, image, _), colour in zip(kept, colours):
-        atomic_write_bytes(out / image, png_bytes(colour))
-    clock.lap("encode and write files")
+        for (_, image), colour in zip(to_cycles, colours):
+            atomic_write_bytes(out / image, png_bytes(colour))
+        clock.lap("encode and write files")
     atomic_write_json(out / "meta" / f"env_{env}.json", _env_description(view))
     clock.lap("encode and write files")
     return {"kind": "env", "env": env, "split": split, "rows": rows, "counts": counts,
@@ -209,11 +212,10 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
 
 def _cycles_plate(config: Config, root_seed: int, shot, out: Path) -> np.ndarray:
     """A plate's colour by the Cycles twin (its own Blender process: each plate is a scene)."""
-    from glsynth.core.seeding import Stream, make_seed
-    from glsynth.render.cycles import display, render_linear, require_blender
+    from glsynth.render.cycles import cycles_seed, display, render_linear, require_blender
 
     work = out / ".tmp" / f"cycles_plate_{shot.index}"
-    seed = make_seed(root_seed, 0, Stream.CYCLES, 1_000_000 + shot.index) % (2 ** 31 - 1)
+    seed = cycles_seed(root_seed, 0, 1_000_000 + shot.index)
     try:
         result = render_linear([shot.part], {shot.part.name: shot.material}, shot.lighting,
                                config.render, [shot.camera], [seed],

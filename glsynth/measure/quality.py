@@ -50,6 +50,11 @@ QUALITY = {
 'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has)."""
 
 
+def spread_cameras(total: int, count: int) -> list[int]:
+    """``count`` camera indices spread evenly over an environment's ``total`` cameras."""
+    return sorted({round(i * (total - 1) / max(1, count - 1)) for i in range(count)})
+
+
 def apply_quality(config: Config, name: str) -> Config:
     if name not in QUALITY:
         raise UserError(f"quality {name!r}: choose one of {', '.join(QUALITY)}")

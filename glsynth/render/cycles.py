@@ -62,9 +62,10 @@ def camera_json(cam: Camera) -> dict:
             "width": cam.width, "height": cam.height, "znear": cam.znear, "zfar": cam.zfar}
 
 
-def cycles_seed(root_seed: int, env: int, camera_index: int) -> int:
-    """Cycles' seed (a non-negative int32) of one view."""
-    return make_seed(root_seed, env, Stream.CYCLES, camera_index) % (2 ** 31 - 1)
+def cycles_seed(root_seed: int, env: int, item: int) -> int:
+    """Cycles' seed (a non-negative int32) of one view: item = camera index, or 1,000,000 + N
+    for plate N (env 0)."""
+    return make_seed(root_seed, env, Stream.CYCLES, item) % (2 ** 31 - 1)
 
 
 def read_raw(path: Path, size: Sequence[int]) -> np.ndarray:

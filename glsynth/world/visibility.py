@@ -17,11 +17,16 @@ from glsynth.world.sunlight import shadow_casters
 _CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
 
 
+def box_corners(bounds: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """The 8 world-space corners (8, 3) of a box (2, 3) given in the frame ``pose``."""
+    lo, hi = bounds
+    local = lo + _CORNERS * (hi - lo)
+    return local @ pose[:3, :3].T + pose[:3, 3]
+
+
 def part_corners(part: Part) -> np.ndarray:
     """The 8 world-space corners of the part's bounding box in its own frame (8, 3)."""
-    lo, hi = part.mesh.bounds
-    local = lo + _CORNERS * (hi - lo)
-    return local @ part.pose[:3, :3].T + part.pose[:3, 3]
+    return box_corners(part.mesh.bounds, part.pose)
 
 
 def seen_by(corners: np.ndarray, camera: Camera) -> np.ndarray:

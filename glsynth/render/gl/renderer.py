@@ -29,6 +29,7 @@ from glsynth.render.scene import RenderScene
 from glsynth.world.cameras import Camera
 from glsynth.world.lighting import Lighting, occlusion_matrices, sky_directions
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
+from glsynth.world.visibility import box_corners
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
 _LABEL_PASSES = frozenset({"component", "damage", "depth"})
@@ -64,7 +65,6 @@ class _Draw:
     """World-space centre of the bounding box, for front-to-back ordering."""
     box: np.ndarray
     """(2, 3) mesh-space bounds."""
-    box_pose: np.ndarray
 
 
 class Renderer:
@@ -185,7 +185,7 @@ class Renderer:
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
-                                         float(info.component), mask, center, box, pose))
+                                         float(info.component), mask, center, box))
         self._bake_sky_visibility(extent)
 
     def make_current(self) -> None:
@@ -222,11 +222,9 @@ class Renderer:
             return
         cfg = self.config
         directions = sky_directions(self.vis_tiles ** 2)
-        corners = extent if extent is not None else np.concatenate([
-            (np.array([[x, y, z] for x in d.box[:, 0] for y in d.box[:, 1] for z in d.box[:, 2]])
-             @ d.box_pose[:3, :3].T + d.box_pose[:3, 3]) for d in self._draws])
+        corners = extent if extent is not None else np.concatenate(
+            [box_corners(d.box, d.pose) for d in self._draws])
         matrices = occlusion_matrices(corners, directions)
-        prog = self.programs["shadow"]
         self.vis_fbo.use()
         self.vis_fbo.clear(depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
@@ -236,9 +234,7 @@ class Renderer:
         for k, light in enumerate(matrices):
             tx, ty = k % self.vis_tiles, k // self.vis_tiles
             self.vis_fbo.viewport = (tx * px, ty * px, px, px)
-            for draw in self._draws:
-                prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
-                draw.vaos["shadow"].render()
+            self._draw_depth(light, self._draws)
         self.ctx.polygon_offset = (0.0, 0.0)
         self.vis_fbo.viewport = (0, 0, *self.vis_map.size)
         # Atlas coordinates: the tile's [0, 1] square scaled into its place.
@@ -264,12 +260,19 @@ class Renderer:
         normal = np.linalg.inv(modelview[:3, :3]).T
         return (modelview.astype("f4").T.tobytes(), normal.astype("f4").T.tobytes())
 
+    def _draw_depth(self, light: np.ndarray, draws: list[_Draw]) -> None:
+        """Depth of ``draws`` through the clip-from-world matrix ``light`` into the bound
+        framebuffer (sun shadows, sky visibility)."""
+        prog = self.programs["shadow"]
+        for draw in draws:
+            prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
+            draw.vaos["shadow"].render()
+
     def _shadow_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray | None:
         """Draw the sun's depth; return the shadow map's clip-from-world matrix."""
         if not self.config.shadow_map_px or not draws or not self.lighting.sun_irradiance:
             return None
         light = shadow_matrix(camera, self.config, self.lighting.sun_direction)
-        prog = self.programs["shadow"]
         self.shadow_fbo.use()
         self.shadow_fbo.clear(depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
@@ -278,9 +281,7 @@ class Renderer:
         # keeps casters on the sun side of the map's range (glsynth.world.sunlight).
         self.ctx.polygon_offset = (2.0, 4.0)
         self.ctx.enable_direct(_GL_DEPTH_CLAMP)
-        for draw in draws:
-            prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
-            draw.vaos["shadow"].render()
+        self._draw_depth(light, draws)
         self.ctx.disable_direct(_GL_DEPTH_CLAMP)
         self.ctx.polygon_offset = (0.0, 0.0)
         return light
