@@ -44,6 +44,7 @@ n_closeup = 2
 resolution = 64
 [materials]
 texture_size = 32
+builtin_size = 64
 images_per_category = 3
 """
 

@@ -68,3 +68,21 @@ def test_user_photos_in_other_formats_are_found(repo_dir):
     names = [p.name for p in repo.files["painted"]]
     red = repo.image("painted", names.index("photo.JPG"))
     assert red[..., 0].mean() > 150 and red[..., 1].mean() < 60
+
+
+def test_builtin_repository_has_the_same_images_at_every_texture_size():
+    """Quality presets change texture resolution only: the built-in repository is generated
+    at builtin_size, and every texture_size is resized from those images."""
+    from glsynth.appearance.dressing import open_repository
+    from glsynth.core.config import Config, MaterialsConfig
+
+    def repo(size: int) -> TextureRepository:
+        return open_repository(Config(materials=MaterialsConfig(
+            texture_size=size, builtin_size=64, images_per_category=1)))
+
+    small, large = repo(16), repo(32)
+    assert small.root == large.root
+    for category in CATEGORIES:
+        shrunk = np.asarray(Image.fromarray(large.image(category, 0)).resize(
+            (16, 16), Image.Resampling.BOX), dtype=float)
+        assert np.abs(shrunk - small.image(category, 0)).mean() < 4.0  # levels

@@ -31,7 +31,7 @@ class Dressing:
 def open_repository(config: Config) -> TextureRepository:
     m = config.materials
     root = m.repository or builtin_repository(m.repository_seed, m.images_per_category,
-                                              m.texture_size)
+                                              m.builtin_size)
     return TextureRepository(root, m.texture_size)
 
 

@@ -312,6 +312,9 @@ class MaterialsConfig:
     built-in procedural repository (generated once and cached)."""
     texture_size: int = 512
     """Repository images are resized to this many pixels square."""
+    builtin_size: int = 1024
+    """Pixel size the built-in repository is generated at. Every texture_size is resized
+    from these same images, so quality presets differ in resolution, not in content."""
     images_per_category: int = 12
     """Size of the built-in procedural repository."""
     repository_seed: int = 0
@@ -331,6 +334,7 @@ class MaterialsConfig:
         if not isinstance(self.repository, str):
             fail(s, "repository", self.repository, "a folder path (string)")
         check_number(s, "texture_size", self.texture_size, 4, 8192, integer=True)
+        check_number(s, "builtin_size", self.builtin_size, 4, 8192, integer=True)
         check_number(s, "images_per_category", self.images_per_category, 1, 10000,
                      integer=True)
         check_number(s, "repository_seed", self.repository_seed, 0, 2**63 - 1, integer=True)
