@@ -36,6 +36,10 @@ uniform mat4 u_vis_from_view[16];       // atlas coordinates and depth from came
 uniform vec3 u_vis_dir[16];             // camera space, towards the sky
 uniform float u_vis_weight[16];
 uniform float u_vis_offset_m;
+// Where a direction is hidden, the light of what hides it: the emitted radiance of the nearest
+// part seen from that direction (scene panels), per map in the same atlas layout.
+uniform sampler2D u_vis_radiance;
+uniform float u_vis_solid_angle;        // of each direction's share of the sky
 uniform vec3 u_sky_color;
 uniform vec3 u_ground_color;
 uniform float u_exposure;
@@ -73,19 +77,24 @@ vec3 sh_irradiance(vec3 c[9], vec3 n) {
     return max(e, 0.0);
 }
 
-// (sky visibility seen by normal n, mean visibility over all directions).
-vec2 sky_visibility(vec3 n) {
+// (sky visibility seen by normal n, mean visibility over all directions); ``hidden`` gets
+// the irradiance from the emitting parts that hide the sky.
+vec2 sky_visibility(vec3 n, out vec3 hidden) {
+    hidden = vec3(0.0);
     if (u_vis_count == 0) return vec2(1.0);
     float weighted = 0.0, total = 0.0, mean = 0.0;
     for (int k = 0; k < u_vis_count; ++k) {
         vec4 p = u_vis_from_view[k] * vec4(v_view_pos + n * u_vis_offset_m, 1.0);
         float v = texture(u_vis_map, p.xyz);
-        float w = u_vis_weight[k] * max(dot(n, u_vis_dir[k]), 0.0);
+        float c = max(dot(n, u_vis_dir[k]), 0.0);
+        float w = u_vis_weight[k] * c;
         weighted += w * v;
         total += w;
         mean += v;
+        hidden += (1.0 - v) * c * texture(u_vis_radiance, p.xy).rgb;
     }
     mean /= float(u_vis_count);
+    hidden *= u_vis_solid_angle;
     return vec2(total > 0.0 ? weighted / total : mean, mean);
 }
 
@@ -119,7 +128,8 @@ void main() {
     vec3 n = normalize(v_normal);
     if (dot(n, view_dir) < 0.0) n = -n;  // two-sided: open sheets (ground, panels)
     float sun = sun_visibility(n);       // by the mesh normal: the normal map only shades
-    vec2 vis = sky_visibility(n);
+    vec3 hidden;
+    vec2 vis = sky_visibility(n, hidden);
     if (u_has_normal_map) n = perturbed_normal(n, view_dir);
 
     vec4 base = u_base_color * vec4(srgb_to_linear(texture(u_base_color_map, v_uv).rgb), 1.0);
@@ -155,14 +165,15 @@ void main() {
     vec3 r = reflect(-view_dir, n);
     vec3 env_diffuse, env_specular;
     if (u_ambient_sh) {
-        // The sky through its visibility. The ground's light through the point's mean
-        // openness, but at least a quarter of it: a point under the deck sees the ground the
-        // deck shades, and beyond it (for a deck as wide as it is high, about a quarter of
-        // the cosine-weighted view down) ground in full light.
+        // The sky through its visibility, plus the light of the emitting parts that hide it.
+        // The ground's light through the point's mean openness, but at least a quarter of it:
+        // a point under the deck sees the ground the deck shades, and beyond it (for a deck as
+        // wide as it is high, about a quarter of the cosine-weighted view down) ground in full
+        // light. (Finding the shaded ground through the sun's map measured no better.)
         vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
         float ground = mix(0.25, 1.0, vis.y);
         env_diffuse = (sh_irradiance(u_sh_sky, nw) * vis.x
-                       + sh_irradiance(u_sh_ground, nw) * ground) / PI;
+                       + sh_irradiance(u_sh_ground, nw) * ground + hidden) / PI;
         env_specular = (sh_irradiance(u_sh_sky, rw) * vis.x
                         + sh_irradiance(u_sh_ground, rw) * ground) / PI;
     } else {

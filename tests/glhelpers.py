@@ -16,7 +16,7 @@ from glsynth.world.lighting import Lighting
 
 LIGHT = Lighting(sun_elevation_deg=50.0, sun_azimuth_deg=30.0, sun_irradiance=3.0,
                  sky="preetham", turbidity=3.0, sky_strength=1.0, sky_rgb=(0.62, 0.74, 0.88),
-                 ground_albedo=0.2, exposure=1.0)
+                 ground_albedo=(0.2, 0.2, 0.2), exposure=1.0)
 """A fixed sun and sky for small GL scenes."""
 
 

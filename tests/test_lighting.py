@@ -90,7 +90,7 @@ def test_a_plane_under_a_known_sun_and_sky_has_the_closed_form_radiance(metallic
     lighting = dataclasses.replace(
         LIGHT, sky="uniform", sky_rgb=(1.0, 1.0, 1.0), sky_strength=sky_radiance,
         sun_elevation_deg=elevation, sun_azimuth_deg=0.0, sun_irradiance=sun,
-        ground_albedo=albedo)
+        ground_albedo=(albedo,) * 3)
     base = 0.45
     material = Material(base_color=(base, base, base, 1.0), metallic=metallic,
                         roughness=roughness)
@@ -171,7 +171,7 @@ def test_sh_irradiance_of_a_uniform_sphere_is_pi_times_its_radiance():
     albedo = math.pi * sky / (math.pi * sky + sun * math.sin(math.radians(el)))
     lighting = dataclasses.replace(LIGHT, sky="uniform", sky_rgb=(1.0, 1.0, 1.0),
                                    sky_strength=sky, sun_elevation_deg=el, sun_irradiance=sun,
-                                   ground_albedo=albedo)
+                                   ground_albedo=(albedo,) * 3)
     sky_sh, ground_sh = lighting.irradiance_sh(rows=128)
     normals = np.concatenate([sky_directions(16), -sky_directions(16)])
     irradiance = sh_basis(normals) @ (sky_sh + ground_sh)
@@ -205,7 +205,7 @@ def test_a_roof_hides_the_sky_from_the_floor_under_it():
     roof = quad([[0, -60, -4], [60, -60, -4], [60, 60, -4], [0, 60, -4]])
     scene = scene_of(("ground_plane", Component.NONBRIDGE, floor, matte),
                      ("slab_roof", Component.SLAB, roof, matte))
-    dark = dataclasses.replace(LIGHT, sun_irradiance=0.0, ground_albedo=0.0)
+    dark = dataclasses.replace(LIGHT, sun_irradiance=0.0, ground_albedo=(0.0,) * 3)
 
     def floor_at(x: float, **render) -> np.ndarray:
         pose = np.eye(4)
@@ -220,6 +220,49 @@ def test_a_roof_hides_the_sky_from_the_floor_under_it():
     assert np.abs(floor_at(25.0, sky_visibility_maps=0)
                   - floor_at(-25.0, sky_visibility_maps=0)).max() <= 1
     assert np.abs(floor_at(-25.0, sky_visibility_maps=0) - open_floor).mean() < 4
+
+
+def test_an_emitting_roof_lights_the_floor_with_its_radiance():
+    """Where a part hides the sky, its emitted radiance comes instead (scene panels): under an
+    emitting roof that hides every sky direction, a matte floor of albedo a reflects
+    a * L * (1 - sin^2 8 deg), the projected solid angle of the sampled sky above 8 deg over pi
+    (exact for the 16 equal-solid-angle directions, uniform in z)."""
+    from glsynth.world.lighting import SKY_MIN_ELEVATION_DEG
+
+    albedo, radiance = 0.5, 0.8
+    matte = Material(base_color=(albedo, albedo, albedo, 1.0), roughness=1.0)
+    glowing = Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=(radiance,) * 3)
+    floor = quad([[-60, -60, -10], [60, -60, -10], [60, 60, -10], [-60, 60, -10]])
+    roof = quad([[-60, -60, -4], [60, -60, -4], [60, 60, -4], [-60, 60, -4]])
+    dark = dataclasses.replace(LIGHT, sun_irradiance=0.0, ground_albedo=(0.0,) * 3)
+    pose = np.eye(4)
+    pose[:3, 3] = [0.0, 0.0, -6.0]  # 4 m above the floor, looking down
+    cam = camera(64, 48, 60.0, pose=pose)
+    z0 = math.sin(math.radians(SKY_MIN_ELEVATION_DEG))
+    want = tone_map(np.full(3, albedo * radiance * (1 - z0 * z0)), "standard", 1.0)
+    lit, _ = _render(scene_of(("ground_plane", Component.NONBRIDGE, floor, matte),
+                              ("slab_roof", Component.SLAB, roof, glowing)), dark, cam=cam)
+    assert np.abs(lit.color.astype(int) - want.astype(int)).max() <= 1
+    unlit, _ = _render(scene_of(("ground_plane", Component.NONBRIDGE, floor, matte),
+                                ("slab_roof", Component.SLAB, roof, matte)), dark, cam=cam)
+    assert unlit.color.max() <= 2
+
+
+def test_surface_albedo_is_the_mean_texel_colour_under_the_uvs():
+    from glsynth.appearance.materials import srgb_decode, surface_albedo
+
+    texture = np.zeros((4, 4, 3), np.uint8)
+    texture[:, :2] = (200, 40, 40)   # left half (u < 0.5)
+    texture[:, 2:] = (40, 200, 40)
+    plane = quad([[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]])
+    whole = Material(base_color=(0.5, 1.0, 1.0, 1.0), base_color_map=texture)
+    left = Material(base_color=(1.0, 1.0, 1.0, 1.0), base_color_map=texture,
+                    uv_scale=0.4)  # u in [0, 0.4]: the red half
+    part = Part("ground_x", Component.NONBRIDGE, None, plane, np.eye(4))
+    red, green = srgb_decode(np.array([200, 40, 40])), srgb_decode(np.array([40, 200, 40]))
+    assert np.allclose(surface_albedo([part], {"ground_x": whole}),
+                       (red + green) / 2 * [0.5, 1.0, 1.0], atol=5e-3)
+    assert np.allclose(surface_albedo([part], {"ground_x": left}), red)
 
 
 def test_no_lighting_knob_changes_labels_or_depth():

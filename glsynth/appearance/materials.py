@@ -6,13 +6,14 @@ space; damage mask (H, W) uint8 damage ids. ``uv_scale`` multiplies the mesh UVs
 map repeats every 1 / uv_scale metres.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
+from glsynth.world.environment import Part
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,3 +116,39 @@ def sample_assignment(kind: str, cfg: MaterialsConfig, rng: np.random.Generator,
     if kind == "scene":
         return Assignment("scene", int(rng.integers(count("scene"))), 0.0, 1.0, 1.0)
     raise ValueError(f"part kind {kind!r} has no material rule")
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """uint8 sRGB to linear [0, 1], by the exact curve (as Blender and color.frag decode)."""
+    c = np.asarray(encoded, np.float64) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def surface_albedo(parts: Sequence[Part], materials: Mapping[str, Material],
+                   samples: int = 4096) -> np.ndarray:
+    """Mean linear base colour (3,) over the surface of ``parts``: ``samples`` points per part,
+    spread evenly by area (systematic over the faces' cumulative area, an R2 low-discrepancy
+    sequence inside them: no generator, the same points every time), each reading its texel at
+    the UVs the renderer uses; parts are weighted by their area."""
+    k = np.arange(samples)
+    total, area = np.zeros(3), 0.0
+    for part in parts:
+        mesh, mat = part.mesh, materials[part.name]
+        cumulative = np.cumsum(mesh.area_faces)
+        faces = np.minimum(np.searchsorted(cumulative, (k + 0.5) / samples * cumulative[-1]),
+                           len(mesh.faces) - 1)
+        a, b = (0.5 + k * 0.7548776662466927) % 1.0, (0.5 + k * 0.5698402909980532) % 1.0
+        flip = a + b > 1  # fold the square onto the triangle
+        a[flip], b[flip] = 1 - a[flip], 1 - b[flip]
+        uv = mesh.visual.uv[mesh.faces[faces]] * mat.uv_scale  # (samples, 3, 2)
+        uv = uv[:, 0] + a[:, None] * (uv[:, 1] - uv[:, 0]) + b[:, None] * (uv[:, 2] - uv[:, 0])
+        colour = np.ones((samples, 3))
+        if mat.base_color_map is not None:
+            h, w = mat.base_color_map.shape[:2]
+            # uv (0, 0) is the image's bottom-left corner; the map repeats.
+            col = np.floor(uv[:, 0] % 1.0 * w).astype(int) % w
+            row = (h - 1 - np.floor(uv[:, 1] % 1.0 * h).astype(int)) % h
+            colour = srgb_decode(mat.base_color_map[row, col])
+        total += colour.mean(0) * np.asarray(mat.base_color[:3]) * mesh.area
+        area += mesh.area
+    return total / area if area > 0 else total

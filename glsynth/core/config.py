@@ -160,7 +160,9 @@ class RenderConfig:
     sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
     """Colour of the uniform sky and of the hemisphere ambient light (linear RGB)."""
     ground_albedo: float = 0.2
-    """Albedo of the ground that lights surfaces from below in the SH ambient light."""
+    """Albedo of the ground that lights surfaces from below in the SH ambient light, where the
+    scene has no ground of its own (pure-texture plates); an environment uses its dressed
+    ground's mean colour."""
     ambient: str = "sh"
     """Ambient light of the rasterizer: "sh" (irradiance of the sky and the lit ground, as
     spherical harmonics) or "hemisphere" (sky colour above, 0.35 x sky colour below)."""

@@ -25,6 +25,7 @@ from glsynth.core.errors import UserError
 from glsynth.core.fileio import png_bytes
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Component
+from glsynth.world.lighting import LUMINANCE
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ def colour_scores(image: np.ndarray, reference: np.ndarray, component: np.ndarra
     identical = np.array_equal(reference, image)  # PSNR is infinite: report 99 dB
     psnr = 99.0 if identical else peak_signal_noise_ratio(reference, image, data_range=255)
     delta = deltaE_ciede2000(rgb2lab(reference), rgb2lab(image))
-    luminance = reference.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    luminance = reference.astype(np.float64) @ LUMINANCE
     geometry = component != Component.NONBRIDGE
     dark = luminance < 0.5 * np.median(luminance[geometry]) if geometry.any() else geometry
     regions = {"columns": component == Component.COLUMN,

@@ -11,6 +11,7 @@ import numpy as np
 
 from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import Dressing, dress, open_repository
+from glsynth.appearance.materials import surface_albedo
 from glsynth.core.config import Config
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
 from glsynth.core.labels import Component
@@ -18,7 +19,7 @@ from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import CameraPlacement, environment_camera
-from glsynth.world.environment import Environment, build_environment
+from glsynth.world.environment import Environment, build_environment, ground_parts
 from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
@@ -50,10 +51,12 @@ class EnvironmentView:
         n_cameras = config.cameras.total
         cameras = [environment_camera(env.trajectory, config.cameras, config.render,
                                       root_seed, env_index, i).camera for i in range(n_cameras)]
-        lighting = environment_lighting(config.render, root_seed, env_index)
         visible = visible_parts(env.parts, cameras)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
+        ground = ground_parts(env.parts)
+        lighting = environment_lighting(config.render, root_seed, env_index, ground_albedo=(
+            surface_albedo(ground, dressing.materials) if ground else None))
         needed = visible | shadowing_parts(env.parts, cameras, config.render, lighting)
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts
         scene = build_scene(parts, dressing.materials)

@@ -5,6 +5,7 @@ viaduct it belongs to (None for environment-wide parts), a mesh in its own frame
 world-from-mesh pose. Footings are underground and not modelled; columns start at the ground.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -295,3 +296,9 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
     viaducts = tuple(builder.viaduct(i) for i in range(trajectory.n))
     builder.surroundings()
     return Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))
+
+
+def ground_parts(parts: Sequence[Part]) -> list[Part]:
+    """The ground strips among ``parts`` (what lights the scene from below)."""
+    return [p for p in parts if p.name.startswith("ground_")]
+

@@ -112,7 +112,9 @@ class Lighting:
     sky_strength: float
     sky_rgb: tuple[float, float, float]
     """Radiance of the uniform sky (sky = "uniform")."""
-    ground_albedo: float
+    ground_albedo: tuple[float, float, float]
+    """Linear RGB albedo of the ground that lights surfaces from below (the dressed ground's
+    mean, glsynth.appearance.materials.surface_albedo; [render] ground_albedo without one)."""
     exposure: float
 
     @property
@@ -143,14 +145,25 @@ class Lighting:
         up = dirs[:, 2] > 0
         sky = np.zeros((len(dirs), 3))
         sky[up] = self.sky_radiance(dirs[up])
-        sky_on_ground = (sky[up] * (dirs[up, 2] * weights[up])[:, None]).sum(0)
-        sun_on_ground = self.sun_irradiance * max(self.sun_direction[2], 0.0)
+        sun_on_ground, sky_on_ground = self.ground_irradiance(rows)
         ground = np.zeros((len(dirs), 3))
-        ground[~up] = self.ground_albedo / math.pi * (sky_on_ground + sun_on_ground)
+        ground[~up] = np.asarray(self.ground_albedo) / math.pi * (sky_on_ground + sun_on_ground)
         lobe = np.repeat(_COSINE_LOBE, [1, 3, 5])[:, None]
         basis = sh_basis(dirs).T * weights
         return basis @ sky * lobe, basis @ ground * lobe
 
+
+    def ground_irradiance(self, rows: int = 64) -> tuple[float, np.ndarray]:
+        """Irradiance on open level ground: from the sun (a scalar, the sun is white) and from
+        the sky (linear RGB, (3,))."""
+        dirs, weights = _sphere_grid(rows)
+        up = dirs[:, 2] > 0
+        sky = self.sky_radiance(dirs[up]) * (dirs[up, 2] * weights[up])[:, None]
+        return self.sun_irradiance * max(self.sun_direction[2], 0.0), sky.sum(0)
+
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+"""Rec. 709 luminance weights of linear RGB."""
 
 _COSINE_LOBE = np.array([math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0])
 """Convolution of radiance with the clamped cosine, per SH band (Ramamoorthi and Hanrahan)."""
@@ -175,22 +188,34 @@ def _sphere_grid(rows: int) -> tuple[np.ndarray, np.ndarray]:
     return dirs, np.repeat(band, 2 * rows)
 
 
-def environment_lighting(render: RenderConfig, root_seed: int, env: int,
-                         item: int = 0) -> Lighting:
+def environment_lighting(render: RenderConfig, root_seed: int, env: int, item: int = 0,
+                         ground_albedo: np.ndarray | None = None) -> Lighting:
     """The lighting of environment ``env`` (item 0; pure-texture plate N uses env 0, item
     N + 1): sun elevation, azimuth and irradiance and the sky's turbidity drawn uniformly from
-    their [render] ranges (a range [a, a] fixes the value)."""
+    their [render] ranges (a range [a, a] fixes the value). ``ground_albedo`` (linear RGB) is
+    the scene's own ground's; without one, [render] ground_albedo in grey."""
     rng = make_rng(root_seed, env, Stream.LIGHTING, item)
     elevation, azimuth, irradiance, turbidity = (
         float(rng.uniform(*r)) for r in (render.sun_elevation_deg, render.sun_azimuth_deg,
                                          render.sun_intensity, render.turbidity))
     return Lighting(elevation, azimuth, irradiance if elevation > 0 else 0.0, render.sky,
                     turbidity, render.sky_strength if render.sky == "preetham"
-                    else render.ambient_intensity, render.sky_rgb, render.ground_albedo,
+                    else render.ambient_intensity, render.sky_rgb,
+                    tuple(float(c) for c in (
+                        (render.ground_albedo,) * 3 if ground_albedo is None else ground_albedo)),
                     render.exposure)
 
 
-def sky_directions(count: int, min_elevation_deg: float = 8.0) -> np.ndarray:
+SKY_MIN_ELEVATION_DEG = 8.0
+"""The sky-visibility directions start this high: lower, the maps would graze the ground."""
+
+
+def sky_solid_angle(count: int, min_elevation_deg: float = SKY_MIN_ELEVATION_DEG) -> float:
+    """Solid angle of each of ``count`` sky_directions."""
+    return 2.0 * math.pi * (1.0 - math.sin(math.radians(min_elevation_deg))) / count
+
+
+def sky_directions(count: int, min_elevation_deg: float = SKY_MIN_ELEVATION_DEG) -> np.ndarray:
     """``count`` world directions spread evenly over the sky above ``min_elevation_deg``
     (equal solid angle per direction: uniform in z, golden-angle azimuths), (count, 3)."""
     z0 = math.sin(math.radians(min_elevation_deg))

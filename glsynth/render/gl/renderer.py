@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from glsynth.appearance.materials import Material
+from glsynth.appearance.materials import Material, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
@@ -27,7 +27,13 @@ from glsynth.render.gl.context import create_context
 from glsynth.render.gl.programs import compile_programs
 from glsynth.render.scene import RenderScene
 from glsynth.world.cameras import Camera
-from glsynth.world.lighting import Lighting, occlusion_matrices, sky_directions
+from glsynth.world.lighting import (
+    LUMINANCE,
+    Lighting,
+    occlusion_matrices,
+    sky_directions,
+    sky_solid_angle,
+)
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
 from glsynth.world.visibility import box_corners
 
@@ -65,6 +71,16 @@ class _Draw:
     """World-space centre of the bounding box, for front-to-back ordering."""
     box: np.ndarray
     """(2, 3) mesh-space bounds."""
+    radiance: np.ndarray
+    """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
+
+
+def _emitted(material: Material) -> np.ndarray:
+    """Mean emitted radiance (3,) of a material, linear."""
+    emissive = np.asarray(material.emissive, np.float64)
+    if material.emissive_map is None or not emissive.any():
+        return emissive
+    return emissive * srgb_decode(material.emissive_map).mean((0, 1))
 
 
 class Renderer:
@@ -122,7 +138,12 @@ class Renderer:
         self.vis_map.compare_func = "<="
         self.vis_map.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.vis_map.repeat_x = self.vis_map.repeat_y = False
-        self.vis_fbo = ctx.framebuffer(depth_attachment=self.vis_map)
+        # Beside each map's depth, the emitted radiance of the part it sees, over the
+        # scene's brightest (8 bits are plenty for the panels' low-contrast light).
+        self.vis_radiance = ctx.texture((side, side), 4)
+        self.vis_radiance.repeat_x = self.vis_radiance.repeat_y = False
+        self.vis_fbo = ctx.framebuffer([self.vis_radiance], depth_attachment=self.vis_map)
+        self._radiance_scale = 1.0
         self._vis: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
 
     def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
@@ -185,7 +206,8 @@ class Renderer:
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
-                                         float(info.component), mask, center, box))
+                                         float(info.component), mask, center, box,
+                                         _emitted(mat)))
         self._bake_sky_visibility(extent)
 
     def make_current(self) -> None:
@@ -225,8 +247,9 @@ class Renderer:
         corners = extent if extent is not None else np.concatenate(
             [box_corners(d.box, d.pose) for d in self._draws])
         matrices = occlusion_matrices(corners, directions)
+        self._radiance_scale = max(1e-6, max(float(d.radiance.max()) for d in self._draws))
         self.vis_fbo.use()
-        self.vis_fbo.clear(depth=1.0)
+        self.vis_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         self.ctx.polygon_offset = (2.0, 4.0)
@@ -245,7 +268,7 @@ class Renderer:
             tile[0, 3], tile[1, 3] = (k % self.vis_tiles, k // self.vis_tiles) / np.float64(
                 self.vis_tiles)
             atlas.append(tile @ _CLIP_TO_TEXTURE @ light)
-        weights = self.lighting.sky_radiance(directions) @ np.array([0.2126, 0.7152, 0.0722])
+        weights = self.lighting.sky_radiance(directions) @ LUMINANCE
         texel = max(shadow_texel_m(m, px) for m in matrices)
         self._vis = (np.array(atlas), directions, np.maximum(weights, 1e-6), texel)
 
@@ -266,6 +289,7 @@ class Renderer:
         prog = self.programs["shadow"]
         for draw in draws:
             prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
+            prog["u_radiance"].value = tuple(draw.radiance / self._radiance_scale)
             draw.vaos["shadow"].render()
 
     def _shadow_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray | None:
@@ -369,6 +393,8 @@ class Renderer:
         self.ao.use(5)
         prog["u_vis_map"].value = 6
         self.vis_map.use(6)
+        prog["u_vis_radiance"].value = 7
+        self.vis_radiance.use(7)
         prog["u_vis_count"].value = 0 if self._vis is None else len(self._vis[1])
         if self._vis is not None:
             atlas, directions, weights, texel = self._vis
@@ -382,6 +408,8 @@ class Renderer:
                                        .tobytes())
             # 1.5 texels along the normal, as for the sun's map.
             prog["u_vis_offset_m"].value = 1.5 * texel
+            prog["u_vis_solid_angle"].value = (sky_solid_angle(len(directions))
+                                               * self._radiance_scale)
         if light is not None:
             shadow_from_view = _CLIP_TO_TEXTURE @ light @ camera.pose
             prog["u_shadow_from_view"].write(shadow_from_view.astype("f4").T.tobytes())
