@@ -1,6 +1,7 @@
 """Each lighting knob's time and colour error, in one run: the default preset's views rendered
-with every knob on, then with one knob at a time turned back to the old approximation, all
-scored against one Cycles reference of the same views (same sun and sky for every row).
+with the default knobs, then with one knob at a time changed (SSAO on; the others back to the
+old approximation), all scored against one Cycles reference of the same views (same sun and
+sky for every row).
 Time per sample = median render + environment opening (the sky-visibility maps are baked
 there) / cameras per environment. Needs Blender.
 
@@ -31,8 +32,8 @@ from glsynth.render.view import EnvironmentView  # noqa: E402
 
 SIZE = (480, 270)
 VARIANTS = {
-    "all knobs on (default)": {},
-    "ao off": {"ao": "off"},
+    "default (sky maps + SH, SSAO off)": {},
+    "SSAO on": {"ao": "ssao"},
     "sky visibility maps off": {"sky_visibility_maps": 0},
     "hemisphere ambient (no SH, no maps)": {"ambient": "hemisphere"},
     "exponential tone map": {"tone_map": "exponential"},
