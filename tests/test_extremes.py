@@ -31,6 +31,7 @@ from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.filters import pixels_per_cm, removal_reason, rrdr
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.view import EnvironmentView, preview_config
+from glsynth.world.visibility import occlusion_extent
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 
@@ -209,7 +210,8 @@ def test_shadows_only_darken_with_the_sun_anywhere(elevation):
     view = EnvironmentView.open(config, 0, 0)
     unshadowed = Renderer(dataclasses.replace(config.render, shadow_map_px=0))
     try:
-        unshadowed.load(view.scene, view.lighting)
+        # The same sky-visibility maps as the view's (fitted to the whole environment).
+        unshadowed.load(view.scene, view.lighting, occlusion_extent(view.environment.parts))
         darker = 0
         for index in range(4):
             placement, out = view.render(index)
