@@ -356,8 +356,10 @@ def plot_trade_curve(result: dict, path: Path) -> None:
     rows = [result["presets"][n] for n in names]
     x = [r["time_per_sample_s"] for r in rows]
     a.plot(x, [r["ciede2000"] for r in rows], "o-", label="glsynth presets")
-    for name, xi, r in zip(names, x, rows):
-        a.annotate(name, (xi, r["ciede2000"]), textcoords="offset points", xytext=(4, 4))
+    for i, (name, xi, r) in enumerate(zip(names, x, rows)):
+        # Alternate above and below: presets of nearly equal time and error would overprint.
+        a.annotate(name, (xi, r["ciede2000"]), textcoords="offset points",
+                   xytext=(4, 4 if i % 2 else -12))
     if result["cycles"]:
         cyc = list(result["cycles"].values())
         a.plot([c["time_per_sample_s"] for c in cyc], [c["ciede2000"] for c in cyc], "s-",
@@ -375,9 +377,9 @@ def plot_trade_curve(result: dict, path: Path) -> None:
     b.plot(x, [100 * r["vs_raycast"]["component_agreement"] for r in rows], "o-",
            label="components")
     b.plot(x, [100 * r["vs_raycast"]["damage_agreement"] for r in rows], "s-", label="damage")
-    for name, xi, r in zip(names, x, rows):
+    for i, (name, xi, r) in enumerate(zip(names, x, rows)):
         b.annotate(name, (xi, 100 * r["vs_raycast"]["component_agreement"]),
-                   textcoords="offset points", xytext=(4, 4))
+                   textcoords="offset points", xytext=(4, 4 if i % 2 else -12))
     b.set_xlabel("time per sample [s]"), b.set_ylabel("label agreement vs ray cast [%]")
     b.legend()
     fig.suptitle("speed against accuracy: glsynth presets and Cycles")
