@@ -52,8 +52,10 @@ def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
             assert live == 0, f"cycle {cycle}: {live} GL buffers still alive after release"
             rss.append(_rss_mb())
         # After a warm-up, the process holds the same memory however many scenes it loaded
-        # (it grew by 4.5 MB per load when the buffers leaked).
-        growth = rss[-1] - rss[4]
-        assert growth < 0.3 * (CYCLES - 5), f"RSS grew {growth:.1f} MB over {CYCLES - 5} loads"
+        # (it grew by 4.5 MB per load when the buffers leaked). Medians of two windows 15
+        # loads apart: single readings swing by +-12 MB as the allocator returns pages.
+        early, late = sorted(rss[5:15])[5], sorted(rss[-10:])[5]
+        growth = late - early
+        assert growth < 1.0 * 15, f"RSS grew {growth:.1f} MB over 15 loads"
     finally:
         renderer.release()
