@@ -56,6 +56,7 @@ def test_presets_set_every_knob():
         assert c.damage.resolution == q.damage_resolution and c.damage.octaves == q.octaves
         assert c.environment.cylinder_segments == q.cylinder_segments
         assert c.render.shadow_map_px == q.shadow_map_px
+        assert (c.render.sky_visibility_maps, c.render.ao) == (q.sky_visibility_maps, q.ao)
     default = apply_quality(Config(), "default")
     assert default == Config()
     with pytest.raises(ValueError, match="choose one of"):
