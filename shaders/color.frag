@@ -1,7 +1,8 @@
 #version 330 core
 // Metallic-roughness PBR: GGX specular + Burley diffuse under one sun, plus ambient light
 // from the sky and the ground (spherical-harmonic irradiance, or a two-colour hemisphere),
-// darkened by screen-space ambient occlusion, plus emission (scene panels are emission-only). The normal map (the damage
+// occluded by the sky-visibility maps and optionally screen-space ambient occlusion, plus
+// emission (scene panels are emission-only). The normal map (the damage
 // normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
 // derivatives of position and UV, so meshes need no tangent attribute. The sun is shadowed by
 // a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set.
@@ -36,10 +37,11 @@ uniform mat4 u_vis_from_view[16];       // atlas coordinates and depth from came
 uniform vec3 u_vis_dir[16];             // camera space, towards the sky
 uniform float u_vis_weight[16];
 uniform float u_vis_offset_m;
-// Where a direction is hidden, the light of what hides it: the emitted radiance of the nearest
-// part seen from that direction (scene panels), per map in the same atlas layout.
+// Where a direction is hidden, the light of what hides it: the emitted radiance of the first
+// part seen from the sky along that direction (scene panels), in the same atlas layout, stored
+// over the scene's brightest part.
 uniform sampler2D u_vis_radiance;
-uniform float u_vis_solid_angle;        // of each direction's share of the sky
+uniform float u_vis_solid_angle;        // each direction's solid angle x that brightest radiance
 uniform vec3 u_sky_color;
 uniform vec3 u_ground_color;
 uniform float u_exposure;

@@ -152,7 +152,6 @@ def _median_scores(scores: list[dict]) -> dict:
 class _PresetRun:
     renders: list
     placements: list
-    time_per_sample_s: float
     row: dict
 
 
@@ -188,7 +187,7 @@ def _run_preset(config: Config, name: str, root_seed: int, env: int, cameras: li
     row = {**dataclasses.asdict(QUALITY[name]), "width": cfg.render.width,
            "height": cfg.render.height, "render_s": render_s, "open_s": opened,
            "time_per_sample_s": per_sample}
-    return _PresetRun(renders, placements, per_sample, row), scene
+    return _PresetRun(renders, placements, row), scene
 
 
 def _cycles_renders(scene: dict, placements: list, samples: int, seed_offset: int,

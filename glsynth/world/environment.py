@@ -301,4 +301,3 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
 def ground_parts(parts: Sequence[Part]) -> list[Part]:
     """The ground strips among ``parts`` (what lights the scene from below)."""
     return [p for p in parts if p.name.startswith("ground_")]
-

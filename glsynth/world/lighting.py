@@ -16,7 +16,7 @@ Ambient light for the rasterizer ([render] ambient = "sh"): the irradiance that 
 surface of normal n from the sky above the horizon and from the ground below it, as order-2
 spherical harmonics (Ramamoorthi and Hanrahan 2001, nine coefficients per channel). The ground
 is a Lambertian plane of albedo ``ground_albedo`` under the sun and the sky. Occlusion by the
-scene itself is left to ambient occlusion.
+scene itself is the rasterizer's (sky-visibility maps, optionally SSAO).
 """
 
 import math
@@ -145,21 +145,13 @@ class Lighting:
         up = dirs[:, 2] > 0
         sky = np.zeros((len(dirs), 3))
         sky[up] = self.sky_radiance(dirs[up])
-        sun_on_ground, sky_on_ground = self.ground_irradiance(rows)
+        sky_on_ground = (sky[up] * (dirs[up, 2] * weights[up])[:, None]).sum(0)
+        sun_on_ground = self.sun_irradiance * max(self.sun_direction[2], 0.0)
         ground = np.zeros((len(dirs), 3))
         ground[~up] = np.asarray(self.ground_albedo) / math.pi * (sky_on_ground + sun_on_ground)
         lobe = np.repeat(_COSINE_LOBE, [1, 3, 5])[:, None]
         basis = sh_basis(dirs).T * weights
         return basis @ sky * lobe, basis @ ground * lobe
-
-
-    def ground_irradiance(self, rows: int = 64) -> tuple[float, np.ndarray]:
-        """Irradiance on open level ground: from the sun (a scalar, the sun is white) and from
-        the sky (linear RGB, (3,))."""
-        dirs, weights = _sphere_grid(rows)
-        up = dirs[:, 2] > 0
-        sky = self.sky_radiance(dirs[up]) * (dirs[up, 2] * weights[up])[:, None]
-        return self.sun_irradiance * max(self.sun_direction[2], 0.0), sky.sum(0)
 
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
