@@ -1,14 +1,23 @@
-"""What the cameras see under each reading of the paper's camera placement ([cameras] placement
-and height_from, docs/design.md): keep rates by camera
-kind and removal reason (Section 3.4 filters), the share of kept views showing each component,
-and component pixel shares, from colour, component and depth renders at preview size.
+"""What the cameras see: keep rates by camera kind and removal reason (Section 3.4 filters), the
+share of kept views showing each component, and component pixel shares, from colour,
+component and depth renders at preview size.
 
-    .venv/bin/python bench/bench_views.py [--preset paper] [--envs 6] [--width 384]
+- under each reading of the paper's camera placement ([cameras] placement and height_from,
+  docs/design.md), at the configured exposure;
+- for the default reading, at each exposure of --exposures (the dark filter depends on it);
+- with --cycles-envs N, the same views of the first N environments path-traced by the Cycles
+  twin, filtered at each exposure (Cycles' linear output is exposed exactly as GL's): whether
+  the raster shortcut changes what the dark filter removes. Needs Blender.
+
+    .venv/bin/python bench/bench_views.py [--preset paper] [--envs 12] [--width 384]
+        [--exposures 1,1.41,2] [--cycles-envs 3] [--cycles-samples 32]
 """
 
 import argparse
 import dataclasses
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -17,47 +26,119 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_results  # noqa: E402
 
-from glsynth.core.config import HEIGHTS_FROM, PLACEMENTS, load_config  # noqa: E402
+from glsynth.core.config import HEIGHTS_FROM, PLACEMENTS, Config, load_config  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
 from glsynth.data.filters import removal_reason  # noqa: E402
+from glsynth.render.cycles import cycles_seed, render_linear, require_blender  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
+from glsynth.render.tonemap import tone_map  # noqa: E402
 from glsynth.render.view import EnvironmentView, preview_config  # noqa: E402
 
 CLASSES = [c for c in Component if c != Component.UNLABELLED]
+PAPER_KEEP = {"regular": 0.8648, "closeup": 0.7288}
+KINDS = ("regular", "closeup")
 
 
-def measure(config, envs: int) -> dict:
-    kinds = {k: {"views": 0, "kept": 0, "removed": {}} for k in ("regular", "closeup")}
-    shows = {k: {c.name.lower(): 0 for c in CLASSES} for k in kinds}
+def with_render(config: Config, **changes) -> Config:
+    return dataclasses.replace(config, render=dataclasses.replace(config.render, **changes))
+
+
+def view_records(config: Config, env: int, renderer: Renderer) -> list[dict]:
+    """Per camera of environment ``env``: its kind, removal reason and component pixel counts."""
+    view = EnvironmentView.open(config, 0, env, renderer)
+    records = []
+    for index in range(config.cameras.total):
+        placement, out = view.render(index, frozenset({"color", "component", "depth"}))
+        records.append({"kind": placement.kind,
+                        "reason": removal_reason(out.color, out.component, out.depth),
+                        "pixels": np.bincount(out.component.ravel(), minlength=len(Component))})
+    return records
+
+
+def summarize(records: list[dict]) -> dict:
+    kinds = {k: {"views": 0, "kept": 0, "removed": {}} for k in KINDS}
+    shows = {k: {c.name.lower(): 0 for c in CLASSES} for k in KINDS}
     pixels = np.zeros(len(Component), np.int64)
-    renderer = Renderer(config.render)
-    n = config.cameras.total
-    for env in range(envs):
-        view = EnvironmentView.open(config, 0, env, renderer)
-        for index in range(n):
-            placement, out = view.render(index, frozenset({"color", "component", "depth"}))
-            k = kinds[placement.kind]
-            k["views"] += 1
-            reason = removal_reason(out.color, out.component, out.depth)
-            if reason is not None:
-                k["removed"][reason] = k["removed"].get(reason, 0) + 1
-                continue
-            k["kept"] += 1
-            present = np.bincount(out.component.ravel(), minlength=len(Component))
-            pixels += present
-            for c in CLASSES:
-                shows[placement.kind][c.name.lower()] += int(present[c] > 0)
-    renderer.release()
-    total = pixels[1:].sum()
+    for r in records:
+        k = kinds[r["kind"]]
+        k["views"] += 1
+        if r["reason"] is not None:
+            k["removed"][r["reason"]] = k["removed"].get(r["reason"], 0) + 1
+            continue
+        k["kept"] += 1
+        pixels += r["pixels"]
+        for c in CLASSES:
+            shows[r["kind"]][c.name.lower()] += int(r["pixels"][c] > 0)
+    kept = sum(k["kept"] for k in kinds.values())
+    total = max(1, pixels[1:].sum())
     return {
-        "keep_rate": {k: round(v["kept"] / v["views"], 4) for k, v in kinds.items()},
+        "keep_rate": {k: round(v["kept"] / max(1, v["views"]), 4) for k, v in kinds.items()},
         "views": kinds,
         "share_of_kept_views_showing": {
-            k: {c: round(v / max(1, kinds[k]["kept"]), 4) for c, v in s.items()}
-            for k, s in shows.items()},
+            **{k: {c: round(v / max(1, kinds[k]["kept"]), 4) for c, v in s.items()}
+               for k, s in shows.items()},
+            "all": {c.name.lower(): round(sum(s[c.name.lower()] for s in shows.values())
+                                          / max(1, kept), 4) for c in CLASSES}},
         "component_pixel_share": {c.name.lower(): round(float(pixels[c] / total), 4)
                                   for c in CLASSES},
     }
+
+
+def measure(config: Config, envs: int) -> dict:
+    t0 = time.perf_counter()
+    renderer = Renderer(config.render)
+    records = [r for env in range(envs) for r in view_records(config, env, renderer)]
+    renderer.release()
+    result = summarize(records)
+    result["seconds"] = round(time.perf_counter() - t0, 1)
+    return result
+
+
+def cycles_check(config: Config, envs: int, exposures: list[float], samples: int) -> dict:
+    """GL and Cycles removals of the same views, at each exposure; the maps that the other
+    filters read (component, depth) are GL's for both, as in a Cycles-twin dataset."""
+    blender = require_blender()
+    out = {}
+    renderer = Renderer(config.render)
+    gl = {e: [] for e in exposures}
+    cycles = {e: [] for e in exposures}
+    work = Path(tempfile.mkdtemp(prefix="glsynth-views-"))
+    try:
+        for env in range(envs):
+            views = {}
+            for e in exposures:
+                views[e] = EnvironmentView.open(with_render(config, exposure=e), 0, env, renderer)
+                outs = [views[e].render(i, frozenset({"color", "component", "depth"}))
+                        for i in range(config.cameras.total)]
+                gl[e] += [(p.kind, removal_reason(o.color, o.component, o.depth))
+                          for p, o in outs]
+            view = views[exposures[-1]]
+            placements = [p for p, _ in outs]
+            linear = render_linear(
+                [p for p in view.environment.parts if p.name in view.scene.parts],
+                view.dressing.materials, view.lighting, config.render,
+                [p.camera for p in placements],
+                [cycles_seed(0, env, p.index) for p in placements], samples, work, blender).linear
+            for e in exposures:
+                cycles[e] += [(p.kind, removal_reason(tone_map(x, config.render.tone_map, e),
+                                                      o.component, o.depth))
+                              for (p, o), x in zip(outs, linear)]
+    finally:
+        renderer.release()
+        shutil.rmtree(work, ignore_errors=True)
+    for e in exposures:
+        row = {}
+        for kind in KINDS:
+            g = [r for k, r in gl[e] if k == kind]
+            c = [r for k, r in cycles[e] if k == kind]
+            row[kind] = {
+                "views": len(g),
+                "keep_rate_gl": round(g.count(None) / len(g), 4),
+                "keep_rate_cycles": round(c.count(None) / len(c), 4),
+                "dark_gl": g.count("dark"), "dark_cycles": c.count("dark"),
+                "dark_decision_agrees": sum((a == "dark") == (b == "dark") for a, b in zip(g, c))}
+        out[f"exposure={e:g}"] = row
+    return out
 
 
 def main() -> None:
@@ -65,21 +146,37 @@ def main() -> None:
     parser.add_argument("--preset", default="paper")
     parser.add_argument("--envs", type=int, default=6)
     parser.add_argument("--width", type=int, default=384)
+    parser.add_argument("--exposures", default="1,1.41,2",
+                        help="comma-separated exposures for the default reading")
+    parser.add_argument("--cycles-envs", type=int, default=0)
+    parser.add_argument("--cycles-samples", type=int, default=32)
     args = parser.parse_args()
+    exposures = [float(x) for x in args.exposures.split(",")]
     base = preview_config(load_config(args.preset), args.width)
-    results = {"paper": {"keep_rate": {"regular": 0.8648, "closeup": 0.7288}},
-               "envs": args.envs, "size": [base.render.width, base.render.height]}
+    results = {"paper": {"keep_rate": PAPER_KEEP}, "envs": args.envs,
+               "size": [base.render.width, base.render.height],
+               "exposure": base.render.exposure, "readings": {}, "exposures": {}}
     for placement in PLACEMENTS:
         for height_from in HEIGHTS_FROM:
             name = f"placement={placement}, height_from={height_from}"
             config = dataclasses.replace(base, cameras=dataclasses.replace(
                 base.cameras, placement=placement, height_from=height_from))
-            t0 = time.perf_counter()
-            results[name] = measure(config, args.envs)
-            results[name]["seconds"] = round(time.perf_counter() - t0, 1)
-            print(name, results[name]["keep_rate"], {
-                k: (v["rail"], v["sleeper"])
-                for k, v in results[name]["share_of_kept_views_showing"].items()}, flush=True)
+            results["readings"][name] = measure(config, args.envs)
+            print(name, results["readings"][name]["keep_rate"], flush=True)
+    default = results["readings"][
+        f"placement={base.cameras.placement}, height_from={base.cameras.height_from}"]
+    for e in exposures:
+        results["exposures"][f"exposure={e:g}"] = (
+            default if e == base.render.exposure else measure(with_render(base, exposure=e),
+                                                              args.envs))
+        print(f"exposure={e:g}", results["exposures"][f"exposure={e:g}"]["keep_rate"],
+              flush=True)
+    if args.cycles_envs:
+        t0 = time.perf_counter()
+        results["cycles"] = {"envs": args.cycles_envs, "samples": args.cycles_samples,
+                             **cycles_check(base, args.cycles_envs, exposures,
+                                            args.cycles_samples)}
+        results["cycles"]["seconds"] = round(time.perf_counter() - t0, 1)
     write_results("views", results)
 
 

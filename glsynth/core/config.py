@@ -182,7 +182,11 @@ class RenderConfig:
     tone_map: str = "standard"
     """Linear radiance x exposure to 8-bit sRGB: "standard" (clip, then the sRGB curve: Blender's
     Standard view transform) or "exponential" (1 - exp(-x), then x ** (1 / 2.2))."""
-    exposure: float = 1.0
+    exposure: float = 2.0
+    """Scale of linear radiance before the tone map. The paper gives no light levels; at 2 (one
+    stop over 1) the Section 3.4 dark filter removes about as many views of each camera kind as
+    the paper's did, in GL and in Cycles alike (bench/bench_views.py, README "Camera
+    placement")."""
     renderer: str = "gl"
     """Colour by "gl" (the rasterizer) or "cycles" (the Cycles twin, glsynth.render.cycles;
     needs Blender). Labels and depth always come from GL."""
