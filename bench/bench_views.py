@@ -29,13 +29,13 @@ from common import write_results  # noqa: E402
 from glsynth.core.config import HEIGHTS_FROM, PLACEMENTS, Config, load_config  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
 from glsynth.data.filters import removal_reason  # noqa: E402
+from glsynth.data.statistics import PAPER  # noqa: E402
 from glsynth.render.cycles import cycles_seed, render_linear, require_blender  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.tonemap import tone_map  # noqa: E402
 from glsynth.render.view import EnvironmentView, preview_config  # noqa: E402
 
 CLASSES = [c for c in Component if c != Component.UNLABELLED]
-PAPER_KEEP = {"regular": 0.8648, "closeup": 0.7288}
 KINDS = ("regular", "closeup")
 
 
@@ -98,21 +98,19 @@ def cycles_check(config: Config, envs: int, exposures: list[float], samples: int
     """GL and Cycles removals of the same views, at each exposure; the maps that the other
     filters read (component, depth) are GL's for both, as in a Cycles-twin dataset."""
     blender = require_blender()
-    out = {}
     renderer = Renderer(config.render)
     gl = {e: [] for e in exposures}
     cycles = {e: [] for e in exposures}
     work = Path(tempfile.mkdtemp(prefix="glsynth-views-"))
     try:
         for env in range(envs):
-            views = {}
             for e in exposures:
-                views[e] = EnvironmentView.open(with_render(config, exposure=e), 0, env, renderer)
-                outs = [views[e].render(i, frozenset({"color", "component", "depth"}))
+                view = EnvironmentView.open(with_render(config, exposure=e), 0, env, renderer)
+                outs = [view.render(i, frozenset({"color", "component", "depth"}))
                         for i in range(config.cameras.total)]
                 gl[e] += [(p.kind, removal_reason(o.color, o.component, o.depth))
                           for p, o in outs]
-            view = views[exposures[-1]]
+            # Labels and depth do not depend on the exposure: the last view's serve Cycles.
             placements = [p for p, _ in outs]
             linear = render_linear(
                 [p for p in view.environment.parts if p.name in view.scene.parts],
@@ -126,6 +124,7 @@ def cycles_check(config: Config, envs: int, exposures: list[float], samples: int
     finally:
         renderer.release()
         shutil.rmtree(work, ignore_errors=True)
+    out = {}
     for e in exposures:
         row = {}
         for kind in KINDS:
@@ -153,7 +152,7 @@ def main() -> None:
     args = parser.parse_args()
     exposures = [float(x) for x in args.exposures.split(",")]
     base = preview_config(load_config(args.preset), args.width)
-    results = {"paper": {"keep_rate": PAPER_KEEP}, "envs": args.envs,
+    results = {"paper": {"keep_rate": PAPER["keep_rate"]}, "envs": args.envs,
                "size": [base.render.width, base.render.height],
                "exposure": base.render.exposure, "readings": {}, "exposures": {}}
     for placement in PLACEMENTS:
