@@ -1,0 +1,89 @@
+"""Opening an environment: wall time by phase, peak RSS, and digests of rendered outputs.
+
+Each opening runs in a fresh process (its peak RSS is its own) after one warm-up opening that
+fills the texture and damage-bank caches. The phases are building the environment, dressing
+it (bank reads and damage maps), and uploading (textures, mipmaps, geometry, sky visibility).
+The digests (sha256 of every pass of a few cameras) show whether a change to the open path
+changed a byte of output: compare them between two results files.
+
+    .venv/bin/python bench/bench_open.py [--preset paper] [--envs 2] [--cameras 4]
+                                         [--label after]
+"""
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import RESULTS, write_results  # noqa: E402
+
+CHILD = """
+import hashlib, json, resource, sys, time
+from glsynth.core.config import load_config
+import glsynth.render.view as view_module
+from glsynth.render.gl.renderer import Renderer
+
+preset, env, cameras = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+config = load_config(preset)
+phases = {}
+
+def timed(name, fn):
+    def wrapper(*args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            phases[name] = phases.get(name, 0.0) + time.perf_counter() - t
+    return wrapper
+
+view_module.build_environment = timed("build_environment", view_module.build_environment)
+view_module.dress = timed("dress", view_module.dress)
+Renderer.load = timed("upload", Renderer.load)
+renderer = Renderer(config.render)
+t0 = time.perf_counter()
+view = view_module.EnvironmentView.open(config, 0, env, renderer)
+opened = time.perf_counter() - t0
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+digests = {}
+step = max(1, config.cameras.total // max(1, cameras))
+for index in range(0, config.cameras.total, step)[:cameras]:
+    _, out = view.render(index)
+    digests[str(index)] = {k: hashlib.sha256(getattr(out, k).tobytes()).hexdigest()[:16]
+                           for k in ("color", "component", "damage", "depth")}
+print(json.dumps({"open_s": opened, "phases_s": phases, "peak_rss_mib": peak,
+                  "damage_textures": sum(1 for a in view.dressing.assignments.values()
+                                         if a.damage and a.damage.get("built")),
+                  "digests": digests}))
+"""
+
+
+def child(preset: str, env: int, cameras: int) -> dict:
+    out = subprocess.run([sys.executable, "-c", CHILD, preset, str(env), str(cameras)],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--preset", default="paper")
+    parser.add_argument("--envs", type=int, default=2)
+    parser.add_argument("--cameras", type=int, default=4, help="cameras rendered for digests")
+    parser.add_argument("--label", default="after", help="results: bench/results/open/LABEL")
+    args = parser.parse_args()
+    child(args.preset, 0, 0)  # fills the caches
+    runs = [child(args.preset, env, args.cameras) for env in range(args.envs)]
+    (RESULTS / "open").mkdir(parents=True, exist_ok=True)
+    write_results(f"open/{args.label}", {
+        "preset": args.preset,
+        "open_s_median": statistics.median(r["open_s"] for r in runs),
+        "peak_rss_mib_median": statistics.median(r["peak_rss_mib"] for r in runs),
+        "phases_s_median": {k: statistics.median(r["phases_s"][k] for r in runs)
+                            for k in runs[0]["phases_s"]},
+        "by_environment": runs})
+
+
+if __name__ == "__main__":
+    main()
