@@ -1,4 +1,4 @@
-"""Time one full damage texture set (noise, masks, RGB, metallic, roughness, normal) and the
+"""Time one full damage texture set (noise, masks, RGB, metallic, normal) and the
 speed/quality trade of resolution and octaves.
 
     .venv/bin/python bench/bench_damage.py [--repeats 3]
@@ -26,7 +26,7 @@ from glsynth.appearance.damage import (  # noqa: E402
     compose_rgb,
     damage_maps,
     encode_normals,
-    metallic_roughness,
+    metallic_map,
     normal_components,
     sample_params,
 )
@@ -40,10 +40,10 @@ def full_set(cfg: DamageConfig, severity: str, item: int, images: list[np.ndarra
     params = sample_params(cfg, severity, rng)
     maps = damage_maps(params, cfg, rng)
     rgb = compose_rgb(maps.mask, *images)
-    mr = metallic_roughness(maps.mask)  # metallic (B) and roughness (G) maps
+    metal = metallic_map(maps.mask)
     normals = encode_normals(*normal_components(maps.displacement_m,
                                                 cfg.tile_m / cfg.resolution))
-    return params, maps, rgb, mr, normals
+    return params, maps, rgb, metal, normals
 
 
 def main() -> None:

@@ -14,8 +14,7 @@ uniform vec4 u_base_color;
 uniform float u_metallic;
 uniform float u_roughness;
 uniform vec3 u_emissive;
-uniform sampler2D u_base_color_map;          // sRGB; 1x1 white when the material has none
-uniform sampler2D u_metallic_roughness_map;  // glTF: G roughness, B metallic; 1x1 white if none
+uniform sampler2D u_base_color_map;          // RGB sRGB colour, A metallic; 1x1 white if none
 uniform sampler2D u_emissive_map;            // sRGB; 1x1 white if none
 uniform sampler2D u_normal_map;              // tangent space, 1x1 (0.5, 0.5, 1) if none
 uniform bool u_has_normal_map;
@@ -134,10 +133,10 @@ void main() {
     vec2 vis = sky_visibility(n, hidden);
     if (u_has_normal_map) n = perturbed_normal(n, view_dir);
 
-    vec4 base = u_base_color * vec4(srgb_to_linear(texture(u_base_color_map, v_uv).rgb), 1.0);
-    vec3 mr = texture(u_metallic_roughness_map, v_uv).rgb;
-    float metallic = clamp(u_metallic * mr.b, 0.0, 1.0);
-    float roughness = clamp(u_roughness * mr.g, 0.04, 1.0);
+    vec4 texel = texture(u_base_color_map, v_uv);
+    vec4 base = u_base_color * vec4(srgb_to_linear(texel.rgb), 1.0);
+    float metallic = clamp(u_metallic * texel.a, 0.0, 1.0);
+    float roughness = clamp(u_roughness, 0.04, 1.0);
     float alpha = roughness * roughness;
 
     vec3 f0 = mix(vec3(0.04), base.rgb, metallic);

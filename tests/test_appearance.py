@@ -78,7 +78,7 @@ def test_column_damage_assignment(dressed):
                 assert m.uv_scale == pytest.approx(r["scale"])
                 assert set(np.unique(m.damage_mask)) <= {1, 2, 3}
                 rebar = m.damage_mask == Damage.REBAR
-                assert np.array_equal(m.metallic_roughness_map[..., 2] == 255, rebar)
+                assert np.array_equal(m.metallic_map == 255, rebar)
 
 
 def test_damage_textures_only_for_visible_columns_and_cached(tmp_path):

@@ -9,7 +9,7 @@ from glsynth.appearance.damage import (
     concrete_profile,
     damage_maps,
     encode_normals,
-    metallic_roughness,
+    metallic_map,
     normal_components,
     rebar_depth,
     sample_params,
@@ -127,10 +127,10 @@ def test_masks_partition_and_maps_are_consistent():
     assert maps.mask.dtype == np.uint8
     assert set(np.unique(maps.mask)) <= {1, 2, 3}
     assert sum(int((maps.mask == i).sum()) for i in (1, 2, 3)) == maps.mask.size
-    mr = metallic_roughness(maps.mask)
-    assert np.all(mr[..., 1] == 255)
-    assert np.array_equal(mr[..., 2] == 255, maps.mask == Damage.REBAR)
-    assert np.all(mr[..., 2][maps.mask != Damage.REBAR] == 0)
+    metal = metallic_map(maps.mask)
+    assert metal.dtype == np.uint8 and metal.shape == maps.mask.shape
+    assert np.array_equal(metal == 255, maps.mask == Damage.REBAR)
+    assert np.all(metal[maps.mask != Damage.REBAR] == 0)
 
 
 def test_normals_are_unit_length_and_tilt_with_the_slope():

@@ -154,7 +154,7 @@ def test_dressed_export_round_trips_every_texture(dressed):
     nodes = {n["name"]: n for n in gltf["nodes"] if "mesh" in n}
     assert set(nodes) == {p.name for p in env.parts}
     sources = {id(a) for m in materials.values() for a in (
-        m.base_color_map, m.metallic_roughness_map, m.normal_map, m.emissive_map,
+        m.base_color_map, m.metallic_map, m.normal_map, m.emissive_map,
         m.damage_mask) if a is not None}
     assert len(gltf["images"]) == len(sources)  # shared repository images written once
 
@@ -182,8 +182,9 @@ def test_dressed_export_round_trips_every_texture(dressed):
         assert np.allclose(uv[:, 1], 1 - expected[:, 1], atol=1e-5)  # glTF: v from the top
         if m.damage_mask is not None:
             assert np.array_equal(image(mat["extras"]["glsynth_damage_mask"]), m.damage_mask)
-            assert np.array_equal(image(pbr["metallicRoughnessTexture"]),
-                                  m.metallic_roughness_map)
+            packed = image(pbr["metallicRoughnessTexture"])  # glTF: G roughness, B metallic
+            assert np.all(packed[..., 1] == 255)
+            assert np.array_equal(packed[..., 2], m.metallic_map)
             assert np.array_equal(image(mat["normalTexture"]), m.normal_map)
             tangent = _accessor(gltf, binary, primitive["attributes"]["TANGENT"])
             normal = _accessor(gltf, binary, primitive["attributes"]["NORMAL"])

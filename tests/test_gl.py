@@ -134,6 +134,32 @@ def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
     assert diff.mean() > 5 and np.std(shaded.color) > 2 * np.std(flat.color)
 
 
+def test_metallic_map_travels_in_the_base_textures_alpha(renderer):
+    """The renderer samples the metallic map from the base colour texture's alpha: where the
+    map is 255 the plate renders as the metallic factor alone, where it is 0 as metallic 0."""
+    d = 10.0
+    k = camera().K
+    x0, x1 = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
+    y1, y0 = -(-0.5 - k[1, 2]) / k[1, 1] * d, -(47.5 - k[1, 2]) / k[1, 1] * d
+    plate = quad([[x0, y0, -d], [x1, y0, -d], [x1, y1, -d], [x0, y1, -d]])
+    colour = make_rng(6, 0, Stream.DAMAGE).integers(60, 200, (48, 64, 3), dtype=np.uint8)
+    metal = np.zeros((48, 64), np.uint8)
+    metal[:, :32] = 255
+
+    def render(metallic: float, metallic_map: np.ndarray | None) -> np.ndarray:
+        m = Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=metallic, roughness=0.3,
+                     base_color_map=colour, metallic_map=metallic_map)
+        renderer.load(scene_of(("column_plate", Component.COLUMN, plate, m)), LIGHT)
+        return renderer.render(camera(), frozenset({"color"})).color
+
+    mapped, steel, concrete = render(1.0, metal), render(1.0, None), render(0.0, None)
+    assert not np.array_equal(steel, concrete)
+    assert np.array_equal(mapped[:, :31], steel[:, :31])
+    assert np.array_equal(mapped[:, 33:], concrete[:, 33:])
+    with pytest.raises(ValueError, match="metallic_map: shape"):
+        Material(base_color_map=colour, metallic_map=metal[:, :32])
+
+
 def test_msaa_changes_colour_edges_only_never_labels_or_depth():
     from glsynth.world.meshes import box, pose
 

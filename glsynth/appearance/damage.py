@@ -190,9 +190,6 @@ def compose_rgb(mask: np.ndarray, intact: np.ndarray, damaged: np.ndarray,
     return out
 
 
-def metallic_roughness(mask: np.ndarray) -> np.ndarray:
-    """glTF packing: G = roughness (1 everywhere), B = metallic (1 on exposed rebar)."""
-    lut = np.zeros((len(Damage), 3), np.uint8)
-    lut[:, 1] = 255
-    lut[Damage.REBAR, 2] = 255
-    return lut[mask]
+def metallic_map(mask: np.ndarray) -> np.ndarray:
+    """The metallic map: 255 on exposed rebar, 0 elsewhere."""
+    return np.where(mask == Damage.REBAR, np.uint8(255), np.uint8(0))

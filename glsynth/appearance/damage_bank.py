@@ -3,7 +3,7 @@
 Texture k of a severity comes from its own generator, make_rng(root_seed, 0, DAMAGE_BANK, item),
 so it is the same whichever columns ask for it and in which order. Only the seed-determined
 part is cached on disk (mask, displacement, parameters, image choices; compressed .npz); the
-RGB, metallic-roughness and normal maps are rebuilt from it and the repository on load.
+RGB, metallic and normal maps are rebuilt from it and the repository on load.
 """
 
 import dataclasses
@@ -22,7 +22,7 @@ from glsynth.appearance.damage import (
     compose_rgb,
     damage_maps,
     encode_normals,
-    metallic_roughness,
+    metallic_map,
     normal_components,
     sample_params,
 )
@@ -99,7 +99,7 @@ class DamageBank:
 
 def damage_material(entry: BankEntry, repository: TextureRepository, cfg: DamageConfig,
                     scale: float) -> Material:
-    """The PBR material of a damaged column: RGB, metallic-roughness and normal maps plus the
+    """The PBR material of a damaged column: RGB, metallic and normal maps plus the
     damage-id mask, repeating every tile_m / scale metres."""
     size = entry.maps.mask.shape[0]
     images = [_fit(repository.image(cat, i), size)
@@ -108,7 +108,7 @@ def damage_material(entry: BankEntry, repository: TextureRepository, cfg: Damage
     return Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0,
                     uv_scale=scale / cfg.tile_m,
                     base_color_map=compose_rgb(entry.maps.mask, *images),
-                    metallic_roughness_map=metallic_roughness(entry.maps.mask),
+                    metallic_map=metallic_map(entry.maps.mask),
                     normal_map=encode_normals(*normals), damage_mask=entry.maps.mask)
 
 

@@ -1,9 +1,10 @@
 """Materials: metallic-roughness PBR parameters and maps, plus an optional damage-id mask.
 
-Maps are numpy arrays: base colour and emissive (H, W, 3) uint8 sRGB; metallic-roughness
-(H, W, 3) uint8 packed as glTF does (G roughness, B metallic); normal (H, W, 3) uint8 tangent
-space; damage mask (H, W) uint8 damage ids. ``uv_scale`` multiplies the mesh UVs (metres), so a
-map repeats every 1 / uv_scale metres.
+Maps are numpy arrays: base colour and emissive (H, W, 3) uint8 sRGB; metallic (H, W) uint8,
+multiplying ``metallic`` (255: the factor); normal (H, W, 3) uint8 tangent space; damage mask
+(H, W) uint8 damage ids. No material varies its roughness over the surface, so there is no
+roughness map (the glTF export writes the metallic map in glTF's packing). ``uv_scale``
+multiplies the mesh UVs (metres), so a map repeats every 1 / uv_scale metres.
 """
 
 from collections.abc import Callable, Mapping, Sequence
@@ -25,13 +26,13 @@ class Material:
     emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
     uv_scale: float = 1.0
     base_color_map: np.ndarray | None = None
-    metallic_roughness_map: np.ndarray | None = None
+    metallic_map: np.ndarray | None = None
     emissive_map: np.ndarray | None = None
     normal_map: np.ndarray | None = None
     damage_mask: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name, channels in (("base_color_map", 3), ("metallic_roughness_map", 3),
+        for name, channels in (("base_color_map", 3), ("metallic_map", 0),
                                ("emissive_map", 3), ("normal_map", 3), ("damage_mask", 0)):
             value = getattr(self, name)
             if value is None:
@@ -42,6 +43,11 @@ class Material:
                 want = "(H, W)" if channels == 0 else f"(H, W, {channels})"
                 raise ValueError(f"material.{name}: dtype {value.dtype}, shape {value.shape}; "
                                  f"must be uint8 {want}")
+        if (self.metallic_map is not None and self.base_color_map is not None
+                and self.metallic_map.shape != self.base_color_map.shape[:2]):
+            # The renderer samples both from one texture (colour in RGB, metallic in A).
+            raise ValueError(f"material.metallic_map: shape {self.metallic_map.shape}; must "
+                             f"be the base colour map's {self.base_color_map.shape[:2]}")
         if self.damage_mask is not None and self.damage_mask.size and not (
                 Damage.NO_DAMAGE <= self.damage_mask.min()
                 and self.damage_mask.max() <= Damage.REBAR):

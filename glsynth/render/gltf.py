@@ -43,6 +43,8 @@ class _Builder:
         self.images: dict[int, int] = {}
         """id(source array) -> image index."""
         self.sources: list[np.ndarray] = []  # keeps the arrays (and their ids) alive
+        self.packed: dict[int, np.ndarray] = {}
+        """id(metallic map) -> its metallic-roughness packing."""
         self.samplers: dict[tuple[int, int], int] = {}
         self.textures: dict[tuple[int, int], int] = {}
         """(image, sampler) -> texture index: one texture per pair, however many users."""
@@ -88,14 +90,26 @@ class _Builder:
             self.textures[texture] = len(self.tree["textures"]) - 1
         return {"index": self.textures[texture]}
 
+    def metallic_roughness(self, metallic: np.ndarray) -> np.ndarray:
+        """glTF's packing of a metallic map (G roughness 1, B metallic), made once per map."""
+        key = id(metallic)
+        if key not in self.packed:
+            packed = np.zeros(metallic.shape + (3,), np.uint8)
+            packed[..., 1] = 255
+            packed[..., 2] = metallic
+            self.packed[key] = packed
+            self.sources.append(metallic)
+        return self.packed[key]
+
     def material(self, name: str, m: Material) -> int:
         pbr: dict = {"baseColorFactor": [float(c) for c in m.base_color],
                      "metallicFactor": float(m.metallic), "roughnessFactor": float(m.roughness)}
         material: dict = {"name": name, "pbrMetallicRoughness": pbr, "doubleSided": True}
         if m.base_color_map is not None:
             pbr["baseColorTexture"] = self.texture(m.base_color_map)
-        if m.metallic_roughness_map is not None:
-            pbr["metallicRoughnessTexture"] = self.texture(m.metallic_roughness_map)
+        if m.metallic_map is not None:
+            packed = self.metallic_roughness(m.metallic_map)
+            pbr["metallicRoughnessTexture"] = self.texture(packed)
         if m.normal_map is not None:
             material["normalTexture"] = self.texture(m.normal_map)
         if any(m.emissive):

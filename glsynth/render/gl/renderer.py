@@ -92,9 +92,10 @@ class Renderer:
         self.programs = compile_programs(self.ctx)
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
-        # Uploaded textures by the id of their source array; the array is kept with it so that
-        # the id cannot be reused by another array while the entry exists.
-        self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
+        # Uploaded textures by the ids of their source arrays (colour, alpha); the arrays are
+        # kept with it so that no other array can take an id while the entry exists.
+        self._textures: dict[tuple[int, int], tuple[tuple[np.ndarray, np.ndarray | None],
+                                                    moderngl.Texture]] = {}
         self._defaults = {
             "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
@@ -146,27 +147,42 @@ class Renderer:
         self._radiance_scale = 1.0
         self._vis: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
 
-    def _upload_texture(self, array: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
-        key = id(array)
+    def _upload_texture(self, array: np.ndarray, *, integer: bool = False,
+                        alpha: np.ndarray | None = None) -> moderngl.Texture:
+        """A texture of ``array`` (H, W[, C]) uint8, or of (H, W, 3) colour with ``alpha``
+        (H, W) in a fourth channel; uploaded once per source array."""
+        key = (id(array), id(alpha))
         if key in self._textures:
             return self._textures[key][1]
-        source = array
-        array = np.ascontiguousarray(array)
         h, w = array.shape[:2]
-        channels = 1 if array.ndim == 2 else array.shape[2]
         # Image rows run top to bottom; GL's t runs bottom to top: flip so that uv (0, 0) is
         # the image's bottom-left corner, as glTF and Blender define it.
-        data = np.ascontiguousarray(array[::-1])
+        if alpha is None:
+            data = np.ascontiguousarray(array[::-1])
+        else:
+            data = np.empty((h, w, 4), np.uint8)
+            data[..., :3] = array[::-1]
+            data[..., 3] = alpha[::-1]
+        channels = 1 if data.ndim == 2 else data.shape[2]
         if integer:
-            tex = self.ctx.texture((w, h), channels, data.tobytes(), dtype="u1", alignment=1)
+            tex = self.ctx.texture((w, h), channels, data, dtype="u1", alignment=1)
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         else:
-            tex = self.ctx.texture((w, h), channels, data.tobytes(), alignment=1)
+            tex = self.ctx.texture((w, h), channels, data, alignment=1)
             tex.build_mipmaps()
             tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         tex.repeat_x = tex.repeat_y = True
-        self._textures[key] = (source, tex)
+        self._textures[key] = ((array, alpha), tex)
         return tex
+
+    def _base_texture(self, material: Material) -> moderngl.Texture | None:
+        """Base colour in RGB and the metallic map in A: one texture, one lookup."""
+        base, metal = material.base_color_map, material.metallic_map
+        if metal is None:
+            return None if base is None else self._upload_texture(base)
+        if base is None:
+            base = np.full(metal.shape + (3,), 255, np.uint8)
+        return self._upload_texture(base, alpha=metal)
 
     def load(self, render_scene: RenderScene, lighting: Lighting,
              extent: np.ndarray | None = None) -> None:
@@ -197,9 +213,11 @@ class Renderer:
                         self.programs["shadow"], [(vbo, "3f 20x", "in_position")], ibo, 4),
                 }
                 textures = {slot: self._upload_texture(array) for slot, array in (
-                    ("base", mat.base_color_map), ("mr", mat.metallic_roughness_map),
                     ("emissive", mat.emissive_map), ("normal", mat.normal_map))
                     if array is not None}
+                base = self._base_texture(mat)
+                if base is not None:
+                    textures["base"] = base
                 mask = (self._upload_texture(mat.damage_mask, integer=True)
                         if mat.damage_mask is not None else None)
                 pose = scene.get_pose(node)
@@ -384,17 +402,17 @@ class Renderer:
         prog["u_sun_dir"].value = tuple(view3 @ self.lighting.sun_direction)
         prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
         prog["u_world_from_view"].write(camera.pose[:3, :3].astype("f4").T.tobytes())
-        for unit, name in enumerate(("u_base_color_map", "u_metallic_roughness_map",
-                                     "u_emissive_map", "u_normal_map", "u_shadow_map", "u_ao")):
+        for unit, name in enumerate(("u_base_color_map", "u_emissive_map", "u_normal_map",
+                                     "u_shadow_map", "u_ao")):
             prog[name].value = unit
         prog["u_has_shadows"].value = light is not None
-        self.shadow_map.use(4)
+        self.shadow_map.use(3)
         prog["u_has_ao"].value = ao
-        self.ao.use(5)
-        prog["u_vis_map"].value = 6
-        self.vis_map.use(6)
-        prog["u_vis_radiance"].value = 7
-        self.vis_radiance.use(7)
+        self.ao.use(4)
+        prog["u_vis_map"].value = 5
+        self.vis_map.use(5)
+        prog["u_vis_radiance"].value = 6
+        self.vis_radiance.use(6)
         prog["u_vis_count"].value = 0 if self._vis is None else len(self._vis[1])
         if self._vis is not None:
             atlas, directions, weights, texel = self._vis
@@ -428,9 +446,8 @@ class Renderer:
             prog["u_has_normal_map"].value = "normal" in draw.textures
             tex = draw.textures
             tex.get("base", self._defaults["white"]).use(0)
-            tex.get("mr", self._defaults["white"]).use(1)
-            tex.get("emissive", self._defaults["white"]).use(2)
-            tex.get("normal", self._defaults["flat"]).use(3)
+            tex.get("emissive", self._defaults["white"]).use(1)
+            tex.get("normal", self._defaults["flat"]).use(2)
             draw.vaos["color"].render()
         self._draw_sky(camera)
         if cfg.msaa:
