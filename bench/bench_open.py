@@ -1,7 +1,10 @@
 """Opening an environment: wall time by phase, peak RSS, and digests of rendered outputs.
 
-Each opening runs in a fresh process (its peak RSS is its own) after one warm-up opening that
-fills the texture and damage-bank caches. The phases are building the environment, dressing
+Each process opens two environments with one renderer, as a worker does, after one warm-up
+opening that fills the texture and damage-bank caches: the first opening is a fresh process's
+(its peak RSS is its own), the second a worker's steady state (its peak RSS is the process's
+over both). Every environment is opened
+first in one process and second in another. The phases are building the environment, dressing
 it (bank reads and damage maps), and uploading (textures, mipmaps, geometry, sky visibility).
 The digests (sha256 of every pass of a few cameras) show whether a change to the open path
 changed a byte of output: compare them between two results files.
@@ -26,9 +29,8 @@ from glsynth.core.config import load_config
 import glsynth.render.view as view_module
 from glsynth.render.gl.renderer import Renderer
 
-preset, env, cameras = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+preset, cameras, envs = sys.argv[1], int(sys.argv[2]), [int(e) for e in sys.argv[3:]]
 config = load_config(preset)
-phases = {}
 
 def timed(name, fn):
     def wrapper(*args, **kwargs):
@@ -43,47 +45,62 @@ view_module.build_environment = timed("build_environment", view_module.build_env
 view_module.dress = timed("dress", view_module.dress)
 Renderer.load = timed("upload", Renderer.load)
 renderer = Renderer(config.render)
-t0 = time.perf_counter()
-view = view_module.EnvironmentView.open(config, 0, env, renderer)
-opened = time.perf_counter() - t0
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-digests = {}
-step = max(1, config.cameras.total // max(1, cameras))
-for index in range(0, config.cameras.total, step)[:cameras]:
-    _, out = view.render(index)
-    digests[str(index)] = {k: hashlib.sha256(getattr(out, k).tobytes()).hexdigest()[:16]
-                           for k in ("color", "component", "damage", "depth")}
-print(json.dumps({"open_s": opened, "phases_s": phases, "peak_rss_mib": peak,
+opens = []
+for env in envs:
+    phases = {}
+    t0 = time.perf_counter()
+    view = view_module.EnvironmentView.open(config, 0, env, renderer)
+    opened = time.perf_counter() - t0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    digests = {}
+    step = max(1, config.cameras.total // max(1, cameras))
+    for index in range(0, config.cameras.total, step)[:cameras]:
+        _, out = view.render(index)
+        digests[str(index)] = {k: hashlib.sha256(getattr(out, k).tobytes()).hexdigest()[:16]
+                               for k in ("color", "component", "damage", "depth")}
+    opens.append({"environment": env, "open_s": opened, "phases_s": phases,
+                  "peak_rss_mib": peak,
                   "damage_textures": sum(1 for a in view.dressing.assignments.values()
                                          if a.damage and a.damage.get("built")),
-                  "digests": digests}))
+                  "digests": digests})
+    del view
+print(json.dumps(opens))
 """
 
 
-def child(preset: str, env: int, cameras: int) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD, preset, str(env), str(cameras)],
+def child(preset: str, cameras: int, envs: list[int]) -> list[dict]:
+    out = subprocess.run([sys.executable, "-c", CHILD, preset, str(cameras), *map(str, envs)],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
+
+
+def medians(runs: list[dict]) -> dict:
+    return {"open_s_median": statistics.median(r["open_s"] for r in runs),
+            "peak_rss_mib_median": statistics.median(r["peak_rss_mib"] for r in runs),
+            "phases_s_median": {k: statistics.median(r["phases_s"][k] for r in runs)
+                                for k in runs[0]["phases_s"]}}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--preset", default="paper")
-    parser.add_argument("--envs", type=int, default=2)
+    parser.add_argument("--envs", type=int, default=2, help="at least 2")
     parser.add_argument("--cameras", type=int, default=4, help="cameras rendered for digests")
     parser.add_argument("--label", default="after", help="results: bench/results/open/LABEL")
     args = parser.parse_args()
-    child(args.preset, 0, 0)  # fills the caches
-    runs = [child(args.preset, env, args.cameras) for env in range(args.envs)]
+    if args.envs < 2:
+        parser.error(f"--envs {args.envs}: give at least 2 (each process opens two)")
+    child(args.preset, 0, [0])  # fills the caches
+    pairs = [child(args.preset, args.cameras, [env, (env + 1) % args.envs])
+             for env in range(args.envs)]
+    first = [pair[0] for pair in pairs]
+    second = sorted((pair[1] for pair in pairs), key=lambda r: r["environment"])
     (RESULTS / "open").mkdir(parents=True, exist_ok=True)
     write_results(f"open/{args.label}", {
-        "preset": args.preset,
-        "open_s_median": statistics.median(r["open_s"] for r in runs),
-        "peak_rss_mib_median": statistics.median(r["peak_rss_mib"] for r in runs),
-        "phases_s_median": {k: statistics.median(r["phases_s"][k] for r in runs)
-                            for k in runs[0]["phases_s"]},
-        "by_environment": runs})
-
+        "preset": args.preset, "first_open": medians(first), "second_open": medians(second),
+        "by_environment": first, "second_by_environment": second,
+        "digests_agree_first_and_second": all(
+            a["digests"] == b["digests"] for a, b in zip(first, second))})
 
 if __name__ == "__main__":
     main()

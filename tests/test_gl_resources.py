@@ -14,15 +14,16 @@ from glsynth.render.view import EnvironmentView, preview_config
 CYCLES = 30
 
 
-def _gl_is_buffer():
-    """glIsBuffer of the current context, through glvnd's dispatch library."""
-    name = ctypes.util.find_library("OpenGL") or "libOpenGL.so.0"
+def _gl_function(name: str):
+    """glIsBuffer or glIsTexture of the current context, through glvnd's dispatch library."""
+    library = ctypes.util.find_library("OpenGL") or "libOpenGL.so.0"
     try:
-        lib = ctypes.CDLL(name)
+        lib = ctypes.CDLL(library)
     except OSError:
-        pytest.skip("libOpenGL (glvnd) is not installed: live GL buffers cannot be counted")
-    lib.glIsBuffer.restype = ctypes.c_ubyte
-    return lib.glIsBuffer
+        pytest.skip("libOpenGL (glvnd) is not installed: live GL objects cannot be counted")
+    function = getattr(lib, name)
+    function.restype = ctypes.c_ubyte
+    return function
 
 
 def _rss_mb() -> float:
@@ -36,7 +37,7 @@ def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
     view = EnvironmentView.open(config, 0, 0, Renderer(config.render))
     renderer = view.renderer
     try:
-        is_buffer = _gl_is_buffer()
+        is_buffer = _gl_function("glIsBuffer")
         camera = view.camera(0).camera
         highest = 0
         rss = []
@@ -57,5 +58,43 @@ def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
         early, late = sorted(rss[5:15])[5], sorted(rss[-10:])[5]
         growth = late - early
         assert growth < 1.0 * 15, f"RSS grew {growth:.1f} MB over 15 loads"
+    finally:
+        renderer.release()
+
+
+def test_read_only_textures_outlive_their_scene_until_a_scene_stops_drawing_them():
+    """Repository images (read-only arrays) are uploaded once per renderer; a writable array's
+    texture (a damage map) is freed with its scene; a kept texture that the next scene does not
+    draw is freed by that load."""
+    import numpy as np
+    from glhelpers import LIGHT, quad, render_config, scene_of
+
+    from glsynth.appearance.materials import Material
+    from glsynth.core.labels import Component
+
+    shared = np.full((8, 8, 3), 90, np.uint8)
+    shared.setflags(write=False)
+    other = np.full((8, 8, 3), 160, np.uint8)
+    other.setflags(write=False)
+    plate = quad([[-1, -1, -5], [1, -1, -5], [1, 1, -5], [-1, 1, -5]])
+
+    def scene(image: np.ndarray, mask: np.ndarray | None = None):
+        return scene_of(("column_plate", Component.COLUMN, plate,
+                         Material(base_color_map=image, damage_mask=mask)))
+
+    renderer = Renderer(render_config(16, 12))
+    try:
+        renderer.load(scene(shared, np.ones((8, 8), np.uint8)), LIGHT)
+        kept = renderer._draws[0].textures["base"]
+        mask = renderer._draws[0].damage_mask
+        renderer.release_scene()
+        is_texture = _gl_function("glIsTexture")  # asked before any new name is made
+        assert is_texture(kept.glo) and not is_texture(mask.glo)
+        renderer.load(scene(shared), LIGHT)
+        assert renderer._draws[0].textures["base"] is kept  # not uploaded again
+        renderer.load(scene(other), LIGHT)
+        assert [t for _, t in renderer._textures.values()] == [
+            renderer._draws[0].textures["base"]]  # the first image's texture was freed
+        assert not is_texture(kept.glo)
     finally:
         renderer.release()

@@ -8,7 +8,9 @@ never depends on which other parts are built. Damage textures are built only for
 sampled damage record but is drawn with plain concrete, which no image can show.
 """
 
+import functools
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_material
@@ -29,10 +31,17 @@ class Dressing:
 
 
 def open_repository(config: Config) -> TextureRepository:
+    """The configured repository, one per process: its decoded, resized images (read-only
+    arrays) then serve every environment, and the renderer keeps their textures uploaded."""
     m = config.materials
     root = m.repository or builtin_repository(m.repository_seed, m.images_per_category,
                                               m.builtin_size)
-    return TextureRepository(root, m.texture_size)
+    return _repository(str(Path(root).resolve()), m.texture_size)
+
+
+@functools.lru_cache(maxsize=2)
+def _repository(root: str, size: int) -> TextureRepository:
+    return TextureRepository(root, size)
 
 
 def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> dict:

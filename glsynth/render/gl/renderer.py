@@ -14,6 +14,7 @@ Only the passes asked for (and those they need) are drawn. Pixels with no geomet
 component 1 (Nonbridge), damage 1 (no damage) and depth = zfar.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import moderngl
@@ -93,12 +94,17 @@ class Renderer:
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
         # Uploaded textures by the ids of their source arrays (colour, alpha); the arrays are
-        # kept with it so that no other array can take an id while the entry exists.
+        # kept with it so that no other array can take an id while the entry exists. A texture
+        # whose sources are all read-only (the texture repository's images: they cannot change
+        # under the cache) outlives its scene; the next load reuses it if its scene draws the
+        # same arrays and frees it if not, as pyrender diffs its scene against the context.
         self._textures: dict[tuple[int, int], tuple[tuple[np.ndarray, np.ndarray | None],
                                                     moderngl.Texture]] = {}
+        self._used: set[tuple[int, int]] = set()
+        """Keys of the textures the loaded scene draws."""
         self._defaults = {
-            "white": self._upload_texture(np.full((1, 1, 3), 255, np.uint8)),
-            "flat": self._upload_texture(np.array([[[128, 128, 255]]], np.uint8)),
+            "white": self._make_texture(np.full((1, 1, 3), 255, np.uint8)),
+            "flat": self._make_texture(np.array([[[128, 128, 255]]], np.uint8)),
         }
         self.lighting: Lighting | None = None
         self._make_framebuffers()
@@ -147,22 +153,10 @@ class Renderer:
         self._radiance_scale = 1.0
         self._vis: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
 
-    def _upload_texture(self, array: np.ndarray, *, integer: bool = False,
-                        alpha: np.ndarray | None = None) -> moderngl.Texture:
-        """A texture of ``array`` (H, W[, C]) uint8, or of (H, W, 3) colour with ``alpha``
-        (H, W) in a fourth channel; uploaded once per source array."""
-        key = (id(array), id(alpha))
-        if key in self._textures:
-            return self._textures[key][1]
-        h, w = array.shape[:2]
-        # Image rows run top to bottom; GL's t runs bottom to top: flip so that uv (0, 0) is
-        # the image's bottom-left corner, as glTF and Blender define it.
-        if alpha is None:
-            data = np.ascontiguousarray(array[::-1])
-        else:
-            data = np.empty((h, w, 4), np.uint8)
-            data[..., :3] = array[::-1]
-            data[..., 3] = alpha[::-1]
+    def _make_texture(self, data: np.ndarray, *, integer: bool = False) -> moderngl.Texture:
+        """A repeating texture of ``data`` (H, W[, C]) uint8, rows bottom to top: nearest and
+        unsigned integer, or mipmapped and trilinear."""
+        h, w = data.shape[:2]
         channels = 1 if data.ndim == 2 else data.shape[2]
         if integer:
             tex = self.ctx.texture((w, h), channels, data, dtype="u1", alignment=1)
@@ -172,8 +166,33 @@ class Renderer:
             tex.build_mipmaps()
             tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         tex.repeat_x = tex.repeat_y = True
+        return tex
+
+    def _upload_texture(self, array: np.ndarray, *, integer: bool = False,
+                        alpha: np.ndarray | None = None) -> moderngl.Texture:
+        """A texture of image ``array`` (H, W[, C]) uint8, or of (H, W, 3) colour with
+        ``alpha`` (H, W) in a fourth channel; uploaded once per source array."""
+        key = (id(array), id(alpha))
+        self._used.add(key)
+        if key in self._textures:
+            return self._textures[key][1]
+        # Image rows run top to bottom; GL's t runs bottom to top: flip so that uv (0, 0) is
+        # the image's bottom-left corner, as glTF and Blender define it.
+        if alpha is None:
+            data = np.ascontiguousarray(array[::-1])
+        else:
+            data = np.empty(array.shape[:2] + (4,), np.uint8)
+            data[..., :3] = array[::-1]
+            data[..., 3] = alpha[::-1]
+        tex = self._make_texture(data, integer=integer)
         self._textures[key] = ((array, alpha), tex)
         return tex
+
+    def _free_textures(self, keep: Callable[[tuple[int, int], tuple], bool]) -> None:
+        for key, (sources, tex) in list(self._textures.items()):
+            if not keep(key, sources):
+                tex.release()
+                del self._textures[key]
 
     def _base_texture(self, material: Material) -> moderngl.Texture | None:
         """Base colour in RGB and the metallic map in A: one texture, one lookup."""
@@ -226,6 +245,8 @@ class Renderer:
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
                                          float(info.component), mask, center, box,
                                          _emitted(mat)))
+        # Kept textures of earlier scenes that this one does not draw.
+        self._free_textures(lambda key, _: key in self._used)
         self._bake_sky_visibility(extent)
 
     def make_current(self) -> None:
@@ -236,22 +257,24 @@ class Renderer:
 
     def release_scene(self) -> None:
         """Free every GL object the loaded scene created (moderngl frees nothing that Python
-        drops: its default gc_mode is None)."""
+        drops: its default gc_mode is None), except the textures of read-only arrays, which
+        the next load reuses or frees."""
         self.make_current()
-        defaults = {id(t) for t in self._defaults.values()}
         for draw in self._draws:
             for vao in draw.vaos.values():
                 vao.release()
             for buffer in draw.buffers:
                 buffer.release()
-        for key, (_, tex) in list(self._textures.items()):
-            if id(tex) not in defaults:
-                tex.release()
-                del self._textures[key]
+        self._free_textures(lambda _, sources: not any(
+            a is not None and a.flags.writeable for a in sources))
         self._draws = []
+        self._used = set()
 
     def release(self) -> None:
         self.release_scene()
+        self._free_textures(lambda *_: False)
+        for tex in self._defaults.values():
+            tex.release()
         self.ctx.release()
 
     # --- drawing ----------------------------------------------------------------------------
