@@ -153,10 +153,19 @@ def test_dressed_export_round_trips_every_texture(dressed):
     gltf, binary = _glb_parts(glb.read_bytes())
     nodes = {n["name"]: n for n in gltf["nodes"] if "mesh" in n}
     assert set(nodes) == {p.name for p in env.parts}
-    sources = {id(a) for m in materials.values() for a in (
-        m.base_color_map, m.metallic_map, m.normal_map, m.emissive_map,
-        m.damage_mask) if a is not None}
-    assert len(gltf["images"]) == len(sources)  # shared repository images written once
+    # Shared repository images are written once; a deferred (damage) material's maps are its
+    # own: built for the export, each written once.
+    sources, own = set(), 0
+    for name in materials:
+        m = materials[name]
+        maps = [a for a in (m.base_color_map, m.metallic_map, m.normal_map, m.emissive_map,
+                            m.damage_mask) if a is not None]
+        if m is materials.factors(name):
+            sources |= {id(a) for a in maps}
+        else:
+            own += len(maps)
+    assert own > 0
+    assert len(gltf["images"]) == len(sources) + own
 
     def image(texture: dict) -> np.ndarray:
         source = gltf["textures"][texture["index"]]["source"]

@@ -92,9 +92,39 @@ class DamageBank:
         with np.load(path) as data:
             meta = json.loads(data["meta"].tobytes())
             maps = DamageMaps(data["mask"], data["displacement"], meta["threshold"])
-        p = meta["params"]
-        params = DamageParams(**{**p, "period_px": tuple(p["period_px"])})
-        return BankEntry(severity, index, params, maps, tuple(meta["images"]))
+        params, images = _record(meta)
+        return BankEntry(severity, index, params, maps, images)
+
+    def record(self, severity: str, index: int, repository: TextureRepository
+               ) -> tuple[DamageParams, tuple[int, int, int]]:
+        """An entry's parameters and repository images, without reading its maps (an entry
+        not yet made is made)."""
+        self._item(severity, index)  # validates
+        path = self.dir / f"{severity}_{index:06d}.npz"
+        if not path.exists():
+            entry = self.entry(severity, index, repository)
+            return entry.params, entry.images
+        with np.load(path) as data:  # members are read only when asked for
+            return _record(json.loads(data["meta"].tobytes()))
+
+    def material(self, severity: str, index: int, repository: TextureRepository,
+                 scale: float) -> Material:
+        """The damage material of entry ``index`` at texture scale ``scale``."""
+        return damage_material(self.entry(severity, index, repository), repository, self.cfg,
+                               scale)
+
+
+def _record(meta: dict) -> tuple[DamageParams, tuple[int, int, int]]:
+    p = meta["params"]
+    params = DamageParams(**{**p, "period_px": tuple(p["period_px"])})
+    return params, tuple(meta["images"])
+
+
+def damage_factors(cfg: DamageConfig, scale: float) -> Material:
+    """A damaged column's material without its maps: its factors, repeating every
+    tile_m / scale metres (the maps carry the colour, metallic and relief)."""
+    return Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0,
+                    uv_scale=scale / cfg.tile_m)
 
 
 def damage_material(entry: BankEntry, repository: TextureRepository, cfg: DamageConfig,
@@ -105,11 +135,11 @@ def damage_material(entry: BankEntry, repository: TextureRepository, cfg: Damage
     images = [_fit(repository.image(cat, i), size)
               for cat, i in zip(("concrete", "concrete", "steel"), entry.images)]
     normals = normal_components(entry.maps.displacement_m, cfg.tile_m / size)
-    return Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0,
-                    uv_scale=scale / cfg.tile_m,
-                    base_color_map=compose_rgb(entry.maps.mask, *images),
-                    metallic_map=metallic_map(entry.maps.mask),
-                    normal_map=encode_normals(*normals), damage_mask=entry.maps.mask)
+    return dataclasses.replace(damage_factors(cfg, scale),
+                               base_color_map=compose_rgb(entry.maps.mask, *images),
+                               metallic_map=metallic_map(entry.maps.mask),
+                               normal_map=encode_normals(*normals),
+                               damage_mask=entry.maps.mask)
 
 
 def _fit(image: np.ndarray, size: int) -> np.ndarray:

@@ -5,16 +5,25 @@ Each part draws from its own generator (MATERIALS stream, item = its index in th
 part list; sleepers per viaduct; column damage from the DAMAGE stream), so a part's material
 never depends on which other parts are built. Damage textures are built only for columns in
 ``visible`` (seen by some camera of the environment); a damaged column no camera sees keeps its
-sampled damage record but is drawn with plain concrete, which no image can show.
+sampled damage record but is drawn with plain concrete, which no image can show. Damage
+materials are deferred (glsynth.appearance.materials.Materials): built when asked for, so that
+the renderer holds one column's maps at a time, not the environment's.
 """
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from glsynth.appearance.damage import SEVERITIES
-from glsynth.appearance.damage_bank import DamageBank, damage_material
-from glsynth.appearance.materials import Assignment, Material, part_kind, sample_assignment
+from glsynth.appearance.damage_bank import DamageBank, damage_factors
+from glsynth.appearance.materials import (
+    Assignment,
+    Material,
+    Materials,
+    part_kind,
+    sample_assignment,
+)
 from glsynth.appearance.repository import TextureRepository, builtin_repository
 from glsynth.core.config import Config
 from glsynth.core.seeding import Stream, make_rng
@@ -26,7 +35,7 @@ _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
 
 @dataclass(frozen=True)
 class Dressing:
-    materials: dict[str, Material]
+    materials: Materials
     assignments: dict[str, Assignment]
 
 
@@ -57,7 +66,9 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
           visible: set[str]) -> Dressing:
     cfg = config.materials
     root, index = env.root_seed, env.env_index
-    materials, assignments = {}, {}
+    materials: dict[str, Material] = {}
+    deferred: dict[str, tuple[Material, Callable[[], Material]]] = {}
+    assignments = {}
     for ordinal, part in enumerate(env.parts):
         kind = part_kind(part.name)
         if kind == "sleeper":
@@ -79,11 +90,14 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             if damage["damaged"]:
                 damage["built"] = part.name in visible
                 if damage["built"]:
-                    entry = bank.entry(damage["severity"], damage["bank_index"], repository)
-                    material = damage_material(entry, repository, config.damage,
-                                               damage["scale"])
-                    damage.update(params=entry.params, images=list(entry.images))
+                    key = (damage["severity"], damage["bank_index"])
+                    params, images = bank.record(*key, repository)
+                    damage.update(params=params, images=list(images))
+                    deferred[part.name] = (damage_factors(config.damage, damage["scale"]),
+                                           functools.partial(bank.material, *key,
+                                                             repository, damage["scale"]))
             a = replace(a, damage=damage)
-        materials[part.name] = material
+        if part.name not in deferred:
+            materials[part.name] = material
         assignments[part.name] = a
-    return Dressing(materials, assignments)
+    return Dressing(Materials(materials, deferred), assignments)

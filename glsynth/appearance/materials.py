@@ -7,7 +7,7 @@ roughness map (the glTF export writes the metallic map in glTF's packing). ``uv_
 multiplies the mesh UVs (metres), so a map repeats every 1 / uv_scale metres.
 """
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +54,48 @@ class Material:
             raise ValueError("material.damage_mask: must hold only damage ids 1, 2, 3")
         if not (np.isfinite(self.uv_scale) and self.uv_scale >= 0):
             raise ValueError(f"material.uv_scale = {self.uv_scale!r}: must be >= 0")
+
+
+class Materials(Mapping[str, Material]):
+    """Materials by part name. A deferred material is built each time it is asked for and not
+    kept: a damaged column's maps are about 40 MB at 2048 px, and the renderer needs them only
+    while it uploads them. ``factors`` gives any material's factors and uv_scale without
+    building maps."""
+
+    def __init__(self, ready: Mapping[str, Material],
+                 deferred: Mapping[str, tuple[Material, Callable[[], Material]]]) -> None:
+        """``deferred``: name -> (the material without its maps, a function building it)."""
+        both = set(ready) & set(deferred)
+        if both:
+            raise ValueError(f"materials {sorted(both)} are both ready and deferred")
+        self._ready = dict(ready)
+        self._deferred = dict(deferred)
+
+    def __getitem__(self, name: str) -> Material:
+        if name in self._deferred:
+            return self._deferred[name][1]()
+        return self._ready[name]
+
+    def __iter__(self) -> Iterator[str]:
+        yield from self._ready
+        yield from self._deferred
+
+    def __len__(self) -> int:
+        return len(self._ready) + len(self._deferred)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._ready or name in self._deferred
+
+    def factors(self, name: str) -> Material:
+        """The material, or a deferred one without its maps."""
+        if name in self._deferred:
+            return self._deferred[name][0]
+        return self._ready[name]
+
+
+def factors(materials: Mapping[str, Material], name: str) -> Material:
+    """``name``'s material for its factors and uv_scale, building no deferred maps."""
+    return materials.factors(name) if isinstance(materials, Materials) else materials[name]
 
 
 # Untextured stand-ins per component (linear base colour, metallic, roughness); the texture

@@ -15,14 +15,15 @@ from dataclasses import dataclass
 import numpy as np
 import pyrender
 
-from glsynth.appearance.materials import Material
+from glsynth.appearance.materials import Material, factors
 from glsynth.core.labels import Component
 from glsynth.world.environment import Part
 
 
 @dataclass(frozen=True)
 class PartInfo:
-    """What the passes need beyond the pyrender node: component id and the full material."""
+    """What the passes need beyond the pyrender node: component id and the material's factors
+    (without its maps where the material is deferred)."""
 
     component: Component
     material: Material
@@ -33,6 +34,8 @@ class RenderScene:
     scene: pyrender.Scene
     parts: Mapping[str, PartInfo]
     """By node name."""
+    materials: Mapping[str, Material]
+    """The full materials by node name, for the uploads (deferred ones are built there)."""
 
 
 def pyrender_material(material: Material) -> pyrender.MetallicRoughnessMaterial:
@@ -55,13 +58,14 @@ def part_node(part: Part, material: Material) -> pyrender.Node:
 
 def build_scene(parts: list[Part] | tuple[Part, ...], materials: Mapping[str, Material]
                 ) -> RenderScene:
-    """A pyrender Scene of ``parts``; each part needs a material under its name."""
+    """A pyrender Scene of ``parts``; each part needs a material under its name. No deferred
+    material is built here."""
     scene = pyrender.Scene()
     infos = {}
     for part in parts:
         if part.name not in materials:
             raise ValueError(f"part {part.name!r} has no material")
-        material = materials[part.name]
+        material = factors(materials, part.name)
         scene.add_node(part_node(part, material))
         infos[part.name] = PartInfo(part.component, material)
-    return RenderScene(scene, infos)
+    return RenderScene(scene, infos, materials)

@@ -65,6 +65,7 @@ class _Draw:
     buffers: tuple[moderngl.Buffer, moderngl.Buffer]
     """Vertex and index buffers: the VAOs use them, the scene owns them (release_scene)."""
     material: Material
+    """Its factors (the maps are in ``textures``)."""
     textures: dict[str, moderngl.Texture]
     component: float
     damage_mask: moderngl.Texture | None
@@ -102,6 +103,8 @@ class Renderer:
                                                     moderngl.Texture]] = {}
         self._used: set[tuple[int, int]] = set()
         """Keys of the textures the loaded scene draws."""
+        self._scene_textures: list[moderngl.Texture] = []
+        """Textures of the loaded scene whose arrays were let go (see _detach)."""
         self._defaults = {
             "white": self._make_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._make_texture(np.array([[[128, 128, 255]]], np.uint8)),
@@ -188,6 +191,14 @@ class Renderer:
         self._textures[key] = ((array, alpha), tex)
         return tex
 
+    def _detach(self, material: Material) -> None:
+        """Let go of ``material``'s arrays: its textures stay with the scene, not the cache."""
+        maps = {id(a) for a in (material.base_color_map, material.metallic_map,
+                                material.emissive_map, material.normal_map,
+                                material.damage_mask) if a is not None}
+        for key in [k for k in self._textures if k[0] in maps or k[1] in maps]:
+            self._scene_textures.append(self._textures.pop(key)[1])
+
     def _free_textures(self, keep: Callable[[tuple[int, int], tuple], bool]) -> None:
         for key, (sources, tex) in list(self._textures.items()):
             if not keep(key, sources):
@@ -215,7 +226,7 @@ class Renderer:
         scene = render_scene.scene
         for node in sorted(scene.mesh_nodes, key=lambda n: n.name):
             info = render_scene.parts[node.name]
-            mat = info.material
+            mat = render_scene.materials[node.name]  # a deferred material is built here
             for primitive in node.mesh.primitives:
                 data = np.hstack([primitive.positions, primitive.normals,
                                   primitive.texcoord_0]).astype(np.float32)
@@ -242,9 +253,12 @@ class Renderer:
                 pose = scene.get_pose(node)
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
-                self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), mat, textures,
-                                         float(info.component), mask, center, box,
+                self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), info.material,
+                                         textures, float(info.component), mask, center, box,
                                          _emitted(mat)))
+            if mat is not info.material:
+                # Built for this upload: its maps go now, one column's at a time.
+                self._detach(mat)
         # Kept textures of earlier scenes that this one does not draw.
         self._free_textures(lambda key, _: key in self._used)
         self._bake_sky_visibility(extent)
@@ -267,6 +281,9 @@ class Renderer:
                 buffer.release()
         self._free_textures(lambda _, sources: not any(
             a is not None and a.flags.writeable for a in sources))
+        for tex in self._scene_textures:
+            tex.release()
+        self._scene_textures = []
         self._draws = []
         self._used = set()
 
