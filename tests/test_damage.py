@@ -6,6 +6,7 @@ import pytest
 from glsynth.appearance.damage import (
     SEVERITIES,
     DamageParams,
+    compose_rgb,
     concrete_profile,
     damage_maps,
     encode_normals,
@@ -181,3 +182,19 @@ def test_severity_reading_keeps_the_paper_numbers():
         cfg.area_range("extreme")
     with pytest.raises(ValueError, match="damage.stirrup_cover_offset_cm"):
         DamageConfig(axial_cover_cm=(1.0, 2.0))
+
+
+@pytest.mark.parametrize("fractions", [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0),
+                                       (0.5, 0.3, 0.2)])
+def test_rgb_takes_each_pixel_from_the_image_of_its_damage_class(fractions):
+    """No damage, all concrete damage, all rebar, and a mix: every pixel comes from its
+    class's image, the inputs are untouched (a tiled view of an image may be passed)."""
+    r = rng(9)
+    mask = r.choice(np.array([1, 2, 3], np.uint8), size=(64, 64), p=fractions)
+    images = [r.integers(0, 256, (64, 64, 3), dtype=np.uint8) for _ in range(3)]
+    before = [i.copy() for i in images]
+    out = compose_rgb(mask, np.tile(images[0][:32, :32], (2, 2, 1)), images[1], images[2])
+    reference = np.where((mask == 1)[..., None], np.tile(images[0][:32, :32], (2, 2, 1)),
+                         np.where((mask == 2)[..., None], images[1], images[2]))
+    assert np.array_equal(out, reference)
+    assert all(np.array_equal(a, b) for a, b in zip(images, before))
