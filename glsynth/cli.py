@@ -221,7 +221,7 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     prepare_output(out, config, args.seed)
     tasks = plan(config)
     t0 = time.perf_counter()
-    images, timings = 0, {}
+    images, timings, peaks = 0, {}, {}
     with tqdm(total=len(tasks), unit="unit", desc="glsynth generate") as bar:
         bar.update(sum((out / t.marker).exists() for t in tasks))
         for result in execute(config, args.seed, out, args.workers, args.engine, args.address):
@@ -229,13 +229,16 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
                 sum(len(v) for v in result["rows"].values())
             for phase, seconds in result["timings"].items():
                 timings[phase] = timings.get(phase, 0.0) + seconds
+            worker = result["worker"]
+            peaks[worker["pid"]] = max(peaks.get(worker["pid"], 0), worker["peak_rss_mib"])
             bar.update(1)
     wall = time.perf_counter() - t0
     summary = merge(config, out)
     summary.update(engine=args.engine, workers=args.workers, wall_s=round(wall, 2),
                    images_written_this_run=images,
                    images_per_s=round(images / wall, 3) if wall > 0 and images else None,
-                   worker_seconds_by_phase={k: round(v, 2) for k, v in timings.items()})
+                   worker_seconds_by_phase={k: round(v, 2) for k, v in timings.items()},
+                   worker_peak_rss_mib=sorted(peaks.values()))
     atomic_write_json(out / "report.json", summary)
     atomic_write_bytes(out / "contact_sheet.png", png_bytes(contact_sheet(out)))
     stats = summary["statistics"]

@@ -79,6 +79,8 @@ def test_same_dataset_with_two_workers(small_config, reference, tmp_path):
     out = tmp_path / "ds"
     assert generate(small_config, out, "--workers", "2") == 0
     assert dataset_files(out) == dataset_files(reference)
+    peaks = json.loads((out / "report.json").read_text())["worker_peak_rss_mib"]
+    assert 1 <= len(peaks) <= 2 and all(p > 50 for p in peaks)  # one entry per worker process
 
 
 def test_ray_engine_locally_gives_the_same_dataset(small_config, reference, tmp_path):

@@ -11,6 +11,8 @@ How units are run (one process, a local pool, Ray) is in glsynth/data/engines.py
 import dataclasses
 import hashlib
 import json
+import os
+import resource
 import shutil
 import time
 from dataclasses import dataclass
@@ -247,7 +249,10 @@ def run_task(config: Config, root_seed: int, task: Task, out: Path, renderer) ->
         result = run_plates(config, root_seed, task, out, renderer)
     timings = result.pop("timings")
     atomic_write_json(out / task.marker, result)
-    return {**result, "timings": timings, "seconds": time.perf_counter() - t0}
+    # ru_maxrss is KiB on Linux: this worker process's peak so far.
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {**result, "timings": timings, "seconds": time.perf_counter() - t0,
+            "worker": {"pid": os.getpid(), "peak_rss_mib": round(peak)}}
 
 
 def run_identity(config: Config, root_seed: int) -> dict:
