@@ -118,3 +118,34 @@ def test_dressing_is_reproducible_and_independent_of_visibility():
                                                                "bank_index", "scale")} == \
                 {k: v for k, v in y.damage.items() if k in ("damaged", "severity",
                                                            "bank_index", "scale")}
+
+
+def test_damage_materials_are_built_when_read_and_not_kept(tmp_path):
+    """Dressing reads only the bank entries' parameters; each read of a damaged column's
+    material builds it anew (same bytes, new arrays, so nothing holds the maps), and its
+    factors come without maps and without building."""
+    repo = open_repository(CONFIG)
+    env = build_environment(CONFIG, 3, 0)
+    columns = {p.name for p in env.parts if p.name.startswith("column")}
+    maker = DamageBank(CONFIG.damage, 3, cache_dir=tmp_path)
+    dress(env, CONFIG, repo, maker, columns)  # makes the entries
+    bank = DamageBank(CONFIG.damage, 3, cache_dir=tmp_path)
+    d = dress(env, CONFIG, repo, bank, columns)
+    assert bank.loaded == 0 and bank.generated == 0  # parameters only: no maps were read
+    damaged = [n for n in columns if d.assignments[n].damage["damaged"]]
+    assert damaged and len(d.materials) == len(env.parts) and set(d.materials) == {
+        p.name for p in env.parts}
+    name = damaged[0]
+    first, second = d.materials[name], d.materials[name]
+    assert bank.loaded == 2
+    assert first.base_color_map is not second.base_color_map
+    assert first.base_color_map.tobytes() == second.base_color_map.tobytes()
+    light = d.materials.factors(name)
+    assert light.base_color_map is None and light.damage_mask is None
+    assert (light.uv_scale, light.metallic, light.roughness) == (
+        first.uv_scale, first.metallic, first.roughness)
+    plain = next(p.name for p in env.parts if p.name.startswith("slab"))
+    assert d.materials.factors(plain) is d.materials[plain]
+    record = d.assignments[name].damage
+    entry = bank.entry(record["severity"], record["bank_index"], repo)
+    assert record["params"] == entry.params and record["images"] == list(entry.images)
