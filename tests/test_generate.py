@@ -91,6 +91,27 @@ def test_ray_engine_locally_gives_the_same_dataset(small_config, reference, tmp_
     assert json.loads((out / "report.json").read_text())["engine"] == "ray"
 
 
+def test_ray_cluster_of_two_nodes_gives_the_same_dataset(small_config, reference, tmp_path):
+    """The cluster path (--address) on two Ray nodes of this machine, one CPU each, so the two
+    actors run on different nodes, as they would on two machines sharing the output folder."""
+    ray = pytest.importorskip("ray")
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    try:
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        out = tmp_path / "ds"
+        assert generate(small_config, out, "--engine", "ray", "--address", cluster.address,
+                        "--workers", "2") == 0
+        assert dataset_files(out) == dataset_files(reference)
+        report = json.loads((out / "report.json").read_text())
+        assert report["engine"] == "ray" and len(report["worker_peak_rss_mib"]) == 2
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+
+
 def test_ray_worker_that_cannot_see_the_output_says_so(small_config, tmp_path):
     from glsynth.core.config import load_config
     from glsynth.data.engines import GenerationWorker
