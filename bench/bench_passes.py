@@ -1,0 +1,93 @@
+"""Where the colour pass goes at 1920x1080: its median time with each costly feature turned off
+in turn (MSAA, sky-visibility maps, shadows), and the overdraw a depth pre-pass could save
+(fragments that pass the depth test per pixel, without shadows so that only the colour pass
+and the sky count; the sky adds at most one per pixel where nothing was drawn).
+
+    .venv/bin/python bench/bench_passes.py [--env 0] [--cameras 8]
+
+Paper preset, damage textures at 512 px (the open is faster; the texture size barely changes
+the drawing), one environment, the same cameras for every variant.
+"""
+
+import argparse
+import dataclasses
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import write_results  # noqa: E402
+
+from glsynth.core.config import Config, load_config  # noqa: E402
+from glsynth.render.gl.renderer import Renderer  # noqa: E402
+from glsynth.render.view import EnvironmentView  # noqa: E402
+
+VARIANTS = {
+    "paper preset (MSAA 4, 16 sky maps, 2048 px shadows)": {},
+    "MSAA 0": {"msaa": 0},
+    "MSAA 0, no shadows": {"msaa": 0, "shadow_map_px": 0},
+    "MSAA 0, 4 sky maps": {"msaa": 0, "sky_visibility_maps": 4},
+    "MSAA 0, no sky maps": {"msaa": 0, "sky_visibility_maps": 0},
+    "MSAA 0, no sky maps, no shadows": {"msaa": 0, "sky_visibility_maps": 0,
+                                        "shadow_map_px": 0},
+}
+PASSES = {"all": frozenset({"color", "component", "damage", "depth"}),
+          "color": frozenset({"color"}),
+          "labels and depth": frozenset({"component", "damage", "depth"})}
+
+
+def variant(base: Config, **render: object) -> Config:
+    return dataclasses.replace(base, render=dataclasses.replace(base.render, **render))
+
+
+def timings(view: EnvironmentView, cameras: list[int]) -> dict[str, float]:
+    view.render(cameras[0])  # compiles llvmpipe's shader variants
+    out = {}
+    for name, passes in PASSES.items():
+        times = []
+        for index in cameras:
+            t0 = time.perf_counter()
+            view.render(index, passes)
+            times.append(time.perf_counter() - t0)
+        out[f"{name}_ms_median"] = round(1e3 * statistics.median(times), 1)
+    return out
+
+
+def overdraw(view: EnvironmentView, cameras: list[int]) -> list[float]:
+    """Fragments passing the depth test per pixel in the colour pass (no shadow map)."""
+    renderer = view.renderer
+    width, height = renderer.size
+    counts = []
+    for index in cameras:
+        query = renderer.ctx.query(samples=True)
+        with query:
+            view.render(index, frozenset({"color"}))
+        counts.append(round(query.samples / (width * height), 2))
+    return counts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--env", type=int, default=0)
+    parser.add_argument("--cameras", type=int, default=8)
+    args = parser.parse_args()
+    base = load_config("paper")
+    base = dataclasses.replace(base, damage=dataclasses.replace(base.damage, resolution=512))
+    step = max(1, base.cameras.total // args.cameras)
+    cameras = list(range(0, base.cameras.total, step))[:args.cameras]
+    results: dict = {"environment": args.env, "cameras": cameras, "variants": {}}
+    for name, render in VARIANTS.items():
+        config = variant(base, **render)
+        view = EnvironmentView.open(config, 0, args.env, Renderer(config.render))
+        results["variants"][name] = timings(view, cameras)
+        if render == {"msaa": 0, "shadow_map_px": 0}:
+            per_pixel = overdraw(view, cameras)
+            results["colour_fragments_per_pixel"] = {
+                "by_camera": per_pixel, "median": statistics.median(per_pixel)}
+        view.renderer.release()
+    write_results("passes", results)
+
+
+if __name__ == "__main__":
+    main()
