@@ -201,7 +201,8 @@ def test_damage_labels_match_the_ray_cast_through_the_damage_masks():
 
 
 def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
-    """A worker's peak memory holds one environment's textures, not two."""
+    """A worker's peak memory holds one environment's textures, not two: before dressing the
+    next environment only the repository's textures (read-only images, shared) remain."""
     import glsynth.render.view as view_module
     from glsynth.render.view import EnvironmentView, preview_config
 
@@ -213,8 +214,10 @@ def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
         real_dress = view_module.dress
 
         def dress_after_release(*args, **kwargs):
-            assert not renderer._draws
-            assert len(renderer._textures) == 2  # only the two 1x1 defaults remain
+            assert not renderer._draws and not renderer._scene_textures
+            sources = [a for arrays, _ in renderer._textures.values() for a in arrays
+                       if a is not None]
+            assert sources and not any(a.flags.writeable for a in sources)
             return real_dress(*args, **kwargs)
 
         monkeypatch.setattr(view_module, "dress", dress_after_release)

@@ -185,12 +185,14 @@ def gltf_binary(parts: Sequence[Part], materials: Mapping[str, Material],
     towards ``sun`` (z-up world) of the given intensity (glsynth's radiance units); no light
     when ``sun`` is None."""
     b = _Builder()
-    material_index: dict[int, int] = {}
+    # id(material) -> (material, index): holding the material keeps its id from being reused by
+    # a later one (a deferred material is built anew on every read and dropped after).
+    material_index: dict[int, tuple[Material, int]] = {}
     nodes = []
     for part in parts:
         m = materials[part.name]
         if id(m) not in material_index:
-            material_index[id(m)] = b.material(part.name, m)
+            material_index[id(m)] = (m, b.material(part.name, m))
         mesh = part.mesh
         uv = mesh.visual.uv * m.uv_scale
         uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)
@@ -210,7 +212,7 @@ def gltf_binary(parts: Sequence[Part], materials: Mapping[str, Material],
                              "SCALAR", _ELEMENT_ARRAY_BUFFER)
         b.tree["meshes"].append({"name": part.name, "primitives": [{
             "attributes": attributes, "indices": indices,
-            "material": material_index[id(m)]}]})
+            "material": material_index[id(m)][1]}]})
         b.tree["nodes"].append({
             "name": part.name, "mesh": len(b.tree["meshes"]) - 1,
             "matrix": (Z_UP_TO_Y_UP @ part.pose).T.reshape(-1).tolist(),
