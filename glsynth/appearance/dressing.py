@@ -41,7 +41,8 @@ class Dressing:
 
 def open_repository(config: Config) -> TextureRepository:
     """The configured repository, one per process: its decoded, resized images (read-only
-    arrays) then serve every environment, and the renderer keeps their textures uploaded."""
+    arrays) then serve every environment, and the renderer keeps their textures uploaded.
+    Images added to the folder while the process runs are not seen."""
     m = config.materials
     root = m.repository or builtin_repository(m.repository_seed, m.images_per_category,
                                               m.builtin_size)
