@@ -149,3 +149,23 @@ def test_damage_materials_are_built_when_read_and_not_kept(tmp_path):
     record = d.assignments[name].damage
     entry = bank.entry(record["severity"], record["bank_index"], repo)
     assert record["params"] == entry.params and record["images"] == list(entry.images)
+
+
+def test_materials_mapping_lists_ready_and_deferred_and_refuses_both():
+    from glsynth.appearance.materials import Material, Materials, factors
+
+    built = []
+
+    def build() -> Material:
+        built.append(1)
+        return Material(metallic=1.0, base_color_map=np.zeros((2, 2, 3), np.uint8))
+
+    plain = Material()
+    m = Materials({"slab_0": plain}, {"column_0": (Material(metallic=1.0), build)})
+    assert len(m) == 2 and set(m) == {"slab_0", "column_0"} and "column_0" in m
+    assert "rail_0" not in m
+    assert factors(m, "column_0").base_color_map is None and not built
+    assert m["column_0"].base_color_map is not None and len(built) == 1
+    assert factors({"slab_0": plain}, "slab_0") is plain
+    with pytest.raises(ValueError, match="both ready and deferred"):
+        Materials({"column_0": plain}, {"column_0": (plain, build)})
