@@ -200,6 +200,7 @@ class Renderer:
             self._scene_textures.append(self._textures.pop(key)[1])
 
     def _free_textures(self, keep: Callable[[tuple[int, int], tuple], bool]) -> None:
+        """Release the cached textures for which ``keep(key, sources)`` is false."""
         for key, (sources, tex) in list(self._textures.items()):
             if not keep(key, sources):
                 tex.release()
