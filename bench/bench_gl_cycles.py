@@ -2,9 +2,9 @@
 same environment's scene many times, as a generation worker does with environments; reports
 live GL buffers after the last release and RSS growth per load. With --environments N, one
 renderer instead opens N different environments in turn at the paper preset and full size
-(each opening releases the previous one), and the RSS after each release is recorded
-(read after malloc_trim, so it follows what is held); growth is reported per 10 environments
-from the third on (the first two fill the allocator's and llvmpipe's pools).
+(each opening releases the previous one), and the RSS after each release is recorded; growth
+is reported per 10 environments from the third on (the first two fill the allocator's and
+llvmpipe's pools). RSS is always read after malloc_trim, so it follows what is held.
 
     .venv/bin/python bench/bench_gl_cycles.py [--cycles 40] [--width 384]
     .venv/bin/python bench/bench_gl_cycles.py --environments 12

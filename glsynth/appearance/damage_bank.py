@@ -63,9 +63,12 @@ class DamageBank:
             raise ValueError(f"bank index = {index}: must be in [0, {self.cfg.bank_size - 1}]")
         return SEVERITIES.index(severity) * 10**6 + index
 
+    def _path(self, severity: str, index: int) -> Path:
+        return self.dir / f"{severity}_{index:06d}.npz"
+
     def entry(self, severity: str, index: int, repository: TextureRepository) -> BankEntry:
         item = self._item(severity, index)
-        path = self.dir / f"{severity}_{index:06d}.npz"
+        path = self._path(severity, index)
         if path.exists():
             self.loaded += 1
             return self._read(path, severity, index)
@@ -100,7 +103,7 @@ class DamageBank:
         """An entry's parameters and repository images, without reading its maps (an entry
         not yet made is made)."""
         self._item(severity, index)  # validates
-        path = self.dir / f"{severity}_{index:06d}.npz"
+        path = self._path(severity, index)
         if not path.exists():
             entry = self.entry(severity, index, repository)
             return entry.params, entry.images

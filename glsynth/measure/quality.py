@@ -176,10 +176,13 @@ def _run_preset(config: Config, name: str, root_seed: int, env: int, cameras: li
             placements.append(placement)
         if keep_scene:
             parts = [p for p in view.environment.parts if p.name in view.scene.parts]
-            scene = {"parts": parts, "materials": view.dressing.materials,
+            # Built once here: the truths and every Cycles run read them (a deferred damage
+            # material would be built again on each read).
+            materials = dict(view.dressing.materials)
+            scene = {"parts": parts, "materials": materials,
                      "lighting": view.lighting, "render": cfg.render,
-                     "truths": [ray_cast(view.environment.parts, view.dressing.materials,
-                                         p.camera) for p in placements]}
+                     "truths": [ray_cast(view.environment.parts, materials, p.camera)
+                                for p in placements]}
     finally:
         view.renderer.release()
     render_s = statistics.median(times)

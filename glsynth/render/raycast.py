@@ -74,8 +74,10 @@ def ray_cast(parts: Sequence[Part], materials: Mapping[str, Material],
     bounds = np.searchsorted(hit_part[order], np.arange(len(parts) + 1))
     for i, part in enumerate(parts):
         hits = order[bounds[i]:bounds[i + 1]]
+        if not hits.size:
+            continue  # before reading the material: a deferred one is built on each read
         material = materials[part.name]
-        if not hits.size or material.damage_mask is None:
+        if material.damage_mask is None:
             continue
         bary = trimesh.triangles.points_to_barycentric(scene.triangles[tri[hits]], loc[hits])
         face_uv = part.mesh.visual.uv[part.mesh.faces[tri[hits] - first_face[i]]]
