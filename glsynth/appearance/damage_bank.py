@@ -27,9 +27,10 @@ from glsynth.appearance.damage import (
     sample_params,
 )
 from glsynth.appearance.materials import Material
-from glsynth.appearance.repository import TextureRepository, cache_root
+from glsynth.appearance.repository import TextureRepository
 from glsynth.core.config import DamageConfig
 from glsynth.core.fileio import atomic_write_bytes
+from glsynth.core.paths import cache_root
 from glsynth.core.seeding import Stream, make_rng
 
 BANK_VERSION = 1

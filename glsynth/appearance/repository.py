@@ -11,7 +11,6 @@ of its category is used instead, so a bad file never stops a long run; a categor
 readable image is an error that says what to fix.
 """
 
-import os
 import warnings
 from pathlib import Path
 
@@ -21,14 +20,11 @@ from PIL import Image, UnidentifiedImageError
 from glsynth.appearance.texgen import CATEGORIES
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, png_bytes
+from glsynth.core.paths import cache_root
 from glsynth.core.seeding import Stream, make_rng
 
 EXTENSIONS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
 GENERATOR_VERSION = 1
-
-
-def cache_root() -> Path:
-    return Path(os.environ.get("GLSYNTH_CACHE") or Path.home() / ".cache" / "glsynth")
 
 
 class TextureRepository:
