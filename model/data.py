@@ -5,10 +5,16 @@ regular and close-up views whose damage lies in the RRDR, and can add the pure-t
 Images come as float32 (3, H, W) in [0, 1]; targets at FCN58's output size, ceil(H/3) x
 ceil(W/3): int64 ids (0 = ignore) for the label tasks, float32 metres for depth.
 ``ImageFolder`` adds real labelled photos (images/ + labels/ with the same stems).
+``InputCache`` keeps images already resized to the training size, so that epochs after the
+first decode no PNG.
 """
 
+import hashlib
+import io
+import os
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 from glsynth.model.settings import N_OUTPUTS, TASKS, target_size
@@ -16,25 +22,45 @@ from PIL import Image
 from torch.utils.data import Dataset
 
 from glsynth.core.errors import UserError
+from glsynth.core.fileio import atomic_write_bytes
 from glsynth.core.images import nearest_resize
+from glsynth.core.paths import cache_root
 from glsynth.data.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
 
 
+def resize_rgb(rgb: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """uint8 (H, W, 3) brought to size = (W, H): area averaging when shrinking (no aliasing,
+    and 5x faster than Pillow's bilinear to 480x270), bilinear when enlarging."""
+    if (rgb.shape[1], rgb.shape[0]) == size:
+        return rgb
+    shrink = size[0] <= rgb.shape[1] and size[1] <= rgb.shape[0]
+    return cv2.resize(rgb, size, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+
+
+def to_tensor(rgb: np.ndarray) -> torch.Tensor:
+    """uint8 (H, W, 3) -> float32 (3, H, W) in [0, 1]."""
+    return torch.from_numpy(rgb.astype(np.float32) / 255.0).permute(2, 0, 1).contiguous()
+
+
 def image_tensor(image: Image.Image | np.ndarray, size: tuple[int, int]) -> torch.Tensor:
-    """RGB float32 (3, H, W) in [0, 1], resized bilinearly to size = (W, H)."""
+    """RGB float32 (3, H, W) in [0, 1], resized to size = (W, H) (resize_rgb)."""
     im = image if isinstance(image, Image.Image) else Image.fromarray(image)
-    im = im.convert("RGB")
-    if im.size != size:
-        im = im.resize(size, Image.Resampling.BILINEAR)
-    array = np.asarray(im, dtype=np.float32) / 255.0
-    return torch.from_numpy(array).permute(2, 0, 1).contiguous()
+    return to_tensor(resize_rgb(np.asarray(im.convert("RGB")), size))
+
+
+def read_rgb(path: Path) -> np.ndarray:
+    """uint8 (H, W, 3) of an image file; OpenCV decodes PNG about 10-15 % faster than Pillow."""
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:  # a format OpenCV lacks, or a damaged file: Pillow names the problem
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def load_image(path: Path, size: tuple[int, int]) -> torch.Tensor:
-    with Image.open(path) as im:
-        return image_tensor(im, size)
+    return to_tensor(resize_rgb(read_rgb(path), size))
 
 
 def load_map(path: Path, size: tuple[int, int]) -> np.ndarray:
@@ -43,12 +69,46 @@ def load_map(path: Path, size: tuple[int, int]) -> np.ndarray:
         return nearest_resize(np.asarray(im), (size[1], size[0]))
 
 
+def _digest(text: str, n: int) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:n]
+
+
+class InputCache:
+    """Images of one dataset resized to one size, as uint8 .npy files under
+    $GLSYNTH_CACHE/inputs/<dataset and size>/. An entry is named by the image's path and by its
+    size and modification time, so an image that changes is decoded again (and its old entry
+    removed); another dataset folder or size has a folder of its own. The tensors are
+    bit-identical to load_image's. Writes are atomic: loader processes may share a cache."""
+
+    def __init__(self, root: Path, size: tuple[int, int], base: Path | None = None) -> None:
+        self.size = size
+        key = f"{os.path.realpath(root)}|{size[0]}x{size[1]}"
+        self.dir = (base or cache_root()) / "inputs" / f"{Path(root).name}-{_digest(key, 16)}"
+
+    def load(self, path: Path) -> torch.Tensor:
+        stat = path.stat()
+        stem = _digest(os.path.realpath(path), 20)
+        entry = self.dir / f"{stem}-{_digest(f'{stat.st_size}:{stat.st_mtime_ns}', 12)}.npy"
+        try:
+            return to_tensor(np.load(entry))
+        except (FileNotFoundError, ValueError, EOFError, OSError):
+            pass
+        rgb = resize_rgb(read_rgb(path), self.size)
+        for stale in self.dir.glob(f"{stem}-*.npy"):
+            stale.unlink(missing_ok=True)
+        buffer = io.BytesIO()
+        np.save(buffer, np.ascontiguousarray(rgb))
+        atomic_write_bytes(entry, buffer.getvalue())
+        return to_tensor(rgb)
+
+
 class TokaidoDataset(Dataset):
     def __init__(self, root: str | Path, split: str = "train", task: str = "component", *,
                  views: str | None = None, puretex: bool = False,
-                 image_size: tuple[int, int] = (1920, 1080)) -> None:
+                 image_size: tuple[int, int] = (1920, 1080), cache: bool = False) -> None:
         """views: "regular", "closeup" or "all" (default: regular for component/depth, all
-        for damage). image_size: (width, height) the images are resized to."""
+        for damage). image_size: (width, height) the images are resized to. cache: read
+        them through an InputCache."""
         if task not in TASKS:
             raise ValueError(f"task = {task!r}: choose one of {TASKS}")
         if split not in ("train", "test"):
@@ -60,6 +120,7 @@ class TokaidoDataset(Dataset):
         if views not in ("regular", "closeup", "all"):
             raise ValueError(f"views = {views!r}: choose 'regular', 'closeup' or 'all'")
         self.root, self.task, self.size = Path(root), task, image_size
+        self.cache = InputCache(self.root, image_size) if cache else None
         frames: list[FrameRecord] = read_manifest(self.root, f"files_{split}.csv")
         self.items: list[FrameRecord | PuretexRecord] = [
             r for r in frames
@@ -79,8 +140,12 @@ class TokaidoDataset(Dataset):
         rel = item.component if self.task == "component" else item.damage
         return torch.from_numpy(load_map(self.root / rel, size).astype(np.int64))
 
+    def image(self, index: int) -> torch.Tensor:
+        path = self.root / self.items[index].image
+        return self.cache.load(path) if self.cache else load_image(path, self.size)
+
     def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
-        return load_image(self.root / self.items[index].image, self.size), self.target(index)
+        return self.image(index), self.target(index)
 
 
 class ImageFolder(Dataset):

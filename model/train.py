@@ -1,6 +1,7 @@
 """Training FCN58 as in paper Section 4.3.
 
-Adam with weight decay 1e-4, batch 8, random left-right flips, shuffling, the learning-rate
+Adam with weight decay 1e-4, batch 8, random left-right flips (and, if asked, the photometric
+augmentations of glsynth.model.augment), shuffling, the learning-rate
 schedule 1e-3 / 1e-4 / 1e-5 for 200 / 50 / 10 epochs; median-frequency-balanced cross entropy
 (label 0 ignored) or berHu for depth; validation on a held-out part of the training split after
 each epoch. A run folder holds settings.json, class_weights.json, checkpoint.pt (every epoch,
@@ -9,8 +10,8 @@ end, model.pt. Checkpoints hold only tensors and plain data, so they load with
 ``weights_only=True``. Under torchrun each process trains on its own shard through
 DistributedDataParallel; rank 0 writes the files.
 
-Every random draw (validation split, initial weights, shuffles, flips) is seeded from
-glsynth.core.seeding by (seed, epoch, rank), so a resumed run sees the same batches as an
+Every random draw (validation split, initial weights, shuffles, flips, augmentations) is seeded
+from glsynth.core.seeding by (seed, epoch, rank), so a resumed run sees the same batches as an
 uninterrupted one. Depth is trained and evaluated on the same pixels (metrics.depth_valid).
 """
 
@@ -28,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from glsynth.model.augment import photometric
 from glsynth.model.data import ImageFolder, TokaidoDataset
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
@@ -54,7 +56,7 @@ from glsynth.core.seeding import Stream, make_rng, make_seed
 from glsynth.data.tokaido import FrameRecord
 
 # Items of the training stream (glsynth.core.seeding.Stream.TRAINING).
-_SPLIT, _WEIGHTS, _SHUFFLE, _FLIPS = range(4)
+_SPLIT, _WEIGHTS, _SHUFFLE, _FLIPS, _AUGMENT = range(5)
 
 
 def torch_generator(seed: int) -> torch.Generator:
@@ -98,7 +100,7 @@ def training_sets(s: TrainSettings) -> tuple[Dataset, Dataset]:
     """(train, validation): the training split minus a seeded random validation part of its
     views; the plates (damage) and extra real folders stay in training."""
     split = TokaidoDataset(s.data, "train", s.task, views=s.views, image_size=s.image_size,
-                           puretex=s.task == "damage" and s.puretex)
+                           puretex=s.task == "damage" and s.puretex, cache=s.cache_inputs)
     frames = [i for i, r in enumerate(split.items) if isinstance(r, FrameRecord)]
     if not frames:
         raise UserError(f"--data {s.data!r} has no training images for task {s.task!r}")
@@ -332,11 +334,15 @@ def _train_epoch(state: _Run, loader: DataLoader, epoch: int, deadline_s: float 
     for group in state.optimizer.param_groups:
         group["lr"] = s.learning_rate(epoch)
     flips = torch_generator(make_seed(s.seed, 0, Stream.TRAINING, _FLIPS, epoch, state.rank))
+    augment = torch_generator(make_seed(s.seed, 0, Stream.TRAINING, _AUGMENT, epoch,
+                                        state.rank))
     state.net.train()
     losses, images_seen = [], 0
     started = time.perf_counter()
     for images, targets in loader:
         images, targets = flip_batch(images, targets, flips)
+        if s.augment:
+            images = photometric(images.to(state.device), s.augment, augment)
         images = prepare(images, state.device, s.channels_last)
         targets = targets.to(state.device, non_blocking=True)
         with state.autocast():
