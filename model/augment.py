@@ -60,11 +60,12 @@ def gaussian_blur(images: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
 
 
 def _dct_matrix(device: torch.device) -> torch.Tensor:
-    """The orthonormal 8-point DCT-II, rows = frequencies."""
+    """The 2-D orthonormal 8x8 DCT-II acting on row-major flattened blocks: kron(D, D), (64, 64)
+    (one matrix product for every block instead of two per block)."""
     k = torch.arange(8, dtype=torch.float32, device=device)
-    m = torch.cos((2 * k[None, :] + 1) * k[:, None] * math.pi / 16) * math.sqrt(2 / 8)
-    m[0] /= math.sqrt(2)
-    return m
+    d = torch.cos((2 * k[None, :] + 1) * k[:, None] * math.pi / 16) * math.sqrt(2 / 8)
+    d[0] /= math.sqrt(2)
+    return torch.kron(d, d)
 
 
 def quant_tables(quality: torch.Tensor) -> torch.Tensor:
@@ -78,14 +79,13 @@ def quant_tables(quality: torch.Tensor) -> torch.Tensor:
 
 def _blocks_quantised(planes: torch.Tensor, tables: torch.Tensor, dct: torch.Tensor
                       ) -> torch.Tensor:
-    """8x8 blocks of (B, H, W) planes (H, W multiples of 8) through DCT, quantisation with
+    """8x8 blocks of (B, H, W) planes (H, W multiples of 8) through the DCT, quantisation with
     (B, 8, 8) tables and the inverse DCT."""
     b, h, w = planes.shape
-    blocks = planes.view(b, h // 8, 8, w // 8, 8).permute(0, 1, 3, 2, 4)
-    coeff = dct @ blocks @ dct.T
-    t = tables.view(b, 1, 1, 8, 8)
-    coeff = torch.round(coeff / t) * t
-    return (dct.T @ coeff @ dct).permute(0, 1, 3, 2, 4).reshape(b, h, w)
+    blocks = planes.view(b, h // 8, 8, w // 8, 8).permute(0, 1, 3, 2, 4).reshape(b, -1, 64)
+    step = tables.reshape(b, 1, 64)
+    coeff = torch.round(blocks @ dct.T / step) * step
+    return (coeff @ dct).view(b, h // 8, w // 8, 8, 8).permute(0, 1, 3, 2, 4).reshape(b, h, w)
 
 
 def jpeg(images: torch.Tensor, quality: torch.Tensor) -> torch.Tensor:
