@@ -17,10 +17,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import write_results  # noqa: E402
+from common import JEMALLOC, training_env, write_results  # noqa: E402
 
-JEMALLOC = "/usr/lib/x86_64-linux-gnu/libjemalloc.so.2"
-JEMALLOC_CONF = "oversize_threshold:0,background_thread:true,dirty_decay_ms:-1,muzzy_decay_ms:-1"
 SIZES = ((642, 360), (1920, 1080))  # 642: a multiple of 3 near 640, so targets are exact
 
 
@@ -69,8 +67,7 @@ def main() -> None:
     args = parser.parse_args()
     if not args.no_jemalloc and JEMALLOC not in os.environ.get("LD_PRELOAD", "") and \
             Path(JEMALLOC).exists():
-        os.execve(sys.executable, [sys.executable, *sys.argv],
-                  {**os.environ, "LD_PRELOAD": JEMALLOC, "MALLOC_CONF": JEMALLOC_CONF})
+        os.execve(sys.executable, [sys.executable, *sys.argv], training_env())
     data = Path(args.data)
     if not (data / "files_train.csv").exists():
         sys.exit(f"--data {data}: no dataset there; run bash scripts/setup.sh first")
