@@ -40,7 +40,8 @@ def per_image(fn, paths: list[Path]) -> dict:
     times = []
     for p in paths:
         times += time_calls(lambda p=p: fn(p), repeats=3)
-    return {k: round(v * 1000, 2) for k, v in summary(times).items() if k != "n"}
+    return {k.replace("_s", "_ms"): round(v * 1000, 2) for k, v in summary(times).items()
+            if k != "n"}
 
 
 def loop_rate(data: Path, size: str, cache: bool, cache_dir: Path) -> float:

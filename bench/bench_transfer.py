@@ -3,7 +3,7 @@ Cycles renders of the same views, test each on GL and on Cycles renders of held-
 environments, and measure what photometric augmentation and lighting randomisation win back.
 
     .venv/bin/python bench/bench_transfer.py [--envs 8] [--test-envs 2] [--cameras 24]
-        [--samples 4] [--size 480x270] [--schedule 1e-3:12,1e-4:3] [--seeds 0,1]
+        [--samples 4] [--size 480x270] [--schedule 1e-3:30,1e-4:10] [--seeds 0,1]
         [--out out/bench-transfer] [--stage data|all]
 
 Datasets (paper preset at the balanced quality, regular cameras only, no plates; root seed 0):
@@ -204,7 +204,7 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--cameras", type=int, default=24)
     parser.add_argument("--samples", type=int, default=4)
     parser.add_argument("--size", default="480x270")
-    parser.add_argument("--schedule", default="1e-3:12,1e-4:3")
+    parser.add_argument("--schedule", default="1e-3:30,1e-4:10")
     parser.add_argument("--seeds", default="0,1")
     parser.add_argument("--out", default="out/bench-transfer")
     parser.add_argument("--stage", choices=("data", "all"), default="all")
