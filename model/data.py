@@ -75,10 +75,10 @@ def _digest(text: str, n: int) -> str:
 
 class InputCache:
     """Images of one dataset resized to one size, as uint8 .npy files under
-    $GLSYNTH_CACHE/inputs/<dataset and size>/. An entry is named by the image's path and by its
-    size and modification time, so an image that changes is decoded again (and its old entry
-    removed); another dataset folder or size has a folder of its own. The tensors are
-    bit-identical to load_image's. Writes are atomic: loader processes may share a cache."""
+    $GLSYNTH_CACHE/inputs/<dataset and size>/<image path>/<image size and mtime>.npy, so an
+    image that changes is decoded again (and its old entry removed); another dataset folder or
+    size has a folder of its own. The tensors are bit-identical to load_image's. Writes are
+    atomic: loader processes may share a cache."""
 
     def __init__(self, root: Path, size: tuple[int, int], base: Path | None = None) -> None:
         self.size = size
@@ -87,14 +87,15 @@ class InputCache:
 
     def load(self, path: Path) -> torch.Tensor:
         stat = path.stat()
-        stem = _digest(os.path.realpath(path), 20)
-        entry = self.dir / f"{stem}-{_digest(f'{stat.st_size}:{stat.st_mtime_ns}', 12)}.npy"
+        # A folder per image, so that a miss lists only that image's old entries.
+        folder = self.dir / _digest(os.path.realpath(path), 20)
+        entry = folder / f"{_digest(f'{stat.st_size}:{stat.st_mtime_ns}', 12)}.npy"
         try:
             return to_tensor(np.load(entry))
-        except (FileNotFoundError, ValueError, EOFError, OSError):
+        except (OSError, ValueError, EOFError):  # not there, or unreadable: make it again
             pass
         rgb = resize_rgb(read_rgb(path), self.size)
-        for stale in self.dir.glob(f"{stem}-*.npy"):
+        for stale in folder.glob("*.npy"):
             stale.unlink(missing_ok=True)
         buffer = io.BytesIO()
         np.save(buffer, np.ascontiguousarray(rgb))

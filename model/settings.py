@@ -37,7 +37,8 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 AUGMENTATIONS = ("exposure", "white_balance", "blur", "noise", "jpeg")
-"""Photometric augmentations of glsynth.model.augment, in the order a camera applies them."""
+"""Photometric augmentations of glsynth.model.augment, in a canonical order (the module applies
+them in a camera's order, whatever the order given)."""
 
 
 def parse_augment(text: str) -> tuple[str, ...]:
