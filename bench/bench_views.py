@@ -5,12 +5,17 @@ component and depth renders at preview size.
 - under each reading of the paper's camera placement ([cameras] placement and height_from,
   docs/design.md), at the configured exposure;
 - for the default reading, at each exposure of --exposures (the dark filter depends on it);
+- with --fence-heights, the default reading at each height of the fence on the deck edges (an
+  assumed dimension): how much the fence hides the track, and how many regular cameras (of at
+  least 100 environments) stand above the deck top at all; --only fence runs that sweep alone
+  and writes views_fence.json;
 - with --cycles-envs N, the same views of the first N environments path-traced by the Cycles
   twin, filtered at each exposure (Cycles' linear output is exposed exactly as GL's): whether
   the raster shortcut changes what the dark filter removes. Needs Blender.
 
     .venv/bin/python bench/bench_views.py [--preset paper] [--envs 12] [--width 384]
         [--exposures 1,1.41,2] [--cycles-envs 3] [--cycles-samples 32]
+        [--fence-heights 1.5,1.1] [--only fence]
 """
 
 import argparse
@@ -34,6 +39,8 @@ from glsynth.render.cycles import cycles_seed, render_linear, require_blender  #
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.tonemap import tone_map  # noqa: E402
 from glsynth.render.view import EnvironmentView, preview_config  # noqa: E402
+from glsynth.world.cameras import environment_camera  # noqa: E402
+from glsynth.world.environment import build_environment  # noqa: E402
 
 CLASSES = [c for c in Component if c != Component.UNLABELLED]
 KINDS = ("regular", "closeup")
@@ -94,6 +101,24 @@ def measure(config: Config, envs: int) -> dict:
     return result
 
 
+def camera_heights(config: Config, envs: int) -> dict:
+    """Where the regular cameras stand against the deck (no rendering): the track is in view
+    only from above the deck top, so this bounds the share of views that can show a rail."""
+    above, over = 0, 0
+    for env in range(envs):
+        trajectory = build_environment(config, 0, env).trajectory
+        for index in range(config.cameras.n_regular):
+            p = environment_camera(trajectory, config.cameras, config.render, 0, env, index)
+            deck = trajectory.deck_at(np.array([p.s_m]))[0]
+            if p.camera.pose[2, 3] > deck:
+                above += 1
+                over += p.distance_m < config.design.deck_width_m / 2
+    n = max(1, envs * config.cameras.n_regular)
+    return {"environments": envs, "regular_cameras": n,
+            "above_deck_top": round(above / n, 4),
+            "above_deck_top_and_over_the_deck": round(over / n, 4)}
+
+
 def cycles_check(config: Config, envs: int, exposures: list[float], samples: int) -> dict:
     """GL and Cycles removals of the same views, at each exposure; the maps that the other
     filters read (component, depth) are GL's for both, as in a Cycles-twin dataset."""
@@ -149,12 +174,32 @@ def main() -> None:
                         help="comma-separated exposures for the default reading")
     parser.add_argument("--cycles-envs", type=int, default=0)
     parser.add_argument("--cycles-samples", type=int, default=32)
+    parser.add_argument("--fence-heights", default="",
+                        help="comma-separated fence heights in metres for the default reading")
+    parser.add_argument("--only", choices=("fence",), help="run this sweep alone")
     args = parser.parse_args()
     exposures = [float(x) for x in args.exposures.split(",")]
+    fences = [float(x) for x in args.fence_heights.split(",") if x]
+    if args.only == "fence" and not fences:
+        parser.error("--only fence needs --fence-heights, e.g. --fence-heights 1.5,1.1")
     base = preview_config(load_config(args.preset), args.width)
     results = {"paper": {"keep_rate": PAPER["keep_rate"]}, "envs": args.envs,
                "size": [base.render.width, base.render.height],
                "exposure": base.render.exposure, "readings": {}, "exposures": {}}
+    if fences:
+        results["fence_heights"] = {}
+        for height in fences:
+            config = dataclasses.replace(base, design=dataclasses.replace(
+                base.design, fence_height_m=height))
+            results["fence_heights"][f"fence_height_m={height:g}"] = measure(config, args.envs)
+            print(f"fence_height_m={height:g}",
+                  results["fence_heights"][f"fence_height_m={height:g}"]
+                  ["share_of_kept_views_showing"]["all"], flush=True)
+        results["regular_camera_heights"] = camera_heights(base, max(args.envs, 100))
+        print(results["regular_camera_heights"], flush=True)
+    if args.only == "fence":
+        write_results("views_fence", results)
+        return
     for placement in PLACEMENTS:
         for height_from in HEIGHTS_FROM:
             name = f"placement={placement}, height_from={height_from}"
