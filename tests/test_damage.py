@@ -12,6 +12,7 @@ from glsynth.appearance.damage import (
     encode_normals,
     metallic_map,
     normal_components,
+    normal_map,
     rebar_depth,
     sample_params,
     threshold_for_area,
@@ -146,6 +147,25 @@ def test_normals_are_unit_length_and_tilt_with_the_slope():
     ramp = np.tile(np.linspace(0.0, 0.01, 64, dtype=np.float32), (64, 1))
     x, _, _ = normal_components(ramp, 0.01)
     assert np.all(x[:, 1:-1] > 0)
+
+
+@pytest.mark.parametrize("severity, area", [("slight", None), ("medium", None),
+                                            ("severe", None), ("severe", 0.0), ("severe", 1.0)])
+def test_sparse_normal_map_equals_the_dense_path_byte_for_byte(severity, area):
+    """normal_map computes only the pixels that are not flat; the bytes must be those of
+    encode_normals(normal_components(...)) for every severity and at zero and full area."""
+    r = rng(12)
+    p = sample_params(CFG, severity, r)
+    if area is not None:
+        p = dataclasses.replace(p, area=area)
+    maps = damage_maps(p, CFG, r, size=512)
+    pixel_m = CFG.tile_m / 512
+    dense = encode_normals(*normal_components(maps.displacement_m, pixel_m))
+    sparse = normal_map(maps.displacement_m, pixel_m)
+    assert sparse.dtype == np.uint8 and sparse.shape == (512, 512, 3)
+    assert sparse.tobytes() == dense.tobytes()
+    flat = np.all(sparse == (128, 128, 255), axis=2)
+    assert flat.all() if area == 0.0 else 0 < flat.sum() < flat.size
 
 
 def test_same_seed_identical_bytes_and_workers_do_not_matter():

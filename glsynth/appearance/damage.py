@@ -151,15 +151,9 @@ def _periodic_diff(h: np.ndarray, axis: int) -> np.ndarray:
     return out
 
 
-def normal_components(displacement_m: np.ndarray, pixel_m: float
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unit tangent-space normal (x, y, z planes, float32) of the surface height -displacement;
-    x along u (image columns), y along v (up, towards row 0); periodic central differences."""
-    k = np.float32(1.0 / (2.0 * pixel_m))
-    nx = _periodic_diff(displacement_m.astype(np.float32), 1)
-    nx *= k                      # -dh/du with h = -displacement
-    ny = _periodic_diff(displacement_m.astype(np.float32), 0)
-    ny *= -k                     # -dh/dv, v running up the image
+def _unit_normals(nx: np.ndarray, ny: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit normals (x, y, z) from the slopes -dh/du and -dh/dv (float32, changed in place)."""
     inv = nx * nx
     inv += ny * ny
     inv += 1.0
@@ -170,6 +164,18 @@ def normal_components(displacement_m: np.ndarray, pixel_m: float
     return nx, ny, inv
 
 
+def normal_components(displacement_m: np.ndarray, pixel_m: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit tangent-space normal (x, y, z planes, float32) of the surface height -displacement;
+    x along u (image columns), y along v (up, towards row 0); periodic central differences."""
+    k = np.float32(1.0 / (2.0 * pixel_m))
+    nx = _periodic_diff(displacement_m.astype(np.float32), 1)
+    nx *= k                      # -dh/du with h = -displacement
+    ny = _periodic_diff(displacement_m.astype(np.float32), 0)
+    ny *= -k                     # -dh/dv, v running up the image
+    return _unit_normals(nx, ny)
+
+
 def encode_normals(nx: np.ndarray, ny: np.ndarray, nz: np.ndarray) -> np.ndarray:
     """Normal planes in [-1, 1] to an (S, S, 3) uint8 normal map."""
     out = np.empty(nx.shape + (3,), np.uint8)
@@ -178,6 +184,26 @@ def encode_normals(nx: np.ndarray, ny: np.ndarray, nz: np.ndarray) -> np.ndarray
         np.multiply(plane, 127.5, out=tmp)
         tmp += 128.0  # round half up: the cast truncates non-negative values
         out[..., c] = tmp
+    return out
+
+
+def normal_map(displacement_m: np.ndarray, pixel_m: float) -> np.ndarray:
+    """``encode_normals(*normal_components(displacement_m, pixel_m))``, byte for byte, computed
+    only where the surface is not flat. Damage covers 0-30 % of a texture, and a flat pixel's
+    normal (0, 0, 1) always encodes as (128, 128, 255); the same float32 operations in the
+    same order on the rest give the same bytes (tested against the dense path)."""
+    d = displacement_m.astype(np.float32, copy=False)
+    k = np.float32(1.0 / (2.0 * pixel_m))
+    dx, dy = _periodic_diff(d, 1), _periodic_diff(d, 0)
+    where = np.flatnonzero(np.logical_or(dx != 0, dy != 0))
+    nx = dx.ravel()[where]
+    nx *= k
+    ny = dy.ravel()[where]
+    ny *= -k
+    out = np.empty(d.shape + (3,), np.uint8)
+    # One flat row copied down the image: 6x faster than broadcasting a pixel.
+    out.reshape(d.shape[0], -1)[:] = np.tile(np.array([128, 128, 255], np.uint8), d.shape[1])
+    out.reshape(-1, 3)[where] = encode_normals(*_unit_normals(nx, ny))
     return out
 
 

@@ -21,9 +21,8 @@ from glsynth.appearance.damage import (
     DamageParams,
     compose_rgb,
     damage_maps,
-    encode_normals,
     metallic_map,
-    normal_components,
+    normal_map,
     sample_params,
 )
 from glsynth.appearance.materials import Material
@@ -138,11 +137,11 @@ def damage_material(entry: BankEntry, repository: TextureRepository, cfg: Damage
     size = entry.maps.mask.shape[0]
     images = [_fit(repository.image(cat, i), size)
               for cat, i in zip(("concrete", "concrete", "steel"), entry.images)]
-    normals = normal_components(entry.maps.displacement_m, cfg.tile_m / size)
     return dataclasses.replace(damage_factors(cfg, scale),
                                base_color_map=compose_rgb(entry.maps.mask, *images),
                                metallic_map=metallic_map(entry.maps.mask),
-                               normal_map=encode_normals(*normals),
+                               normal_map=normal_map(entry.maps.displacement_m,
+                                                     cfg.tile_m / size),
                                damage_mask=entry.maps.mask)
 
 
