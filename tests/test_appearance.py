@@ -151,6 +151,45 @@ def test_damage_materials_are_built_when_read_and_not_kept(tmp_path):
     assert record["params"] == entry.params and record["images"] == list(entry.images)
 
 
+def test_built_in_order_gives_every_material_in_order_building_one_ahead():
+    """Deferred materials are built in a background thread one ahead of the caller, so at
+    most two exist at a time; plain mappings pass through; a failed build raises here."""
+    import threading
+
+    from glsynth.appearance.materials import Material, Materials, built_in_order
+
+    alive, most, lock = [0], [0], threading.Lock()
+
+    def build(k: int):
+        def make() -> Material:
+            with lock:
+                alive[0] += 1
+                most[0] = max(most[0], alive[0])
+            return Material(metallic=k / 10, base_color_map=np.full((2, 2, 3), k, np.uint8))
+        return make
+
+    names = [f"column_{k}" for k in range(6)] + ["slab_0"]
+    m = Materials({"slab_0": Material()},
+                  {f"column_{k}": (Material(), build(k)) for k in range(6)})
+    got = []
+    for name, material in zip(names, built_in_order(m, names), strict=True):
+        got.append(material)
+        if name != "slab_0":
+            assert material.base_color_map[0, 0, 0] == int(name[-1])
+        with lock:
+            alive[0] -= 1 if name != "slab_0" else 0
+    assert got[-1] is m["slab_0"] and most[0] <= 2
+    plain = {"a": Material(), "b": Material(metallic=1.0)}
+    assert list(built_in_order(plain, ["b", "a"])) == [plain["b"], plain["a"]]
+
+    def broken() -> Material:
+        raise RuntimeError("bank entry unreadable")
+
+    bad = Materials({}, {"column_0": (Material(), broken)})
+    with pytest.raises(RuntimeError, match="unreadable"):
+        list(built_in_order(bad, ["column_0"]))
+
+
 def test_materials_mapping_lists_ready_and_deferred_and_refuses_both():
     from glsynth.appearance.materials import Material, Materials, factors
 

@@ -8,6 +8,7 @@ multiplies the mesh UVs (metres), so a map repeats every 1 / uv_scale metres.
 """
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,11 +87,35 @@ class Materials(Mapping[str, Material]):
     def __contains__(self, name: object) -> bool:
         return name in self._ready or name in self._deferred
 
+    def is_deferred(self, name: str) -> bool:
+        return name in self._deferred
+
     def factors(self, name: str) -> Material:
         """The material, or a deferred one without its maps."""
         if name in self._deferred:
             return self._deferred[name][0]
         return self._ready[name]
+
+
+def built_in_order(materials: Mapping[str, Material], names: Sequence[str]
+                   ) -> Iterator[Material]:
+    """The materials of ``names``, in order. Deferred ones are built one ahead in a background
+    thread: building a damaged column's maps (numpy, which releases the GIL) then overlaps
+    what the caller does with the one before (the renderer's upload), and at most two are
+    alive at a time. Building is pure, so each is the same as ``materials[name]``."""
+    if not isinstance(materials, Materials):
+        yield from (materials[name] for name in names)
+        return
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="materials") as pool:
+        def build(i: int) -> Future[Material] | None:
+            if i < len(names) and materials.is_deferred(names[i]):
+                return pool.submit(materials.__getitem__, names[i])
+            return None
+
+        upcoming = build(0)
+        for i, name in enumerate(names):
+            current, upcoming = upcoming, build(i + 1)
+            yield materials[name] if current is None else current.result()
 
 
 def factors(materials: Mapping[str, Material], name: str) -> Material:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from glsynth.appearance.materials import Material, srgb_decode
+from glsynth.appearance.materials import Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
@@ -225,9 +225,11 @@ class Renderer:
         self.lighting = lighting
         self._set_lighting(lighting)
         scene = render_scene.scene
-        for node in sorted(scene.mesh_nodes, key=lambda n: n.name):
+        nodes = sorted(scene.mesh_nodes, key=lambda n: n.name)
+        # Deferred materials are built here, the next one while this one uploads.
+        built = built_in_order(render_scene.materials, [n.name for n in nodes])
+        for node, mat in zip(nodes, built, strict=True):
             info = render_scene.parts[node.name]
-            mat = render_scene.materials[node.name]  # a deferred material is built here
             for primitive in node.mesh.primitives:
                 data = np.hstack([primitive.positions, primitive.normals,
                                   primitive.texcoord_0]).astype(np.float32)
