@@ -26,6 +26,10 @@ from glsynth.render.view import EnvironmentView  # noqa: E402
 VARIANTS = {
     "paper preset (MSAA 4, 16 sky maps, 2048 px shadows)": {},
     "MSAA 0": {"msaa": 0},
+    # Whether MSAA multiplies the shading (per-sample) or only the raster work: the sky
+    # lookups' cost with and without it.
+    "no sky maps": {"sky_visibility_maps": 0},
+    "no sky maps, no shadows": {"sky_visibility_maps": 0, "shadow_map_px": 0},
     "MSAA 0, no shadows": {"msaa": 0, "shadow_map_px": 0},
     "MSAA 0, 4 sky maps": {"msaa": 0, "sky_visibility_maps": 4},
     "MSAA 0, no sky maps": {"msaa": 0, "sky_visibility_maps": 0},
