@@ -2,6 +2,7 @@
 
 import argparse
 import dataclasses
+import json
 import sys
 import time
 from collections.abc import Sequence
@@ -209,6 +210,23 @@ def cmd_generate(args: argparse.Namespace) -> None:
         _generate(args, config, out)
 
 
+def _earlier_runs(report: Path) -> list[dict]:
+    """The runs recorded in an earlier report.json of this folder: its list, or the one run
+    a report from before the list held; none if there is no report."""
+    if not report.exists():
+        return []
+    try:
+        earlier = json.loads(report.read_text())
+    except ValueError as error:
+        raise UserError(f"{report}: not valid JSON ({error}); move it aside and run "
+                        f"again") from None
+    if "runs" in earlier:
+        return list(earlier["runs"])
+    keys = ("engine", "workers", "wall_s", "images_written_this_run", "images_per_s",
+            "worker_seconds_by_phase", "worker_peak_rss_mib")
+    return [{k: earlier.get(k) for k in keys}] if "wall_s" in earlier else []
+
+
 def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     """The run itself, while this process holds the output folder's lock."""
     from tqdm import tqdm
@@ -219,6 +237,7 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     from glsynth.data.report import contact_sheet
 
     prepare_output(out, config, args.seed)
+    earlier = _earlier_runs(out / "report.json")  # refused before any work if unreadable
     tasks = plan(config)
     t0 = time.perf_counter()
     images, timings, peaks = 0, {}, {}
@@ -234,11 +253,16 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
             bar.update(1)
     wall = time.perf_counter() - t0
     summary = merge(config, out)
-    summary.update(engine=args.engine, workers=args.workers, wall_s=round(wall, 2),
-                   images_written_this_run=images,
-                   images_per_s=round(images / wall, 3) if wall > 0 and images else None,
-                   worker_seconds_by_phase={k: round(v, 2) for k, v in timings.items()},
-                   worker_peak_rss_mib=sorted(peaks.values()))
+    run = {"engine": args.engine, "workers": args.workers, "wall_s": round(wall, 2),
+           "images_written_this_run": images,
+           "images_per_s": round(images / wall, 3) if wall > 0 and images else None,
+           "worker_seconds_by_phase": {k: round(v, 2) for k, v in timings.items()},
+           "worker_peak_rss_mib": sorted(peaks.values())}
+    # This run's figures on top, every run's below: a resumed or repeated run must not
+    # overwrite the timing of the run that made the data.
+    runs = earlier + [run]
+    summary.update(run, runs=runs, wall_s_all_runs=round(sum(r["wall_s"] or 0 for r in runs), 2),
+                   images_written_all_runs=sum(r["images_written_this_run"] or 0 for r in runs))
     atomic_write_json(out / "report.json", summary)
     atomic_write_bytes(out / "contact_sheet.png", png_bytes(contact_sheet(out)))
     stats = summary["statistics"]
