@@ -1,10 +1,10 @@
 """Opening an environment: wall time by phase, peak RSS, and digests of rendered outputs.
 
-Each process opens two environments with one renderer, as a worker does, after one warm-up
-opening that fills the texture and damage-bank caches: the first opening is a fresh process's
-(its peak RSS is its own), the second a worker's steady state (its peak RSS is the process's
-over both). Every environment is opened
-first in one process and second in another. The phases are building the environment, dressing
+Each process opens three environments with one renderer, as a generation worker does
+(environments e, e + 1, e + 2 modulo --envs), after one warm-up process that fills the texture
+and damage-bank caches on disk. The first opening is a fresh process's (its peak RSS is its
+own); the second and third show a worker's steady state (peak RSS over the process so far).
+The phases are building the environment, dressing
 it (bank reads and damage maps), and uploading (textures, mipmaps, geometry, sky visibility).
 The digests (sha256 of every pass of a few cameras) show whether a change to the open path
 changed a byte of output: compare them between two results files.
@@ -91,16 +91,23 @@ def main() -> None:
     if args.envs < 2:
         parser.error(f"--envs {args.envs}: give at least 2 (each process opens two)")
     child(args.preset, 0, [0])  # fills the caches
-    pairs = [child(args.preset, args.cameras, [env, (env + 1) % args.envs])
-             for env in range(args.envs)]
-    first = [pair[0] for pair in pairs]
-    second = sorted((pair[1] for pair in pairs), key=lambda r: r["environment"])
+    runs = [child(args.preset, args.cameras,
+                  [env, (env + 1) % args.envs, (env + 2) % args.envs])
+            for env in range(args.envs)]
+    nth = {name: sorted((run[k] for run in runs), key=lambda r: r["environment"])
+           for k, name in enumerate(("first", "second", "third"))}
+    digests: dict[int, list[dict]] = {}
+    for run in runs:
+        for r in run:
+            digests.setdefault(r["environment"], []).append(r["digests"])
     (RESULTS / "open").mkdir(parents=True, exist_ok=True)
     write_results(f"open/{args.label}", {
-        "preset": args.preset, "first_open": medians(first), "second_open": medians(second),
-        "by_environment": first, "second_by_environment": second,
-        "digests_agree_first_and_second": all(
-            a["digests"] == b["digests"] for a, b in zip(first, second))})
+        "preset": args.preset,
+        **{f"{name}_open": medians(records) for name, records in nth.items()},
+        **{f"{name}_by_environment": records for name, records in nth.items()},
+        "digests_agree_between_openings": all(
+            all(d == ds[0] for d in ds) for ds in digests.values())})
+
 
 if __name__ == "__main__":
     main()
