@@ -116,3 +116,23 @@ def test_read_only_textures_outlive_their_scene_until_a_scene_stops_drawing_them
         assert not is_texture(kept.glo)
     finally:
         renderer.release()
+
+
+def test_texture_data_flips_rows_and_packs_alpha_as_numpy_would():
+    """The upload bytes (OpenCV) equal numpy's reference: rows flipped, alpha in the fourth
+    channel, for colour, colour with alpha, masks, odd sizes and non-contiguous views."""
+    from glsynth.core.seeding import Stream, make_rng
+    from glsynth.render.gl.renderer import texture_data
+
+    rng = make_rng(0, 0, Stream.MATERIALS, 3)
+    rgb = rng.integers(0, 256, (7, 10, 3), dtype=np.uint8)
+    alpha = rng.integers(0, 256, (7, 10), dtype=np.uint8)
+    mask = rng.integers(1, 4, (9, 5), dtype=np.uint8)
+    wide = rng.integers(0, 256, (8, 22, 3), dtype=np.uint8)[:, ::2]  # a strided view
+    packed = np.concatenate([rgb[::-1], alpha[::-1, :, None]], axis=2)
+    assert np.array_equal(texture_data(rgb, alpha), packed)
+    assert np.array_equal(texture_data(rgb), rgb[::-1])
+    assert np.array_equal(texture_data(mask), mask[::-1])
+    assert np.array_equal(texture_data(wide), wide[::-1])
+    data = texture_data(rgb, alpha)
+    assert data.flags.c_contiguous and data.shape == (7, 10, 4) and data.dtype == np.uint8
