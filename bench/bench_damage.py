@@ -25,9 +25,8 @@ from glsynth.appearance.damage import (  # noqa: E402
     SEVERITIES,
     compose_rgb,
     damage_maps,
-    encode_normals,
     metallic_map,
-    normal_components,
+    normal_map,
     sample_params,
 )
 from glsynth.appearance.repository import TextureRepository, generate_repository  # noqa: E402
@@ -41,8 +40,7 @@ def full_set(cfg: DamageConfig, severity: str, item: int, images: list[np.ndarra
     maps = damage_maps(params, cfg, rng)
     rgb = compose_rgb(maps.mask, *images)
     metal = metallic_map(maps.mask)
-    normals = encode_normals(*normal_components(maps.displacement_m,
-                                                cfg.tile_m / cfg.resolution))
+    normals = normal_map(maps.displacement_m, cfg.tile_m / cfg.resolution)  # as the bank does
     return params, maps, rgb, metal, normals
 
 

@@ -4,8 +4,8 @@ Each process opens three environments with one renderer, as a generation worker 
 (environments e, e + 1, e + 2 modulo --envs), after one warm-up process that fills the texture
 and damage-bank caches on disk. The first opening is a fresh process's (its peak RSS is its
 own); the second and third show a worker's steady state (peak RSS over the process so far).
-The phases are building the environment, dressing
-it (bank reads and damage maps), and uploading (textures, mipmaps, geometry, sky visibility).
+The phases are building the environment, dressing it (bank reads and damage maps), and
+uploading (textures, mipmaps, geometry, sky visibility).
 The digests (sha256 of every pass of a few cameras) show whether a change to the open path
 changed a byte of output: compare them between two results files.
 
@@ -89,7 +89,7 @@ def main() -> None:
     parser.add_argument("--label", default="after", help="results: bench/results/open/LABEL")
     args = parser.parse_args()
     if args.envs < 2:
-        parser.error(f"--envs {args.envs}: give at least 2 (each process opens two)")
+        parser.error(f"--envs {args.envs}: give at least 2 (each process opens three in turn)")
     child(args.preset, 0, [0])  # fills the caches
     runs = [child(args.preset, args.cameras,
                   [env, (env + 1) % args.envs, (env + 2) % args.envs])
