@@ -5,7 +5,9 @@
 // emission (scene panels are emission-only). The normal map (the damage
 // normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
 // derivatives of position and UV, so meshes need no tangent attribute. The sun is shadowed by
-// a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set.
+// a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the
+// label pass's depth, so each visible pixel is shaded once; under MSAA the shading normal goes
+// to a second target, for msaa.frag.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -53,9 +55,11 @@ uniform mat4 u_shadow_from_view;   // shadow-map texture coordinates and depth, 
 uniform float u_shadow_texel;      // 1 / map size
 uniform float u_shadow_offset_m;   // lookups move this far along the normal (against acne)
 
-out vec4 f_color;
+layout(location = 0) out vec4 f_color;
+layout(location = 1) out vec4 f_normal;  // the shading normal, for msaa.frag
 
 #include "tonemap.glsl"
+#include "facing_normal.glsl"
 
 const float PI = 3.14159265358979;
 
@@ -126,8 +130,8 @@ float sun_visibility(vec3 n) {
 
 void main() {
     vec3 view_dir = normalize(-v_view_pos);
-    vec3 n = normalize(v_normal);
-    if (dot(n, view_dir) < 0.0) n = -n;  // two-sided: open sheets (ground, panels)
+    vec3 n = facing_normal(v_normal, view_dir);
+    f_normal = vec4(n, 1.0);
     float sun = sun_visibility(n);       // by the mesh normal: the normal map only shades
     vec3 hidden;
     vec2 vis = sky_visibility(n, hidden);

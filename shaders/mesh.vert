@@ -8,6 +8,7 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
 
+invariant gl_Position;  // the same depth in every program that draws with this shader
 out vec3 v_view_pos;   // camera space
 out vec3 v_normal;     // camera space
 out vec2 v_uv;

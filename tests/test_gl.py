@@ -5,11 +5,13 @@ import re
 
 import numpy as np
 import pytest
+import trimesh
 from glhelpers import LIGHT, camera, plain_materials, quad, render_config, scene_of
+from trimesh.visual import TextureVisuals
 
 from glsynth.appearance.materials import Material, plain_material
 from glsynth.core.errors import UserError
-from glsynth.core.labels import Component
+from glsynth.core.labels import Component, Damage
 from glsynth.core.paths import shader_dir
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.gl import context as gl_context
@@ -184,6 +186,107 @@ def test_msaa_changes_colour_edges_only_never_labels_or_depth():
     near_edge = edge | np.roll(edge, 1, 0) | np.roll(edge, -1, 0) | np.roll(edge, 1, 1) \
         | np.roll(edge, -1, 1)
     assert not np.any(changed & ~near_edge)
+
+
+def _glowing(rgb: tuple[float, float, float]) -> Material:
+    """Emission only: the colour says which surface a pixel shows."""
+    return Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=rgb)
+
+
+@pytest.mark.parametrize("msaa", [0, 4])
+def test_colour_shows_the_surface_the_labels_name_where_surfaces_tie(msaa):
+    """The colour pass shades against the label pass's depth; where surfaces tie in depth it
+    must keep the one the labels keep (the first drawn), between parts and within one mesh."""
+    d = 8.0
+    left = quad([[-3.0, -2.0, -d], [0.5, -2.0, -d], [0.5, 2.0, -d], [-3.0, 2.0, -d]])
+    right = quad([[-1.5, -2.0, -d], [-0.2, -2.0, -d], [-0.2, 2.0, -d], [-1.5, 2.0, -d]])
+    # One mesh, two coplanar triangles over the same area: the first samples the texture's
+    # left half (red, damage id 2), the second its right half (green, damage id 1).
+    corners = np.array([[1.0, -2.0, -d], [3.5, -2.0, -d], [1.0, 2.0, -d]])
+    pair = trimesh.Trimesh(np.vstack([corners, corners]), [[0, 1, 2], [3, 4, 5]],
+                           process=False)
+    pair.visual = TextureVisuals(uv=np.array([[0.1, 0.1], [0.4, 0.1], [0.1, 0.9],
+                                              [0.6, 0.1], [0.9, 0.1], [0.6, 0.9]]))
+    halves = np.zeros((8, 8, 3), np.uint8)
+    halves[:, :4, 0] = halves[:, 4:, 1] = 255
+    mask = np.ones((8, 8), np.uint8)
+    mask[:, :4] = Damage.CONCRETE
+    scene = scene_of(("beam_left", Component.BEAM, left, _glowing((2.0, 0.0, 0.0))),
+                     ("slab_right", Component.SLAB, right, _glowing((0.0, 2.0, 0.0))),
+                     ("column_pair", Component.COLUMN, pair,
+                      Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=(2.0, 2.0, 2.0),
+                               emissive_map=halves, damage_mask=mask)))
+    r = Renderer(render_config(64, 48, msaa=msaa))
+    r.load(scene, LIGHT)
+    out = r.render(camera())
+    assert r.ctx.error == "GL_NO_ERROR"
+    r.release()
+    red, green = out.color[..., 0].astype(int), out.color[..., 1].astype(int)
+    # Away from silhouettes (MSAA blends those), each pixel glows in its labelled part's colour.
+    inner = np.ones(out.component.shape, bool)
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= out.component == np.roll(out.component, shift, axis)
+            inner &= out.damage == np.roll(out.damage, shift, axis)
+    beam = inner & (out.component == Component.BEAM)
+    slab = inner & (out.component == Component.SLAB)
+    column = inner & (out.component == Component.COLUMN)
+    assert beam.sum() > 200 and slab.sum() > 100 and column.sum() > 100
+    assert np.all(red[beam] > green[beam] + 100) and np.all(green[slab] > red[slab] + 100)
+    # The pair's first triangle wins in the labels (damage id 2) and so in colour (red).
+    assert np.all(out.damage[column] == Damage.CONCRETE)
+    assert np.all(red[column] > green[column] + 100)
+
+
+def test_msaa_samples_on_a_silhouette_take_their_own_surfaces_colour():
+    """A red square before a green wall. Each MSAA sample takes the colour shaded at a pixel
+    centre on its own surface: a pixel lies within the colours of its 3x3 neighbourhood
+    without MSAA, and a pixel whose centre lies just off the square (a sample on it) shows red,
+    one whose centre lies just inside shows green."""
+    from glsynth.world.meshes import pose
+
+    wall = quad([[-20.0, -20.0, -12.0], [20.0, -20.0, -12.0], [20.0, 20.0, -12.0],
+                 [-20.0, 20.0, -12.0]])
+    square = quad([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+    square.apply_transform(pose(0.5, [0.2, 0.1, -6.0]))
+    scene = scene_of(("slab_wall", Component.SLAB, wall, _glowing((0.0, 0.6, 0.0))),
+                     ("column_square", Component.COLUMN, square, _glowing((0.6, 0.0, 0.0))))
+    images = []
+    for msaa in (0, 4):
+        r = Renderer(render_config(64, 48, msaa=msaa))
+        r.load(scene, LIGHT)
+        images.append(r.render(camera(), {"color"}).color.astype(int))
+        assert r.ctx.error == "GL_NO_ERROR"
+        r.release()
+    single, multi = images
+    padded = np.pad(single, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    windows = np.stack([padded[i:i + 48, j:j + 64] for i in range(3) for j in range(3)])
+    assert np.all(multi >= windows.min(0) - 1) and np.all(multi <= windows.max(0) + 1)
+    # Signed distance in pixels from each pixel centre to the square's outline (> 0 outside),
+    # by its four edges' half-planes; corners left out, where that is not the distance.
+    k = camera().K
+    corners = square.vertices[[0, 1, 2, 3]]
+    px = np.stack([k[0, 0] * corners[:, 0] / -corners[:, 2] + k[0, 2],
+                   k[1, 2] - k[1, 1] * corners[:, 1] / -corners[:, 2]], 1)
+    rows, cols = np.mgrid[0:48, 0:64]
+    centres = np.stack([cols, rows], -1).astype(float)
+    (ux, uy), (vx, vy) = px[1] - px[0], px[2] - px[0]
+    inward = np.sign(ux * vy - uy * vx)
+    distance = np.full((48, 64), -np.inf)
+    for a, b in zip(px, np.roll(px, -1, 0), strict=True):
+        edge = b - a
+        outward = inward * np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
+        distance = np.maximum(distance, (centres - a) @ outward)
+    near_corner = np.min([np.linalg.norm(centres - c, axis=-1) for c in px], 0) < 2.0
+    wall_red, wall_green = single[0, 0, 0], single[0, 0, 1]
+    just_off = (distance > 0.0) & (distance < 0.2) & ~near_corner
+    just_in = (distance < 0.0) & (distance > -0.2) & ~near_corner
+    assert just_off.sum() >= 4 and just_in.sum() >= 4
+    assert np.all(multi[just_off, 0] >= wall_red + 20)
+    square_green = single[24, 33, 1]
+    assert single[24, 33, 0] > wall_red + 60  # the square's middle
+    assert np.all(multi[just_in, 1] >= square_green + 20)
+    assert wall_green > square_green + 60
 
 
 def test_unknown_platform_and_failure_message(monkeypatch):

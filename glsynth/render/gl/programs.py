@@ -9,6 +9,7 @@ from glsynth.core.paths import shader_dir
 
 # Program name -> (vertex shader file, fragment shader file).
 PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
+            "msaa": ("mesh.vert", "msaa.frag"),
             "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
             "ssao": ("fullscreen.vert", "ssao.frag"),
             "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}

@@ -7,9 +7,12 @@ Passes:
   depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis;
 - ambient occlusion (before colour, when [render] ao = "ssao"): from the label texture's depth,
   then a 4x4 blur, into a one-channel texture the colour pass reads per pixel;
-- colour: PBR into an RGBA8 target, multisampled when msaa > 0 and resolved before read-back,
-  lit by the environment's Lighting (glsynth.world.lighting); the sky is drawn last, where no
-  geometry was.
+- colour: PBR into an RGBA8 texture, lit by the environment's Lighting
+  (glsynth.world.lighting), tested against the label pass's depth so that each pixel is shaded
+  once; the sky is drawn last, where no geometry was;
+- multisampled colour (when msaa > 0): the geometry again into a multisampled target, each
+  sample taking the colour shaded at a pixel centre on its own surface (shaders/msaa.frag),
+  resolved before read-back.
 Only the passes asked for (and those they need) are drawn. Pixels with no geometry read
 component 1 (Nonbridge), damage 1 (no damage) and depth = zfar.
 """
@@ -63,7 +66,7 @@ class _Draw:
     name: str
     pose: np.ndarray
     vaos: dict[str, moderngl.VertexArray]
-    buffers: tuple[moderngl.Buffer, moderngl.Buffer]
+    buffers: tuple[moderngl.Buffer, ...]
     """Vertex and index buffers: the VAOs use them, the scene owns them (release_scene)."""
     material: Material
     """Its factors (the maps are in ``textures``)."""
@@ -132,18 +135,26 @@ class Renderer:
     # --- resources --------------------------------------------------------------------------
     def _make_framebuffers(self) -> None:
         ctx, size, samples = self.ctx, self.size, self.config.msaa
-        self.color_target = ctx.renderbuffer(size, 4)
-        self.color_fbo = ctx.framebuffer([self.color_target], ctx.depth_renderbuffer(size))
         if samples > ctx.max_samples:
             raise UserError(f"[render] msaa = {samples}: this GL ({self.platform}) supports at "
                              f"most {ctx.max_samples} samples; set msaa to {ctx.max_samples} "
                              "or less")
+        # The colour pass tests against the label pass's depth: they share its depth buffer.
+        # Under MSAA it also keeps its shading normals for the multisampled pass.
+        label_depth = ctx.depth_renderbuffer(size)
+        self.color_target = ctx.texture(size, 4)
+        self.normal_target = ctx.texture(size, 4, dtype="f2")
+        for target in (self.color_target, self.normal_target):
+            target.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.color_fbo = ctx.framebuffer(
+            [self.color_target, self.normal_target][:2 if samples else 1], label_depth)
         if samples:
             self.msaa_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4, samples=samples)],
                                             ctx.depth_renderbuffer(size, samples=samples))
+            self.resolve_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)])
         self.label_target = ctx.texture(size, 4, dtype="f4")
         self.label_target.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.label_fbo = ctx.framebuffer([self.label_target], ctx.depth_renderbuffer(size))
+        self.label_fbo = ctx.framebuffer([self.label_target], label_depth)
         self.ao_raw, self.ao = (ctx.texture(size, 1, dtype="f2") for _ in range(2))
         self.ao_raw_fbo = ctx.framebuffer([self.ao_raw])
         self.ao_fbo = ctx.framebuffer([self.ao])
@@ -240,16 +251,24 @@ class Renderer:
                 data = np.hstack([primitive.positions, primitive.normals,
                                   primitive.texcoord_0]).astype(np.float32)
                 vbo = self.ctx.buffer(data.tobytes())
-                ibo = self.ctx.buffer(primitive.indices.astype(np.uint32).tobytes())
+                triangles = primitive.indices.astype(np.uint32).reshape(-1, 3)
+                ibo = self.ctx.buffer(triangles.tobytes())
+                # The colour pass draws the parts and their triangles in reverse order (see
+                # _color_pass), each triangle's corners as they are.
+                reversed_ibo = self.ctx.buffer(triangles[::-1].tobytes())
                 vaos = {
                     "color": self.ctx.vertex_array(
                         self.programs["color"],
-                        [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")], ibo, 4),
+                        [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")],
+                        reversed_ibo, 4),
                     "labels": self.ctx.vertex_array(
                         self.programs["labels"],
                         [(vbo, "3f 12x 2f", "in_position", "in_uv")], ibo, 4),
                     "shadow": self.ctx.vertex_array(
                         self.programs["shadow"], [(vbo, "3f 20x", "in_position")], ibo, 4),
+                    "msaa": self.ctx.vertex_array(
+                        self.programs["msaa"],
+                        [(vbo, "3f 3f 8x", "in_position", "in_normal")], ibo, 4),
                 }
                 textures = {slot: self._upload_texture(array) for slot, array in (
                     ("emissive", mat.emissive_map), ("normal", mat.normal_map))
@@ -262,7 +281,8 @@ class Renderer:
                 pose = scene.get_pose(node)
                 box = np.array([primitive.positions.min(0), primitive.positions.max(0)])
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
-                self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo), info.material,
+                self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo, reversed_ibo),
+                                         info.material,
                                          textures, float(info.component), mask, center, box,
                                          _emitted(mat)))
             if mat is not info.material:
@@ -437,14 +457,42 @@ class Renderer:
         self._fullscreen("sky")
         self.ctx.depth_func = "<"
 
+    def _multisample(self, camera: Camera, draws: list[_Draw]) -> moderngl.Framebuffer:
+        """Draw the multisampled colour from the single-sample colour pass's pixels and
+        resolve it; return the framebuffer that holds the result."""
+        prog = self.programs["msaa"]
+        self.msaa_fbo.use()
+        self.msaa_fbo.clear(0.0, 0.0, 0.0, 1.0)
+        for unit, (name, texture) in enumerate((("u_labels", self.label_target),
+                                                ("u_normals", self.normal_target),
+                                                ("u_shaded", self.color_target))):
+            prog[name].value = unit
+            texture.use(unit)
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        view = camera.view()
+        for draw in draws:
+            modelview, normal = self._matrices(view, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_normal_matrix"].write(normal)
+            draw.vaos["msaa"].render()
+        self._draw_sky(camera)
+        self.ctx.copy_framebuffer(self.resolve_fbo, self.msaa_fbo)
+        return self.resolve_fbo
+
     def _color_pass(self, camera: Camera, draws: list[_Draw], ao: bool) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
         light = self._shadow_pass(camera, draws)
-        fbo = self.msaa_fbo if cfg.msaa else self.color_fbo
+        # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
+        # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
+        # where they tie in depth the last written is the first drawn, which the labels keep:
+        # colour shows the very surface that the labels name.
+        fbo = self.color_fbo
         fbo.use()
+        fbo.depth_mask = False
         fbo.clear(0.0, 0.0, 0.0, 1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
+        self.ctx.depth_func = "<="
         view = camera.view()
         view3 = view[:3, :3]
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
@@ -483,7 +531,7 @@ class Renderer:
             prog["u_shadow_texel"].value = 1.0 / cfg.shadow_map_px
             # 1.5 texels along the normal lifts the lookup clear of the surface's own texels.
             prog["u_shadow_offset_m"].value = 1.5 * shadow_texel_m(light, cfg.shadow_map_px)
-        for draw in draws:
+        for draw in reversed(draws):
             modelview, normal = self._matrices(view, draw.pose)
             prog["u_modelview"].write(modelview)
             prog["u_normal_matrix"].write(normal)
@@ -499,9 +547,10 @@ class Renderer:
             tex.get("normal", self._defaults["flat"]).use(2)
             draw.vaos["color"].render()
         self._draw_sky(camera)
+        fbo.depth_mask = True
         if cfg.msaa:
-            self.ctx.copy_framebuffer(self.color_fbo, self.msaa_fbo)
-        raw = self.color_fbo.read(components=3, alignment=1)
+            fbo = self._multisample(camera, draws)
+        raw = fbo.read(components=3, alignment=1)
         return np.frombuffer(raw, np.uint8).reshape(self.size[1], self.size[0], 3)[::-1]
 
     def _label_pass(self, camera: Camera, draws: list[_Draw]) -> None:
@@ -537,8 +586,7 @@ class Renderer:
         draws = self._front_to_back(camera)
         ao = "color" in passes and self.config.ao == "ssao"
         out: dict[str, np.ndarray] = {}
-        if passes & _LABEL_PASSES or ao:
-            self._label_pass(camera, draws)
+        self._label_pass(camera, draws)  # the colour pass tests against its depth
         if passes & _LABEL_PASSES:
             raw = self.label_fbo.read(components=4, dtype="f4")
             labels = np.frombuffer(raw, np.float32).reshape(self.size[1], self.size[0], 4)[::-1]
