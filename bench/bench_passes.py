@@ -1,12 +1,11 @@
 """Where the colour pass goes at 1920x1080: its median time with each costly feature turned off
-in turn (MSAA, sky-visibility maps, shadows), and the overdraw a depth pre-pass could save
-(fragments that pass the depth test per pixel, without shadows so that only the colour pass
-and the sky count; the sky adds at most one per pixel where nothing was drawn).
+in turn (MSAA, sky-visibility maps, shadows).
 
     .venv/bin/python bench/bench_passes.py [--env 0] [--cameras 8]
 
 Paper preset, damage textures at 512 px (the open is faster; the texture size barely changes
-the drawing), one environment, the same cameras for every variant.
+the drawing), one environment, the same cameras for every variant. "color" renders colour
+alone, which includes the label pass that the colour pass tests against.
 """
 
 import argparse
@@ -58,19 +57,6 @@ def timings(view: EnvironmentView, cameras: list[int]) -> dict[str, float]:
     return out
 
 
-def overdraw(view: EnvironmentView, cameras: list[int]) -> list[float]:
-    """Fragments passing the depth test per pixel in the colour pass (no shadow map)."""
-    renderer = view.renderer
-    width, height = renderer.size
-    counts = []
-    for index in cameras:
-        query = renderer.ctx.query(samples=True)
-        with query:
-            view.render(index, frozenset({"color"}))
-        counts.append(round(query.samples / (width * height), 2))
-    return counts
-
-
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--env", type=int, default=0)
@@ -85,10 +71,6 @@ def main() -> None:
         config = variant(base, **render)
         view = EnvironmentView.open(config, 0, args.env, Renderer(config.render))
         results["variants"][name] = timings(view, cameras)
-        if render == {"msaa": 0, "shadow_map_px": 0}:
-            per_pixel = overdraw(view, cameras)
-            results["colour_fragments_per_pixel"] = {
-                "by_camera": per_pixel, "median": statistics.median(per_pixel)}
         view.renderer.release()
     write_results("passes", results)
 

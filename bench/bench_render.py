@@ -1,5 +1,5 @@
-"""Per-pass render timings at 1920x1080 on typical viaduct views, against pyrender's own
-renderer on the same scene and against the Blender Cycles times measured on this machine.
+"""Per-pass render timings at 1920x1080 on typical viaduct views, against the raw floor (the
+least a full sample needs on the same scene and GL), and against pyrender's own renderer.
 
     .venv/bin/python bench/bench_render.py [--cameras 10] [--repeats 3] [--no-pyrender]
 
@@ -49,6 +49,71 @@ def time_passes(view: EnvironmentView, cameras: list[int], repeats: int) -> dict
             "full sample": {"color", "component", "damage", "depth"}}
     return {name: render_ms(view.renderer, view, cameras, repeats, passes)
             for name, passes in runs.items()}
+
+
+_FLOOR_VERTEX = """#version 330 core
+uniform mat4 u_mvp;
+in vec3 in_position;
+void main() { gl_Position = u_mvp * vec4(in_position, 1.0); }
+"""
+_FLOOR_FRAGMENT = """#version 330 core
+uniform vec4 u_value;
+out vec4 f_value;
+void main() { f_value = u_value; }
+"""
+
+
+def time_floor(view: EnvironmentView, cameras: list[int], repeats: int) -> float:
+    """The raw floor of a full sample on the same scene and GL context: every mesh uploaded as
+    bare positions and drawn twice, nearest first, with a constant-colour shader into an RGBA8
+    and an RGBA32F target with depth tests, both read back; no textures, no lighting, no
+    shadows. glsynth's full sample at MSAA 0 is compared with it."""
+    import moderngl
+    import numpy as np
+
+    ctx, size = view.renderer.ctx, view.renderer.size
+    prog = ctx.program(vertex_shader=_FLOOR_VERTEX, fragment_shader=_FLOOR_FRAGMENT)
+    scene = view.scene.scene
+    meshes = []  # (pose, centre, vao, buffers)
+    for node in scene.mesh_nodes:
+        pose = scene.get_pose(node)
+        for primitive in node.mesh.primitives:
+            vbo = ctx.buffer(primitive.positions.astype("f4").tobytes())
+            ibo = ctx.buffer(primitive.indices.astype("u4").tobytes())
+            vao = ctx.vertex_array(prog, [(vbo, "3f", "in_position")], ibo, 4)
+            centre = pose[:3, :3] @ primitive.positions.mean(0) + pose[:3, 3]
+            meshes.append((pose, centre, vao, (vbo, ibo)))
+    targets = [ctx.framebuffer([ctx.renderbuffer(size, 4, dtype=dtype)],
+                               ctx.depth_renderbuffer(size)) for dtype in ("f1", "f4")]
+    times = []
+    for index in cameras:
+        camera = view.camera(index).camera
+        clip = camera.projection() @ camera.view()
+        eye = camera.pose[:3, 3]
+        for repeat in range(repeats + 1):  # the first one warms up
+            t0 = time.perf_counter()
+            order = sorted(meshes, key=lambda m: float(np.sum((m[1] - eye) ** 2)))
+            for fbo, components, dtype in zip(targets, (3, 4), ("f1", "f4"), strict=True):
+                fbo.use()
+                fbo.clear(0.0, 0.0, 0.0, 0.0)
+                ctx.enable(moderngl.DEPTH_TEST)
+                for k, (pose, _, vao, _) in enumerate(order):
+                    prog["u_mvp"].write((clip @ pose).astype("f4").T.tobytes())
+                    prog["u_value"].value = (k / len(order), 0.5, 0.5, 1.0)
+                    vao.render()
+                fbo.read(components=components, dtype=dtype)
+            if repeat:
+                times.append(time.perf_counter() - t0)
+    for _, _, vao, buffers in meshes:
+        vao.release()
+        for buffer in buffers:
+            buffer.release()
+    for fbo in targets:
+        for attachment in (*fbo.color_attachments, fbo.depth_attachment):
+            attachment.release()
+        fbo.release()
+    prog.release()
+    return median_ms(times)
 
 
 def time_shadow_sizes(view: EnvironmentView, cameras: list[int], repeats: int) -> dict:
@@ -108,6 +173,10 @@ def main() -> None:
         view = EnvironmentView.open(cfg, 0, 0, Renderer(cfg.render, platform="egl"))
         results[f"glsynth msaa={msaa} (ms)"] = time_passes(view, cameras, args.repeats)
         if msaa == 0:
+            floor = time_floor(view, cameras, args.repeats)
+            results["raw floor of a full sample (ms)"] = floor
+            results["full sample at msaa 0 / raw floor"] = round(
+                results["glsynth msaa=0 (ms)"]["full sample"] / floor, 2)
             results["colour pass by shadow map size (ms)"] = time_shadow_sizes(
                 view, cameras, args.repeats)
         view.renderer.release()
