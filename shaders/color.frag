@@ -29,20 +29,11 @@ uniform bool u_ambient_sh;    // true: SH; false: the u_sky_color / u_ground_col
 uniform vec3 u_sh_sky[9];     // irradiance = sum u_sh[i] Y_i(world normal) (glsynth.world.lighting)
 uniform vec3 u_sh_ground[9];
 
-// Sky visibility: depth maps of the scene seen from u_vis_count sky directions, tiled in one
-// atlas (drawn once per environment). A direction is visible where the point is not behind
-// the map's depth; its weight is the sky's luminance there times the cosine to the normal.
+// Sky visibility, from the half-resolution pass (sky_visibility.frag): u_vis_count > 0.
 uniform int u_vis_count;                // 0: no sky occlusion
-uniform sampler2DShadow u_vis_map;
-uniform mat4 u_vis_from_view[16];       // atlas coordinates and depth from camera space
-uniform vec3 u_vis_dir[16];             // camera space, towards the sky
-uniform float u_vis_weight[16];
-uniform float u_vis_offset_m;
-// Where a direction is hidden, the light of what hides it: the emitted radiance of the first
-// part seen from the sky along that direction (scene panels), in the same atlas layout, stored
-// over the scene's brightest part.
-uniform sampler2D u_vis_radiance;
-uniform float u_vis_solid_angle;        // each direction's solid angle x that brightest radiance
+uniform sampler2D u_sky_light;          // (hidden irradiance rgb, visibility by the normal)
+uniform sampler2D u_sky_surface;        // (shading normal, linear depth)
+uniform sampler2D u_sky_open;           // mean visibility over all directions
 uniform vec3 u_sky_color;
 uniform vec3 u_ground_color;
 uniform float u_exposure;
@@ -82,25 +73,43 @@ vec3 sh_irradiance(vec3 c[9], vec3 n) {
     return max(e, 0.0);
 }
 
-// (sky visibility seen by normal n, mean visibility over all directions); ``hidden`` gets
-// the irradiance from the emitting parts that hide the sky.
+// (sky visibility seen by normal n, mean visibility over all directions) and, in ``hidden``,
+// the irradiance from the emitting parts that hide the sky: the half-resolution pass's
+// values at the four texels around this pixel, bilinearly weighted, of those on this
+// fragment's surface (the same normal, and a depth this surface can reach that far away);
+// where none is, the nearest match. No branch depends on the lane (see msaa.frag).
 vec2 sky_visibility(vec3 n, out vec3 hidden) {
     hidden = vec3(0.0);
     if (u_vis_count == 0) return vec2(1.0);
-    float weighted = 0.0, total = 0.0, mean = 0.0;
-    for (int k = 0; k < u_vis_count; ++k) {
-        vec4 p = u_vis_from_view[k] * vec4(v_view_pos + n * u_vis_offset_m, 1.0);
-        float v = texture(u_vis_map, p.xyz);
-        float c = max(dot(n, u_vis_dir[k]), 0.0);
-        float w = u_vis_weight[k] * c;
-        weighted += w * v;
-        total += w;
-        mean += v;
-        hidden += (1.0 - v) * c * texture(u_vis_radiance, p.xy).rgb;
+    vec2 u = gl_FragCoord.xy * 0.5 - 0.5;  // in half-resolution texels
+    ivec2 base = ivec2(floor(u)), last = textureSize(u_sky_light, 0) - 1;
+    vec2 f = u - vec2(base);
+    float depth = -v_view_pos.z;
+    // A texel centre lies at most 1.5 pixels away in each direction.
+    float reach = 2.0 * (abs(dFdx(depth)) + abs(dFdy(depth))) + 1e-4 * depth;
+    vec4 light = vec4(0.0), best_light = vec4(0.0);
+    float open = 0.0, best_open = 0.0, weights = 0.0, best_cost = 1e30;
+    for (int k = 0; k < 4; ++k) {
+        ivec2 o = ivec2(k & 1, k >> 1);
+        ivec2 q = clamp(base + o, ivec2(0), last);
+        vec4 surface = texelFetch(u_sky_surface, q, 0);  // 0 where no part was drawn
+        vec4 texel_light = texelFetch(u_sky_light, q, 0);
+        float texel_open = texelFetch(u_sky_open, q, 0).r;
+        float cosine = dot(surface.xyz, n), gap = abs(surface.w - depth);
+        float w = (o.x == 1 ? f.x : 1.0 - f.x) * (o.y == 1 ? f.y : 1.0 - f.y)
+                  * float(cosine > 0.99 && gap <= reach);
+        light += w * texel_light;
+        open += w * texel_open;
+        weights += w;
+        float cost = 1.0 - cosine + gap / depth;
+        best_light = cost < best_cost ? texel_light : best_light;
+        best_open = cost < best_cost ? texel_open : best_open;
+        best_cost = min(cost, best_cost);
     }
-    mean /= float(u_vis_count);
-    hidden *= u_vis_solid_angle;
-    return vec2(total > 0.0 ? weighted / total : mean, mean);
+    bool matched = weights > 1e-6;
+    light = matched ? light / weights : best_light;
+    hidden = light.rgb;
+    return vec2(light.a, matched ? open / weights : best_open);
 }
 
 vec3 perturbed_normal(vec3 n, vec3 view_dir) {

@@ -222,6 +222,40 @@ def test_a_roof_hides_the_sky_from_the_floor_under_it():
     assert np.abs(floor_at(-25.0, sky_visibility_maps=0) - open_floor).mean() < 4
 
 
+def test_sky_visibility_is_upsampled_within_each_surface():
+    """The sky visibility is evaluated at every second pixel and upsampled by surface: a plate
+    0.3 m above a floor shows, at every pixel, the colour it has with no floor under it,
+    although the floor along its edges, half hidden from the sky by it, is far darker."""
+    matte = Material(base_color=(0.5, 0.5, 0.5, 1.0), roughness=1.0)
+    floor = quad([[-30, -30, -10], [30, -30, -10], [30, 30, -10], [-30, 30, -10]])
+    plate = quad([[-0.6, -0.5, -9.7], [0.7, -0.5, -9.7], [0.7, 0.6, -9.7], [-0.6, 0.6, -9.7]])
+    dark = dataclasses.replace(LIGHT, sun_irradiance=0.0, ground_albedo=(0.0,) * 3)
+    pose = np.eye(4)
+    pose[:3, 3] = [0.0, 0.0, -6.0]  # looking straight down at the plate
+    cam = camera(64, 48, 60.0, pose=pose)
+    extent = np.array([[-30.0, -30.0, -10.0], [30.0, 30.0, -9.7]])  # the same sky maps
+    outs = []
+    for parts in ((("ground_plane", Component.NONBRIDGE, floor, matte),
+                   ("slab_plate", Component.SLAB, plate, matte)),
+                  (("slab_plate", Component.SLAB, plate, matte),)):
+        r = Renderer(render_config(64, 48))
+        r.load(scene_of(*parts), dark, extent)
+        outs.append(r.render(cam))
+        assert r.ctx.error == "GL_NO_ERROR"
+        r.release()
+    with_floor, alone = outs
+    on_plate = with_floor.component == Component.SLAB
+    assert np.array_equal(on_plate, alone.component == Component.SLAB) and on_plate.sum() > 500
+    assert np.array_equal(with_floor.color[on_plate], alone.color[on_plate])
+    ring = np.zeros_like(on_plate)  # floor pixels next to the plate
+    for axis in (0, 1):
+        for shift in (1, -1):
+            ring |= np.roll(on_plate, shift, axis)
+    ring &= ~on_plate
+    grey = with_floor.color[..., 0].astype(float)
+    assert grey[ring].mean() < grey[on_plate].mean() - 10
+
+
 def test_an_emitting_roof_lights_the_floor_with_its_radiance():
     """Where a part hides the sky, its emitted radiance comes instead (scene panels): under an
     emitting roof that hides every sky direction, a matte floor of albedo a reflects

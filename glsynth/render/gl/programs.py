@@ -10,6 +10,7 @@ from glsynth.core.paths import shader_dir
 # Program name -> (vertex shader file, fragment shader file).
 PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
             "msaa": ("mesh.vert", "msaa.frag"),
+            "sky_visibility": ("mesh.vert", "sky_visibility.frag"),
             "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
             "ssao": ("fullscreen.vert", "ssao.frag"),
             "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}

@@ -45,7 +45,7 @@ from glsynth.world.visibility import box_corners
 PASSES = frozenset({"color", "component", "damage", "depth"})
 _LABEL_PASSES = frozenset({"component", "damage", "depth"})
 _GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
-_MAX_VIS = 16  # the length of the sky-visibility arrays in color.frag
+_MAX_VIS = 16  # the length of the sky-visibility arrays in sky_visibility.frag
 _CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
 
 
@@ -178,6 +178,13 @@ class Renderer:
         self.vis_radiance = ctx.texture((side, side), 4)
         self.vis_radiance.repeat_x = self.vis_radiance.repeat_y = False
         self.vis_fbo = ctx.framebuffer([self.vis_radiance], depth_attachment=self.vis_map)
+        # Each camera's sky visibility at every second pixel in each direction: the light, the
+        # surface (normal, depth) and the mean openness (sky_visibility.frag).
+        half = ((size[0] + 1) // 2, (size[1] + 1) // 2) if count else (1, 1)
+        self.sky_targets = [ctx.texture(half, channels, dtype="f4") for channels in (4, 4, 1)]
+        for target in self.sky_targets:
+            target.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.sky_fbo = ctx.framebuffer(self.sky_targets, ctx.depth_renderbuffer(half))
         self._radiance_scale = 1.0
         self._vis: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
 
@@ -266,9 +273,10 @@ class Renderer:
                         [(vbo, "3f 12x 2f", "in_position", "in_uv")], ibo, 4),
                     "shadow": self.ctx.vertex_array(
                         self.programs["shadow"], [(vbo, "3f 20x", "in_position")], ibo, 4),
-                    "msaa": self.ctx.vertex_array(
-                        self.programs["msaa"],
-                        [(vbo, "3f 3f 8x", "in_position", "in_normal")], ibo, 4),
+                    **{name: self.ctx.vertex_array(
+                        self.programs[name],
+                        [(vbo, "3f 3f 8x", "in_position", "in_normal")], ibo, 4)
+                       for name in ("msaa", "sky_visibility")},
                 }
                 textures = {slot: self._upload_texture(array) for slot, array in (
                     ("emissive", mat.emissive_map), ("normal", mat.normal_map))
@@ -479,8 +487,44 @@ class Renderer:
         self.ctx.copy_framebuffer(self.resolve_fbo, self.msaa_fbo)
         return self.resolve_fbo
 
+    def _sky_visibility_pass(self, camera: Camera, draws: list[_Draw]) -> None:
+        """The sky visibility of the surfaces seen at every second pixel (sky_targets)."""
+        if self._vis is None:
+            return
+        prog = self.programs["sky_visibility"]
+        self.sky_fbo.use()
+        self.sky_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        prog["u_vis_map"].value = 0
+        self.vis_map.use(0)
+        prog["u_vis_radiance"].value = 1
+        self.vis_radiance.use(1)
+        atlas, directions, weights, texel = self._vis
+        pad = _MAX_VIS - len(directions)  # the shader's arrays hold 16
+        prog["u_vis_count"].value = len(directions)
+        view = camera.view()
+        from_view = (atlas @ camera.pose).transpose(0, 2, 1)
+        prog["u_vis_from_view"].write(np.concatenate(
+            [from_view, np.zeros((pad, 4, 4))]).astype("f4").tobytes())
+        prog["u_vis_dir"].write(np.concatenate(
+            [directions @ view[:3, :3].T, np.zeros((pad, 3))]).astype("f4").tobytes())
+        prog["u_vis_weight"].write(np.concatenate([weights, np.zeros(pad)]).astype("f4")
+                                   .tobytes())
+        # 1.5 texels along the normal, as for the sun's map.
+        prog["u_vis_offset_m"].value = 1.5 * texel
+        prog["u_vis_solid_angle"].value = (sky_solid_angle(len(directions))
+                                           * self._radiance_scale)
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        for draw in draws:
+            modelview, normal = self._matrices(view, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_normal_matrix"].write(normal)
+            draw.vaos["sky_visibility"].render()
+
     def _color_pass(self, camera: Camera, draws: list[_Draw], ao: bool) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
+        self._sky_visibility_pass(camera, draws)
         light = self._shadow_pass(camera, draws)
         # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
         # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
@@ -506,25 +550,11 @@ class Renderer:
         self.shadow_map.use(3)
         prog["u_has_ao"].value = ao
         self.ao.use(4)
-        prog["u_vis_map"].value = 5
-        self.vis_map.use(5)
-        prog["u_vis_radiance"].value = 6
-        self.vis_radiance.use(6)
         prog["u_vis_count"].value = 0 if self._vis is None else len(self._vis[1])
-        if self._vis is not None:
-            atlas, directions, weights, texel = self._vis
-            pad = _MAX_VIS - len(directions)  # the shader's arrays hold 16
-            from_view = (atlas @ camera.pose).transpose(0, 2, 1)
-            prog["u_vis_from_view"].write(np.concatenate(
-                [from_view, np.zeros((pad, 4, 4))]).astype("f4").tobytes())
-            prog["u_vis_dir"].write(np.concatenate(
-                [directions @ view3.T, np.zeros((pad, 3))]).astype("f4").tobytes())
-            prog["u_vis_weight"].write(np.concatenate([weights, np.zeros(pad)]).astype("f4")
-                                       .tobytes())
-            # 1.5 texels along the normal, as for the sun's map.
-            prog["u_vis_offset_m"].value = 1.5 * texel
-            prog["u_vis_solid_angle"].value = (sky_solid_angle(len(directions))
-                                               * self._radiance_scale)
+        for unit, (name, target) in enumerate(zip(("u_sky_light", "u_sky_surface", "u_sky_open"),
+                                                   self.sky_targets, strict=True), start=5):
+            prog[name].value = unit
+            target.use(unit)
         if light is not None:
             shadow_from_view = _CLIP_TO_TEXTURE @ light @ camera.pose
             prog["u_shadow_from_view"].write(shadow_from_view.astype("f4").T.tobytes())
