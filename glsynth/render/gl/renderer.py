@@ -7,6 +7,9 @@ Passes:
   depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical axis;
 - ambient occlusion (before colour, when [render] ao = "ssao"): from the label texture's depth,
   then a 4x4 blur, into a one-channel texture the colour pass reads per pixel;
+- sky visibility (before colour, when the scene has sky-visibility maps): the 16 sky-map
+  lookups at every second pixel in each direction, into half-size targets the colour pass
+  upsamples within each surface (shaders/sky_visibility.frag);
 - colour: PBR into an RGBA8 texture, lit by the environment's Lighting
   (glsynth.world.lighting), tested against the label pass's depth so that each pixel is shaded
   once; the sky is drawn last, where no geometry was;
@@ -465,6 +468,18 @@ class Renderer:
         self._fullscreen("sky")
         self.ctx.depth_func = "<"
 
+    def _draw_surfaces(self, program: str, camera: Camera, draws: list[_Draw]) -> None:
+        """``draws`` through ``program`` (mesh.vert, positions and normals) from ``camera``,
+        into the bound framebuffer, with no per-part uniforms beyond the matrices."""
+        prog = self.programs[program]
+        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
+        view = camera.view()
+        for draw in draws:
+            modelview, normal = self._matrices(view, draw.pose)
+            prog["u_modelview"].write(modelview)
+            prog["u_normal_matrix"].write(normal)
+            draw.vaos[program].render()
+
     def _multisample(self, camera: Camera, draws: list[_Draw]) -> moderngl.Framebuffer:
         """Draw the multisampled colour from the single-sample colour pass's pixels and
         resolve it; return the framebuffer that holds the result."""
@@ -476,13 +491,7 @@ class Renderer:
                                                 ("u_shaded", self.color_target))):
             prog[name].value = unit
             texture.use(unit)
-        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
-        view = camera.view()
-        for draw in draws:
-            modelview, normal = self._matrices(view, draw.pose)
-            prog["u_modelview"].write(modelview)
-            prog["u_normal_matrix"].write(normal)
-            draw.vaos["msaa"].render()
+        self._draw_surfaces("msaa", camera, draws)
         self._draw_sky(camera)
         self.ctx.copy_framebuffer(self.resolve_fbo, self.msaa_fbo)
         return self.resolve_fbo
@@ -515,12 +524,7 @@ class Renderer:
         prog["u_vis_offset_m"].value = 1.5 * texel
         prog["u_vis_solid_angle"].value = (sky_solid_angle(len(directions))
                                            * self._radiance_scale)
-        prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
-        for draw in draws:
-            modelview, normal = self._matrices(view, draw.pose)
-            prog["u_modelview"].write(modelview)
-            prog["u_normal_matrix"].write(normal)
-            draw.vaos["sky_visibility"].render()
+        self._draw_surfaces("sky_visibility", camera, draws)
 
     def _color_pass(self, camera: Camera, draws: list[_Draw], ao: bool) -> np.ndarray:
         cfg, prog = self.config, self.programs["color"]
