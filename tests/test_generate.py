@@ -148,6 +148,32 @@ def test_resume_after_a_kill_gives_the_same_bytes(small_config, reference, tmp_p
     assert not list(out.rglob(".*.tmp"))
 
 
+def test_a_write_that_fails_in_the_writer_ends_the_run_and_resume_completes_it(
+        small_config, reference, tmp_path, capsys, monkeypatch):
+    """Files are encoded and written in a background thread; its first failure ends the run
+    with the file's name, the environment gets no marker, and a rerun gives the same bytes."""
+    import glsynth.core.fileio as fileio
+
+    real = fileio.atomic_write_json
+
+    def disk_full(path, data):
+        if Path(path).name == "image_case1_frame1.json":
+            raise UserError(f"cannot write {str(path)!r}: No space left on device")
+        real(path, data)
+
+    monkeypatch.setattr(fileio, "atomic_write_json", disk_full)
+    out = tmp_path / "ds"
+    assert generate(small_config, out) == 2
+    assert "image_case1_frame1.json': No space left" in capsys.readouterr().err
+    # Environment 0 (written first) is done; environment 1 is not.
+    assert (out / "progress" / "env_000000.json").exists()
+    assert not (out / "progress" / "env_000001.json").exists()
+    monkeypatch.setattr(fileio, "atomic_write_json", real)
+    assert generate(small_config, out) == 0
+    assert dataset_files(out) == dataset_files(reference)
+    assert not list(out.rglob(".*.tmp"))
+
+
 def test_a_finished_run_does_no_work_twice(small_config, reference, tmp_path, capsys):
     import shutil
 

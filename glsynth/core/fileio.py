@@ -10,9 +10,14 @@ import json
 import math
 import os
 import secrets
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
+import cv2
 import numpy as np
 from PIL import Image
 
@@ -80,12 +85,17 @@ def atomic_write_json(path: str | Path, data: Any) -> None:
 
 
 def image_bytes(array: np.ndarray, format: str = "PNG") -> bytes:
-    """Encode uint8 (H, W) or (H, W, 3), or uint16 (H, W) as a 16-bit PNG, to file bytes."""
+    """Encode uint8 (H, W) or (H, W, 3) RGB, or uint16 (H, W) as a 16-bit PNG, to file bytes."""
+    if format == "PNG":
+        # OpenCV's encoder at zlib level 1: a 1920x1080 render in 69 ms against Pillow's 89
+        # (and 4x faster than level 6) for the same file size; PNG stays lossless either way.
+        pixels = cv2.cvtColor(array, cv2.COLOR_RGB2BGR) if array.ndim == 3 else array
+        ok, encoded = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        if not ok:  # cv2 refuses only what the types above exclude
+            raise ValueError(f"PNG encoding failed for {array.dtype} {array.shape}")
+        return encoded.tobytes()
     buf = io.BytesIO()
-    # zlib level 1: a 1920x1080 render encodes 4x faster than at Pillow's default 6 (0.14 s
-    # against 0.56 s) for files 17 % larger; PNG stays lossless either way.
-    options = {"compress_level": 1} if format == "PNG" else {}
-    Image.fromarray(array).save(buf, format=format, **options)
+    Image.fromarray(array).save(buf, format=format)
     return buf.getvalue()
 
 
@@ -97,3 +107,60 @@ def npy_bytes(array: np.ndarray) -> bytes:
     buf = io.BytesIO()
     np.save(buf, array)
     return buf.getvalue()
+
+
+def write_files(out: Path, images: dict[str, tuple[np.ndarray, str]],
+                documents: dict[str, Any]) -> None:
+    """Encode and atomically write ``images`` (relative path -> (array, "PNG" or "BMP")), then
+    ``documents`` (relative path -> JSON data), under ``out``."""
+    for relative, (array, format) in images.items():
+        atomic_write_bytes(out / relative, image_bytes(array, format))
+    for relative, data in documents.items():
+        atomic_write_json(out / relative, data)
+
+
+class BackgroundWriter:
+    """Runs file jobs (encode, then atomic writes) in one background thread, in order, so that
+    a worker renders its next view meanwhile: OpenCV's encoder, zlib and the writes release
+    the GIL. At most ``pending`` jobs wait, which bounds the memory their arrays hold.
+
+    A job that failed is raised by the next ``submit`` or by leaving the ``with`` block, so a
+    run stops at its first failed write and never reports as done a unit with a file missing.
+    Leaving the block waits for every job, also when the block raises, so no job outlives it
+    (its files are written whole or not at all, as every write here is atomic)."""
+
+    def __init__(self, pending: int = 2) -> None:
+        if pending < 1:
+            raise ValueError(f"pending = {pending}: must be at least 1")
+        self._pending = pending
+        self._jobs: deque[Future[None]] = deque()
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="writer")
+
+    def submit(self, job: Callable[..., None], *args: Any) -> None:
+        self._raise_failed()
+        self._jobs.append(self._pool.submit(job, *args))
+        while len(self._jobs) > self._pending:
+            self._jobs.popleft().result()
+
+    def _raise_failed(self) -> None:
+        """Raise the error of the oldest finished job that failed (the jobs ahead of it are
+        done or still running)."""
+        while self._jobs and self._jobs[0].done():
+            self._jobs.popleft().result()
+
+    def wait(self) -> None:
+        """Wait for every job; raise the first failure."""
+        while self._jobs:
+            self._jobs.popleft().result()
+
+    def __enter__(self) -> "BackgroundWriter":
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 trace: TracebackType | None) -> None:
+        try:
+            if kind is None:
+                self.wait()
+        finally:
+            # On an error in the block the jobs still finish (or fail) before it propagates.
+            self._pool.shutdown(wait=True)

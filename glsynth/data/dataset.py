@@ -23,11 +23,12 @@ import numpy as np
 from glsynth.core.config import Config, config_to_dict
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import (
+    BackgroundWriter,
     atomic_write_bytes,
     atomic_write_json,
-    image_bytes,
     jsonable,
     png_bytes,
+    write_files,
 )
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
@@ -108,49 +109,51 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
     to_cycles = []  # (placement, image path) of the kept views, with --renderer cycles
-    for index in range(cams.total):
-        placement, output = view.render(index)
-        clock.lap("render and read back")
-        reason = removal_reason(output.color, output.component, output.depth)
-        if reason is not None:
-            removed[placement.kind][reason] += 1
+    with BackgroundWriter() as writer:
+        for index in range(cams.total):
+            placement, output = view.render(index)
+            clock.lap("render and read back")
+            reason = removal_reason(output.color, output.component, output.depth)
+            if reason is not None:
+                removed[placement.kind][reason] += 1
+                clock.lap("filters, RRDR and labels")
+                continue
+            camera = placement.camera
+            masked = mask_damage(output.damage, rrdr(output.depth, camera.fx))
+            paths = frame_paths(split, env, index)
+            component = downsample_labels(output.component)
+            damage = downsample_labels(masked)
+            depth = downsample_labels(encode_depth(output.depth))
+            # The flag describes the map that is written: damage inside the RRDR at full size
+            # can vanish in the 3x downsampling.
+            in_rrdr = bool(np.any(damage >= Damage.CONCRETE))
             clock.lap("filters, RRDR and labels")
-            continue
-        camera = placement.camera
-        masked = mask_damage(output.damage, rrdr(output.depth, camera.fx))
-        paths = frame_paths(split, env, index)
-        component = downsample_labels(output.component)
-        damage = downsample_labels(masked)
-        depth = downsample_labels(encode_depth(output.depth))
-        # The flag describes the map that is written: damage inside the RRDR at full size can
-        # vanish in the 3x downsampling.
-        in_rrdr = bool(np.any(damage >= Damage.CONCRETE))
-        clock.lap("filters, RRDR and labels")
-        if config.render.renderer == "cycles":
-            to_cycles.append((placement, paths["image"]))
-        else:
-            atomic_write_bytes(out / paths["image"], png_bytes(output.color))
-        atomic_write_bytes(out / paths["component"], image_bytes(component, "BMP"))
-        atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
-        atomic_write_bytes(out / paths["depth"], png_bytes(depth))
-        seen = visible_parts(columns, [camera])
-        meta = {"root_seed": root_seed, "env": env, "camera_index": index,
-                "kind": placement.kind, "split": split, "camera": camera.to_json(),
-                "placement": {"s_m": placement.s_m, "side": placement.side,
-                              "distance_m": placement.distance_m,
-                              "height_m": placement.height_m,
-                              "euler_xyz_rad": list(placement.euler_xyz_rad)},
-                "damage_in_rrdr": in_rrdr,
-                "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
-                                    for n in sorted(seen)}}
-        atomic_write_json(out / "meta" / split / f"image_case{env}_frame{index}.json", meta)
-        focal = round(camera.focal_mm, 6)
-        rows.append(dataclasses.asdict(FrameRecord(
-            paths["image"], paths["component"], paths["damage"], paths["depth"], focal,
-            placement.kind == "regular", in_rrdr)))
-        counts.append(dataclasses.asdict(image_counts(placement.kind, split, component, damage,
-                                                      depth, focal, in_rrdr)))
-        clock.lap("encode and write files")
+            images = {paths["component"]: (component, "BMP"), paths["damage"]: (damage, "BMP"),
+                      paths["depth"]: (depth, "PNG")}
+            if config.render.renderer == "cycles":
+                to_cycles.append((placement, paths["image"]))
+            else:
+                images[paths["image"]] = (output.color, "PNG")
+            seen = visible_parts(columns, [camera])
+            meta = {"root_seed": root_seed, "env": env, "camera_index": index,
+                    "kind": placement.kind, "split": split, "camera": camera.to_json(),
+                    "placement": {"s_m": placement.s_m, "side": placement.side,
+                                  "distance_m": placement.distance_m,
+                                  "height_m": placement.height_m,
+                                  "euler_xyz_rad": list(placement.euler_xyz_rad)},
+                    "damage_in_rrdr": in_rrdr,
+                    "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
+                                        for n in sorted(seen)}}
+            writer.submit(write_files, out, images,
+                          {f"meta/{split}/image_case{env}_frame{index}.json": meta})
+            focal = round(camera.focal_mm, 6)
+            rows.append(dataclasses.asdict(FrameRecord(
+                paths["image"], paths["component"], paths["damage"], paths["depth"], focal,
+                placement.kind == "regular", in_rrdr)))
+            counts.append(dataclasses.asdict(image_counts(
+                placement.kind, split, component, damage, depth, focal, in_rrdr)))
+            clock.lap("queue files")
+    clock.lap("wait for the writer")
     if to_cycles:
         from glsynth.render.cycles import cycles_colour
 
@@ -186,28 +189,30 @@ def run_plates(config: Config, root_seed: int, task: Task, out: Path, renderer) 
     bank = DamageBank(config.damage, root_seed)
     rows: dict[str, list] = {"train": [], "test": []}
     counts = []
-    for index in range(task.first, task.first + task.count):
-        shot = plate_shot(config, root_seed, index, repository, bank)
-        renderer.load(shot.scene, shot.lighting)
-        clock.lap("plate damage textures")
-        output = renderer.render(shot.camera, {"color", "damage"})
-        clock.lap("render and read back")
-        if config.render.renderer == "cycles":
-            output = dataclasses.replace(output, color=_cycles_plate(config, root_seed, shot,
-                                                                     out))
-            clock.lap("Cycles colour")
-        paths = puretex_paths(index)
-        damage = downsample_labels(output.damage)
-        atomic_write_bytes(out / paths["image"], png_bytes(output.color))
-        atomic_write_bytes(out / paths["damage"], image_bytes(damage, "BMP"))
-        atomic_write_json(out / "meta" / "puretex" / f"image_{index}.json",
-                          {"root_seed": root_seed, **jsonable(shot.meta),
-                           "camera": shot.camera.to_json()})
-        split = plate_split(config, index)
-        rows[split].append([paths["image"], paths["damage"]])
-        counts.append(dataclasses.asdict(image_counts("plate", split, None, damage, None, None,
-                                                      True)))
-        clock.lap("encode and write files")
+    with BackgroundWriter() as writer:
+        for index in range(task.first, task.first + task.count):
+            shot = plate_shot(config, root_seed, index, repository, bank)
+            renderer.load(shot.scene, shot.lighting)
+            clock.lap("plate damage textures")
+            output = renderer.render(shot.camera, {"color", "damage"})
+            clock.lap("render and read back")
+            if config.render.renderer == "cycles":
+                output = dataclasses.replace(output, color=_cycles_plate(config, root_seed, shot,
+                                                                         out))
+                clock.lap("Cycles colour")
+            paths = puretex_paths(index)
+            damage = downsample_labels(output.damage)
+            writer.submit(write_files, out, {paths["image"]: (output.color, "PNG"),
+                                             paths["damage"]: (damage, "BMP")},
+                          {f"meta/puretex/image_{index}.json": {
+                              "root_seed": root_seed, **jsonable(shot.meta),
+                              "camera": shot.camera.to_json()}})
+            split = plate_split(config, index)
+            rows[split].append([paths["image"], paths["damage"]])
+            counts.append(dataclasses.asdict(image_counts("plate", split, None, damage, None, None,
+                                                          True)))
+            clock.lap("queue files")
+    clock.lap("wait for the writer")
     return {"kind": "plates", "first": task.first, "rows": rows, "counts": counts,
             "timings": clock.totals}
 

@@ -1,0 +1,89 @@
+"""File output: the PNG encoder's round trip and the background writer's ordering, bound and
+failures."""
+
+import io
+import threading
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from glsynth.core.errors import UserError
+from glsynth.core.fileio import BackgroundWriter, image_bytes
+
+
+@pytest.mark.parametrize("shape, dtype", [((7, 5, 3), np.uint8), ((7, 5), np.uint8),
+                                          ((7, 5), np.uint16)])
+def test_png_decodes_to_the_same_array_in_rgb_order(shape, dtype):
+    top = int(np.iinfo(dtype).max)
+    array = ((np.arange(np.prod(shape)) * 7919) % (top + 1)).astype(dtype).reshape(shape)
+    array.flat[0] = top  # the extremes: white and black
+    array.flat[-1] = 0
+    decoded = np.asarray(Image.open(io.BytesIO(image_bytes(array, "PNG"))))
+    assert decoded.dtype == dtype and np.array_equal(decoded, array)
+
+
+def test_bmp_stays_an_8_bit_image():
+    ids = np.array([[1, 2], [3, 4]], np.uint8)
+    image = Image.open(io.BytesIO(image_bytes(ids, "BMP")))
+    assert image.format == "BMP" and np.array_equal(np.asarray(image), ids)
+
+
+def test_jobs_run_in_order_and_leaving_waits_for_all():
+    done = []
+    with BackgroundWriter(pending=3) as writer:
+        for i in range(6):
+            writer.submit(lambda k: (time.sleep(0.01), done.append(k)), i)
+    assert done == list(range(6))
+
+
+def test_at_most_pending_jobs_wait():
+    release, waiting = threading.Event(), []
+    with BackgroundWriter(pending=2) as writer:
+        writer.submit(release.wait)
+        writer.submit(lambda: None)
+        blocked = threading.Thread(target=writer.submit, args=(lambda: None,))
+        blocked.start()
+        blocked.join(0.3)
+        waiting.append(blocked.is_alive())  # a third job waits for the first to finish
+        release.set()
+        blocked.join(5)
+    assert waiting == [True] and not blocked.is_alive()
+
+
+def test_a_failed_write_is_raised_by_the_next_submit_and_stops_later_ones():
+    done = []
+
+    def fail() -> None:
+        raise UserError("cannot write 'x.png': No space left on device")
+
+    with pytest.raises(UserError, match="x.png"):
+        with BackgroundWriter() as writer:
+            writer.submit(fail)
+            time.sleep(0.2)
+            writer.submit(done.append, 1)
+    assert done == []
+
+
+def test_a_failed_write_is_raised_on_leaving():
+    def fail() -> None:
+        raise UserError("cannot write 'y.png'")
+
+    with pytest.raises(UserError, match="y.png"):
+        with BackgroundWriter() as writer:
+            writer.submit(fail)
+
+
+def test_an_error_in_the_block_wins_and_the_jobs_still_finish():
+    done = []
+    with pytest.raises(KeyError):
+        with BackgroundWriter() as writer:
+            writer.submit(lambda: (time.sleep(0.1), done.append(1)))
+            raise KeyError("render failed")
+    assert done == [1]
+
+
+def test_pending_must_be_positive():
+    with pytest.raises(ValueError, match="pending = 0"):
+        BackgroundWriter(pending=0)
