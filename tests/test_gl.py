@@ -238,6 +238,27 @@ def test_colour_shows_the_surface_the_labels_name_where_surfaces_tie(msaa):
     assert np.all(red[column] > green[column] + 100)
 
 
+def test_msaa_keeps_the_single_sample_colour_inside_a_surface_to_the_byte():
+    """A wall filling the view, with a texture that changes at every pixel: every pixel is
+    inside the surface (msaa_interior.frag), so MSAA 4 gives the single-sample bytes."""
+    d = 6.0
+    wall = quad([[-20.0, -20.0, -d], [20.0, -20.0, -d], [20.0, 20.0, -d], [-20.0, 20.0, -d]],
+                uv=np.array([[0.0, 0.0], [8.0, 0.0], [8.0, 8.0], [0.0, 8.0]]))
+    levels = (np.arange(64 * 64 * 3).reshape(64, 64, 3) * 37 % 256).astype(np.uint8)
+    scene = scene_of(("slab_wall", Component.SLAB, wall,
+                      Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=(1.5, 1.5, 1.5),
+                               emissive_map=levels)))
+    images = []
+    for msaa in (0, 4):
+        r = Renderer(render_config(64, 48, msaa=msaa))
+        r.load(scene, LIGHT)
+        images.append(r.render(camera(), {"color"}).color)
+        assert r.ctx.error == "GL_NO_ERROR"
+        r.release()
+    assert len(np.unique(images[0].reshape(-1, 3), axis=0)) > 500  # no flat field
+    assert np.array_equal(images[0], images[1])
+
+
 def test_msaa_samples_on_a_silhouette_take_their_own_surfaces_colour():
     """A red square before a green wall. Each MSAA sample takes the colour shaded at a pixel
     centre on its own surface: a pixel lies within the colours of its 3x3 neighbourhood

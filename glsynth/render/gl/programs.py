@@ -10,6 +10,8 @@ from glsynth.core.paths import shader_dir
 # Program name -> (vertex shader file, fragment shader file).
 PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
             "msaa": ("mesh.vert", "msaa.frag"),
+            "msaa_interior": ("fullscreen.vert", "msaa_interior.frag"),
+            "msaa_resolve": ("fullscreen.vert", "msaa_resolve.frag"),
             "sky_visibility": ("mesh.vert", "sky_visibility.frag"),
             "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
             "ssao": ("fullscreen.vert", "ssao.frag"),

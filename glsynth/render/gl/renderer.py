@@ -13,9 +13,10 @@ Passes:
 - colour: PBR into an RGBA8 texture, lit by the environment's Lighting
   (glsynth.world.lighting), tested against the label pass's depth so that each pixel is shaded
   once; the sky is drawn last, where no geometry was;
-- multisampled colour (when msaa > 0): the geometry again into a multisampled target, each
-  sample taking the colour shaded at a pixel centre on its own surface (shaders/msaa.frag),
-  resolved before read-back.
+- multisampled colour (when msaa > 0): the geometry again into multisampled targets that keep
+  each sample's surface (shaders/msaa.frag), then a fullscreen pass in which each sample takes
+  the colour shaded at a pixel centre on its own surface and each pixel the mean of its
+  samples (shaders/msaa_resolve.frag).
 Only the passes asked for (and those they need) are drawn. Pixels with no geometry read
 component 1 (Nonbridge), damage 1 (no damage) and depth = zfar.
 """
@@ -133,7 +134,8 @@ class Renderer:
         self._make_framebuffers()
         # Fullscreen passes: one triangle from gl_VertexID, no vertex buffer.
         self._fullscreen_vaos = {name: self.ctx.vertex_array(self.programs[name], [])
-                                 for name in ("sky", "ssao", "ssao_blur")}
+                                 for name in ("sky", "ssao", "ssao_blur", "msaa_interior",
+                                              "msaa_resolve")}
 
     # --- resources --------------------------------------------------------------------------
     def _make_framebuffers(self) -> None:
@@ -152,9 +154,14 @@ class Renderer:
         self.color_fbo = ctx.framebuffer(
             [self.color_target, self.normal_target][:2 if samples else 1], label_depth)
         if samples:
-            self.msaa_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4, samples=samples)],
+            # Each sample's surface (normal and coverage, linear depth) for the resolve pass.
+            self.sample_targets = [ctx.texture(size, 4, samples=samples, dtype="f2"),
+                                   ctx.texture(size, 1, samples=samples, dtype="f4")]
+            self.msaa_fbo = ctx.framebuffer(self.sample_targets,
                                             ctx.depth_renderbuffer(size, samples=samples))
-            self.resolve_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)])
+            # Its depth marks the pixels the full resolve weighs (msaa_interior.frag).
+            self.resolve_fbo = ctx.framebuffer([ctx.renderbuffer(size, 4)],
+                                               ctx.depth_renderbuffer(size))
         self.label_target = ctx.texture(size, 4, dtype="f4")
         self.label_target.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.label_fbo = ctx.framebuffer([self.label_target], label_depth)
@@ -481,19 +488,27 @@ class Renderer:
             draw.vaos[program].render()
 
     def _multisample(self, camera: Camera, draws: list[_Draw]) -> moderngl.Framebuffer:
-        """Draw the multisampled colour from the single-sample colour pass's pixels and
-        resolve it; return the framebuffer that holds the result."""
-        prog = self.programs["msaa"]
+        """Draw each sample's surface, then resolve the multisampled colour from the
+        single-sample colour pass's pixels; return the framebuffer that holds the result."""
         self.msaa_fbo.use()
-        self.msaa_fbo.clear(0.0, 0.0, 0.0, 1.0)
-        for unit, (name, texture) in enumerate((("u_labels", self.label_target),
-                                                ("u_normals", self.normal_target),
-                                                ("u_shaded", self.color_target))):
-            prog[name].value = unit
-            texture.use(unit)
+        self.msaa_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
         self._draw_surfaces("msaa", camera, draws)
-        self._draw_sky(camera)
-        self.ctx.copy_framebuffer(self.resolve_fbo, self.msaa_fbo)
+        self.resolve_fbo.use()
+        self.resolve_fbo.clear(depth=1.0)
+        self.ctx.depth_func = "1"  # every pixel writes its mark
+        for step in ("msaa_interior", "msaa_resolve"):
+            prog = self.programs[step]
+            for unit, (name, texture) in enumerate((
+                    ("u_sample_surface", self.sample_targets[0]),
+                    ("u_sample_depth", self.sample_targets[1]), ("u_labels", self.label_target),
+                    ("u_normals", self.normal_target), ("u_shaded", self.color_target))):
+                prog[name].value = unit
+                texture.use(unit)
+            prog["u_samples"].value = self.config.msaa
+            self._fullscreen(step)
+            self.ctx.depth_func = "<="  # the full resolve where the mark is 1
+        self.ctx.depth_func = "<"
         return self.resolve_fbo
 
     def _sky_visibility_pass(self, camera: Camera, draws: list[_Draw]) -> None:
