@@ -238,6 +238,48 @@ def test_colour_shows_the_surface_the_labels_name_where_surfaces_tie(msaa):
     assert np.all(red[column] > green[column] + 100)
 
 
+@pytest.mark.parametrize("msaa", [0, 4])
+def test_parts_out_of_view_are_not_drawn_and_change_no_byte(monkeypatch, msaa):
+    """Each view draws only the parts whose boxes may be in its frustum (the sun's shadow pass
+    draws the rest); every pass gives the same bytes as drawing everything."""
+    import glsynth.render.gl.renderer as renderer_module
+    from glsynth.world.meshes import box, pose
+
+    def part(name, component, xyz):
+        mesh = box((1.0, 1.0, 1.0))
+        mesh.apply_transform(pose(0.3, xyz))
+        return (name, component, mesh, plain_material(component))
+
+    floor = quad([[-30.0, -3.0, 5.0], [30.0, -3.0, 5.0], [30.0, -3.0, -40.0],
+                  [-30.0, -3.0, -40.0]])
+    scene = scene_of(("ground_floor", Component.NONBRIDGE, floor,
+                      plain_material(Component.NONBRIDGE)),
+                     part("column_seen", Component.COLUMN, [0.5, 0.0, -6.0]),
+                     part("column_edge", Component.COLUMN, [3.0, 0.5, -6.0]),
+                     part("beam_behind", Component.BEAM, [0.0, 0.0, 4.0]),
+                     part("beam_aside", Component.BEAM, [40.0, 0.0, -6.0]))
+    seen_counts = []
+
+    def counting(corners, cam):
+        seen = seen_by(corners, cam)
+        seen_counts.append(int(seen.sum()))
+        return seen
+
+    seen_by = renderer_module.seen_by
+    outputs = []
+    for test in (counting, lambda corners, cam: np.ones(len(corners), bool)):
+        monkeypatch.setattr(renderer_module, "seen_by", test)
+        r = Renderer(render_config(64, 48, msaa=msaa))
+        r.load(scene, LIGHT)
+        outputs.append(r.render(camera()))
+        assert r.ctx.error == "GL_NO_ERROR"
+        r.release()
+    assert seen_counts == [3]  # the floor and two columns; not the beams
+    culled, everything = outputs
+    for name in ("color", "component", "damage", "depth"):
+        assert np.array_equal(getattr(culled, name), getattr(everything, name)), name
+
+
 def test_msaa_keeps_the_single_sample_colour_inside_a_surface_to_the_byte():
     """A wall filling the view, with a texture that changes at every pixel: every pixel is
     inside the surface (msaa_interior.frag), so MSAA 4 gives the single-sample bytes."""

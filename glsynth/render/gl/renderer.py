@@ -17,8 +17,10 @@ Passes:
   each sample's surface (shaders/msaa.frag), then a fullscreen pass in which each sample takes
   the colour shaded at a pixel centre on its own surface and each pixel the mean of its
   samples (shaders/msaa_resolve.frag).
-Only the passes asked for (and those they need) are drawn. Pixels with no geometry read
-component 1 (Nonbridge), damage 1 (no damage) and depth = zfar.
+Only the passes asked for (and those they need) are drawn, and each draws only the parts whose
+boxes may be in its frustum (the camera's; the sun's shadow map and the sky-visibility maps,
+in x and y), which changes no byte. Pixels with no geometry read component 1 (Nonbridge),
+damage 1 (no damage) and depth = zfar.
 """
 
 from collections.abc import Callable
@@ -44,7 +46,7 @@ from glsynth.world.lighting import (
     sky_solid_angle,
 )
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
-from glsynth.world.visibility import box_corners
+from glsynth.world.visibility import box_corners, seen_by
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
 _LABEL_PASSES = frozenset({"component", "damage", "depth"})
@@ -83,6 +85,17 @@ class _Draw:
     """(2, 3) mesh-space bounds."""
     radiance: np.ndarray
     """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
+    corners: np.ndarray
+    """(8, 3) world-space corners of the box, for the frustum tests."""
+
+
+@dataclass(frozen=True)
+class _Placed:
+    """A draw that the camera may see, with its matrices for that camera (float32 bytes),
+    computed once for every pass of the view."""
+    draw: _Draw
+    modelview: bytes
+    normal: bytes
 
 
 def texture_data(array: np.ndarray, alpha: np.ndarray | None = None) -> np.ndarray:
@@ -302,7 +315,7 @@ class Renderer:
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo, reversed_ibo),
                                          info.material,
                                          textures, float(info.component), mask, center, box,
-                                         _emitted(mat)))
+                                         _emitted(mat), box_corners(box, pose)))
             if mat is not info.material:
                 # Built for this upload: its maps go now, one column's at a time.
                 self._detach(mat)
@@ -350,7 +363,7 @@ class Renderer:
         cfg = self.config
         directions = sky_directions(self.vis_tiles ** 2)
         corners = extent if extent is not None else np.concatenate(
-            [box_corners(d.box, d.pose) for d in self._draws])
+            [d.corners for d in self._draws])
         matrices = occlusion_matrices(corners, directions)
         self._radiance_scale = max(1e-6, max(float(d.radiance.max()) for d in self._draws))
         self.vis_fbo.use()
@@ -392,7 +405,7 @@ class Renderer:
         """Depth of ``draws`` through the clip-from-world matrix ``light`` into the bound
         framebuffer (sun shadows, sky visibility)."""
         prog = self.programs["shadow"]
-        for draw in draws:
+        for draw in _in_clip_xy(draws, light):
             prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
             prog["u_radiance"].value = tuple(draw.radiance / self._radiance_scale)
             draw.vaos["shadow"].render()
@@ -475,25 +488,23 @@ class Renderer:
         self._fullscreen("sky")
         self.ctx.depth_func = "<"
 
-    def _draw_surfaces(self, program: str, camera: Camera, draws: list[_Draw]) -> None:
-        """``draws`` through ``program`` (mesh.vert, positions and normals) from ``camera``,
+    def _draw_surfaces(self, program: str, camera: Camera, placed: list[_Placed]) -> None:
+        """``placed`` through ``program`` (mesh.vert, positions and normals) from ``camera``,
         into the bound framebuffer, with no per-part uniforms beyond the matrices."""
         prog = self.programs[program]
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
-        view = camera.view()
-        for draw in draws:
-            modelview, normal = self._matrices(view, draw.pose)
-            prog["u_modelview"].write(modelview)
-            prog["u_normal_matrix"].write(normal)
-            draw.vaos[program].render()
+        for item in placed:
+            prog["u_modelview"].write(item.modelview)
+            prog["u_normal_matrix"].write(item.normal)
+            item.draw.vaos[program].render()
 
-    def _multisample(self, camera: Camera, draws: list[_Draw]) -> moderngl.Framebuffer:
+    def _multisample(self, camera: Camera, placed: list[_Placed]) -> moderngl.Framebuffer:
         """Draw each sample's surface, then resolve the multisampled colour from the
         single-sample colour pass's pixels; return the framebuffer that holds the result."""
         self.msaa_fbo.use()
         self.msaa_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
-        self._draw_surfaces("msaa", camera, draws)
+        self._draw_surfaces("msaa", camera, placed)
         self.resolve_fbo.use()
         self.resolve_fbo.clear(depth=1.0)
         self.ctx.depth_func = "1"  # every pixel writes its mark
@@ -511,7 +522,7 @@ class Renderer:
         self.ctx.depth_func = "<"
         return self.resolve_fbo
 
-    def _sky_visibility_pass(self, camera: Camera, draws: list[_Draw]) -> None:
+    def _sky_visibility_pass(self, camera: Camera, placed: list[_Placed]) -> None:
         """The sky visibility of the surfaces seen at every second pixel (sky_targets)."""
         if self._vis is None:
             return
@@ -539,12 +550,14 @@ class Renderer:
         prog["u_vis_offset_m"].value = 1.5 * texel
         prog["u_vis_solid_angle"].value = (sky_solid_angle(len(directions))
                                            * self._radiance_scale)
-        self._draw_surfaces("sky_visibility", camera, draws)
+        self._draw_surfaces("sky_visibility", camera, placed)
 
-    def _color_pass(self, camera: Camera, draws: list[_Draw], ao: bool) -> np.ndarray:
+    def _color_pass(self, camera: Camera, placed: list[_Placed], casters: list[_Draw],
+                    ao: bool) -> np.ndarray:
+        """Colour of ``placed``, shadowed by ``casters`` (parts out of view cast shadows)."""
         cfg, prog = self.config, self.programs["color"]
-        self._sky_visibility_pass(camera, draws)
-        light = self._shadow_pass(camera, draws)
+        self._sky_visibility_pass(camera, placed)
+        light = self._shadow_pass(camera, casters)
         # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
         # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
         # where they tie in depth the last written is the first drawn, which the labels keep:
@@ -580,10 +593,10 @@ class Renderer:
             prog["u_shadow_texel"].value = 1.0 / cfg.shadow_map_px
             # 1.5 texels along the normal lifts the lookup clear of the surface's own texels.
             prog["u_shadow_offset_m"].value = 1.5 * shadow_texel_m(light, cfg.shadow_map_px)
-        for draw in reversed(draws):
-            modelview, normal = self._matrices(view, draw.pose)
-            prog["u_modelview"].write(modelview)
-            prog["u_normal_matrix"].write(normal)
+        for item in reversed(placed):
+            draw = item.draw
+            prog["u_modelview"].write(item.modelview)
+            prog["u_normal_matrix"].write(item.normal)
             mat = draw.material
             prog["u_base_color"].value = tuple(float(c) for c in mat.base_color)
             prog["u_metallic"].value = float(mat.metallic)
@@ -598,11 +611,11 @@ class Renderer:
         self._draw_sky(camera)
         fbo.depth_mask = True
         if cfg.msaa:
-            fbo = self._multisample(camera, draws)
+            fbo = self._multisample(camera, placed)
         raw = fbo.read(components=3, alignment=1)
         return np.frombuffer(raw, np.uint8).reshape(self.size[1], self.size[0], 3)[::-1]
 
-    def _label_pass(self, camera: Camera, draws: list[_Draw]) -> None:
+    def _label_pass(self, camera: Camera, placed: list[_Placed]) -> None:
         prog = self.programs["labels"]
         self.label_fbo.use()
         self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
@@ -611,10 +624,9 @@ class Renderer:
         self.ctx.disable(moderngl.CULL_FACE)
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
         prog["u_damage_mask"].value = 0
-        view = camera.view()
-        for draw in draws:
-            modelview, _ = self._matrices(view, draw.pose)
-            prog["u_modelview"].write(modelview)
+        for item in placed:
+            draw = item.draw
+            prog["u_modelview"].write(item.modelview)
             prog["u_component"].value = draw.component
             prog["u_has_damage_mask"].value = draw.damage_mask is not None
             if draw.damage_mask is not None:
@@ -633,9 +645,14 @@ class Renderer:
             raise ValueError("no scene loaded: call load(scene, lighting) first")
         self.make_current()
         draws = self._front_to_back(camera)
+        # Parts wholly outside the view make no fragment: only the sun's shadow pass draws them.
+        view = camera.view()
+        seen = seen_by(np.stack([d.corners for d in draws]), camera) if draws else []
+        placed = [_Placed(d, *self._matrices(view, d.pose))
+                  for d, s in zip(draws, seen, strict=True) if s]
         ao = "color" in passes and self.config.ao == "ssao"
         out: dict[str, np.ndarray] = {}
-        self._label_pass(camera, draws)  # the colour pass tests against its depth
+        self._label_pass(camera, placed)  # the colour pass tests against its depth
         if passes & _LABEL_PASSES:
             raw = self.label_fbo.read(components=4, dtype="f4")
             labels = np.frombuffer(raw, np.float32).reshape(self.size[1], self.size[0], 4)[::-1]
@@ -647,5 +664,20 @@ class Renderer:
                 out["depth"] = np.ascontiguousarray(labels[..., 2])
         if ao:
             self._ao_pass(camera)
-        color = self._color_pass(camera, draws, ao) if "color" in passes else None
+        color = self._color_pass(camera, placed, draws, ao) if "color" in passes else None
         return RenderOutput(color=None if color is None else np.ascontiguousarray(color), **out)
+
+
+def _in_clip_xy(draws: list[_Draw], clip_from_world: np.ndarray) -> list[_Draw]:
+    """``draws`` whose boxes are not wholly beyond one side of the clip volume in x or y
+    (depth is clamped in the shadow pass, so nothing is culled by depth); the others make no
+    fragment."""
+    if not draws:
+        return draws
+    corners = np.stack([d.corners for d in draws])
+    clip = corners @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    w = corners @ clip_from_world[3, :3] + clip_from_world[3, 3]
+    outside = np.zeros(len(draws), bool)
+    for axis in (0, 1):
+        outside |= np.all(clip[..., axis] < -w, axis=1) | np.all(clip[..., axis] > w, axis=1)
+    return [d for d, out in zip(draws, outside, strict=True) if not out]
