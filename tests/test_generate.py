@@ -1,6 +1,7 @@
 """Dataset generation end to end at the Tokaido format size (1920x1080 images, 640x360 maps)
 on a tiny configuration: format compliance, resume after a kill, worker-count independence."""
 
+import hashlib
 import json
 import os
 import signal
@@ -24,10 +25,12 @@ def generate(config, out, *extra) -> int:
                  "--out", str(out), *extra])
 
 
-def dataset_files(root: Path) -> dict[str, bytes]:
-    """Everything that makes up the dataset (report.json holds timings and is left out)."""
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file() and p.name != "report.json"}
+def dataset_files(root: Path) -> dict[str, str]:
+    """Everything that makes up the dataset (report.json holds timings and is left out), as
+    sha256 digests: a failed comparison then names the files that differ, where comparing
+    bytes would have pytest diff megabytes of image data for many minutes."""
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != "report.json"}
 
 
 @pytest.fixture(scope="module")
