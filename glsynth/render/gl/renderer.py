@@ -505,6 +505,9 @@ class Renderer:
         self.msaa_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self._draw_surfaces("msaa", camera, placed)
+        # llvmpipe does not wait for a multisampled texture's pending draws before a later
+        # pass samples it: without this, a few resolved pixels varied from run to run.
+        self.ctx.finish()
         self.resolve_fbo.use()
         self.resolve_fbo.clear(depth=1.0)
         self.ctx.depth_func = "1"  # every pixel writes its mark
