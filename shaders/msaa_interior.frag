@@ -5,12 +5,7 @@
 // does inside a surface, and gets depth 0; the others get depth 1, and only there does the
 // full resolve (msaa_resolve.frag, drawn at depth 1 with "<=") run: llvmpipe skips a 4x4
 // block that fails the early depth test, so the candidates are weighed along edges only.
-uniform sampler2DMS u_sample_surface;  // msaa.frag's facing normal and coverage per sample
-uniform sampler2DMS u_sample_depth;    // and its linear depth
-uniform int u_samples;
-uniform sampler2D u_labels;     // (component, damage, linear depth, hit) per pixel
-uniform sampler2D u_normals;    // the single-sample pass's shading normal per pixel
-uniform sampler2D u_shaded;     // its colour per pixel
+#include "msaa_inputs.glsl"
 
 out vec4 f_color;
 

@@ -5,12 +5,7 @@
 // surface covers takes the sky of the nearest pixel centre that shows sky. The pixel is the
 // mean of its samples. No branch depends on the lane: llvmpipe would run the work of one lane
 // for its whole 4x4 block.
-uniform sampler2DMS u_sample_surface;  // msaa.frag's facing normal and coverage per sample
-uniform sampler2DMS u_sample_depth;    // and its linear depth
-uniform int u_samples;
-uniform sampler2D u_labels;     // (component, damage, linear depth, hit) per pixel
-uniform sampler2D u_normals;    // the single-sample pass's shading normal per pixel
-uniform sampler2D u_shaded;     // its colour per pixel
+#include "msaa_inputs.glsl"
 
 out vec4 f_color;
 

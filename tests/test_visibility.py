@@ -44,3 +44,19 @@ def test_union_over_cameras_and_environment_columns(env0):
     turned[:3, :3] = [[1, 0, 0], [0, -1, 0], [0, 0, -1]]  # looking up the +z axis into the sky
     turned[:3, 3] = [0, 0, 500.0]
     assert visible_parts(env0.parts, [camera(pose=turned)]) == set()
+
+
+@pytest.mark.parametrize("name, xyz, inside", [
+    ("centre", (0, 0, 0), True),
+    ("beyond_plus_x", (3, 0, 0), False),
+    ("beyond_minus_y", (0, -3, 0), False),
+    ("straddles_the_x_side", (1.2, 0, 0), True),
+    ("beyond_in_depth", (0, 0, 50), True),  # depth is clamped in the shadow pass, never culled
+])
+def test_clip_volume_sides_in_x_and_y(name, xyz, inside):
+    from glsynth.world.visibility import in_clip_xy, part_corners
+
+    # An orthographic clip volume 4 m wide and tall around the origin (the sun's shadow map).
+    ortho = np.diag([0.5, 0.5, -0.1, 1.0])
+    corners = part_corners(part(name, xyz))[None]
+    assert in_clip_xy(corners, ortho).tolist() == [inside]

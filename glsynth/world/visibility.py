@@ -46,6 +46,17 @@ def seen_by(corners: np.ndarray, camera: Camera) -> np.ndarray:
     return ~outside
 
 
+
+def in_clip_xy(corners: np.ndarray, clip_from_world: np.ndarray) -> np.ndarray:
+    """For boxes (P, 8, 3), whether each is not wholly beyond one side of the clip volume of
+    ``clip_from_world`` in x or y (P,); depth is not tested (the shadow pass clamps it)."""
+    clip = corners @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    w = corners @ clip_from_world[3, :3] + clip_from_world[3, 3]
+    outside = np.zeros(corners.shape[0], bool)
+    for axis in (0, 1):
+        outside |= np.all(clip[..., axis] < -w, axis=1) | np.all(clip[..., axis] > w, axis=1)
+    return ~outside
+
 def visible_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera]) -> set[str]:
     corners = np.stack([part_corners(p) for p in parts])
     seen = np.zeros(len(parts), bool)

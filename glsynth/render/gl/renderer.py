@@ -46,7 +46,7 @@ from glsynth.world.lighting import (
     sky_solid_angle,
 )
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
-from glsynth.world.visibility import box_corners, seen_by
+from glsynth.world.visibility import box_corners, in_clip_xy, seen_by
 
 PASSES = frozenset({"color", "component", "damage", "depth"})
 _LABEL_PASSES = frozenset({"component", "damage", "depth"})
@@ -405,7 +405,9 @@ class Renderer:
         """Depth of ``draws`` through the clip-from-world matrix ``light`` into the bound
         framebuffer (sun shadows, sky visibility)."""
         prog = self.programs["shadow"]
-        for draw in _in_clip_xy(draws, light):
+        # Parts wholly beyond the map's sides make no fragment.
+        inside = in_clip_xy(np.stack([d.corners for d in draws]), light) if draws else []
+        for draw in (d for d, keep in zip(draws, inside, strict=True) if keep):
             prog["u_light_mvp"].write((light @ draw.pose).astype("f4").T.tobytes())
             prog["u_radiance"].value = tuple(draw.radiance / self._radiance_scale)
             draw.vaos["shadow"].render()
@@ -505,20 +507,22 @@ class Renderer:
         self.msaa_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self._draw_surfaces("msaa", camera, placed)
-        # llvmpipe does not wait for a multisampled texture's pending draws before a later
-        # pass samples it: without this, a few resolved pixels varied from run to run.
+        # The multisampled draw completes before its textures are sampled. A precaution
+        # against a run-to-run variation of a few pixels that is not yet explained (it was
+        # still seen once with this; docs/design.md).
         self.ctx.finish()
         self.resolve_fbo.use()
         self.resolve_fbo.clear(depth=1.0)
+        inputs = (("u_sample_surface", self.sample_targets[0]),
+                  ("u_sample_depth", self.sample_targets[1]), ("u_labels", self.label_target),
+                  ("u_normals", self.normal_target), ("u_shaded", self.color_target))
+        for unit, (_, texture) in enumerate(inputs):
+            texture.use(unit)
         self.ctx.depth_func = "1"  # every pixel writes its mark
         for step in ("msaa_interior", "msaa_resolve"):
             prog = self.programs[step]
-            for unit, (name, texture) in enumerate((
-                    ("u_sample_surface", self.sample_targets[0]),
-                    ("u_sample_depth", self.sample_targets[1]), ("u_labels", self.label_target),
-                    ("u_normals", self.normal_target), ("u_shaded", self.color_target))):
+            for unit, (name, _) in enumerate(inputs):
                 prog[name].value = unit
-                texture.use(unit)
             prog["u_samples"].value = self.config.msaa
             self._fullscreen(step)
             self.ctx.depth_func = "<="  # the full resolve where the mark is 1
@@ -670,17 +674,3 @@ class Renderer:
         color = self._color_pass(camera, placed, draws, ao) if "color" in passes else None
         return RenderOutput(color=None if color is None else np.ascontiguousarray(color), **out)
 
-
-def _in_clip_xy(draws: list[_Draw], clip_from_world: np.ndarray) -> list[_Draw]:
-    """``draws`` whose boxes are not wholly beyond one side of the clip volume in x or y
-    (depth is clamped in the shadow pass, so nothing is culled by depth); the others make no
-    fragment."""
-    if not draws:
-        return draws
-    corners = np.stack([d.corners for d in draws])
-    clip = corners @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
-    w = corners @ clip_from_world[3, :3] + clip_from_world[3, 3]
-    outside = np.zeros(len(draws), bool)
-    for axis in (0, 1):
-        outside |= np.all(clip[..., axis] < -w, axis=1) | np.all(clip[..., axis] > w, axis=1)
-    return [d for d, out in zip(draws, outside, strict=True) if not out]
