@@ -301,6 +301,25 @@ def test_msaa_keeps_the_single_sample_colour_inside_a_surface_to_the_byte():
     assert np.array_equal(images[0], images[1])
 
 
+def test_every_pixel_of_the_shading_normal_target_is_written_sky_included():
+    """Under MSAA the colour pass keeps its shading normals for the resolve, which reads them
+    beside sky pixels too. A fragment output a shader leaves unwritten is undefined in GL, and
+    llvmpipe left varying garbage (NaN included) at sky pixels, so a few edge pixels changed
+    from run to run. The sky writes a zero normal; surfaces write unit normals."""
+    square = quad([[-1.0, -1.0, -6.0], [1.0, -1.0, -6.0], [1.0, 1.0, -6.0], [-1.0, 1.0, -6.0]])
+    r = Renderer(render_config(64, 48, msaa=4))
+    r.load(scene_of(("column_square", Component.COLUMN, square, PLAIN)), LIGHT)
+    out = r.render(camera())
+    normals = np.frombuffer(r.normal_target.read(), np.float16).reshape(48, 64, 4)[::-1]
+    assert r.ctx.error == "GL_NO_ERROR"
+    r.release()
+    sky = out.component != Component.COLUMN
+    assert 100 < sky.sum() < sky.size - 100
+    assert np.all(normals[sky].view(np.uint16) == 0)  # bit for bit: no -0, no NaN
+    lengths = np.linalg.norm(normals[~sky, :3].astype(np.float64), axis=1)
+    assert np.all(np.abs(lengths - 1.0) < 2e-3) and np.all(normals[~sky, 3] == 1.0)
+
+
 def test_msaa_samples_on_a_silhouette_take_their_own_surfaces_colour():
     """A red square before a green wall. Each MSAA sample takes the colour shaded at a pixel
     centre on its own surface: a pixel lies within the colours of its 3x3 neighbourhood

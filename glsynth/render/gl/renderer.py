@@ -507,10 +507,6 @@ class Renderer:
         self.msaa_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self._draw_surfaces("msaa", camera, placed)
-        # The multisampled draw completes before its textures are sampled. A precaution
-        # against a run-to-run variation of a few pixels that is not yet explained (it was
-        # still seen once with this; docs/design.md).
-        self.ctx.finish()
         self.resolve_fbo.use()
         self.resolve_fbo.clear(depth=1.0)
         inputs = (("u_sample_surface", self.sample_targets[0]),
