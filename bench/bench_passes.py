@@ -8,7 +8,6 @@ the drawing), one environment, the same cameras for every variant. "color" rende
 alone, which includes the label pass that the colour pass tests against.
 """
 
-import argparse
 import dataclasses
 import statistics
 import sys
@@ -16,9 +15,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import write_results  # noqa: E402
+from common import paper_views, write_results  # noqa: E402
 
-from glsynth.core.config import Config, load_config  # noqa: E402
+from glsynth.core.config import Config  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
 
@@ -58,18 +57,11 @@ def timings(view: EnvironmentView, cameras: list[int]) -> dict[str, float]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--env", type=int, default=0)
-    parser.add_argument("--cameras", type=int, default=8)
-    args = parser.parse_args()
-    base = load_config("paper")
-    base = dataclasses.replace(base, damage=dataclasses.replace(base.damage, resolution=512))
-    step = max(1, base.cameras.total // args.cameras)
-    cameras = list(range(0, base.cameras.total, step))[:args.cameras]
-    results: dict = {"environment": args.env, "cameras": cameras, "variants": {}}
+    env, base, cameras = paper_views()
+    results: dict = {"environment": env, "cameras": cameras, "variants": {}}
     for name, render in VARIANTS.items():
         config = variant(base, **render)
-        view = EnvironmentView.open(config, 0, args.env, Renderer(config.render))
+        view = EnvironmentView.open(config, 0, env, Renderer(config.render))
         results["variants"][name] = timings(view, cameras)
         view.renderer.release()
     write_results("passes", results)

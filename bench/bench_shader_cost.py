@@ -14,7 +14,6 @@ A variant drops code and with it uniforms that the renderer sets: this process's
 programs answer an unknown uniform with a stand-in that takes the write and discards it.
 """
 
-import argparse
 import dataclasses
 import hashlib
 import shutil
@@ -28,10 +27,10 @@ from pathlib import Path
 import moderngl
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import write_results  # noqa: E402
+from common import paper_views, write_results  # noqa: E402
 
 import glsynth.render.gl.programs as programs  # noqa: E402
-from glsynth.core.config import Config, load_config  # noqa: E402
+from glsynth.core.config import Config  # noqa: E402
 from glsynth.core.paths import shader_dir  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
@@ -64,9 +63,10 @@ VARIANTS: dict[str, Callable[[str], str]] = {
     f_color = vec4(texture(u_base_color_map, v_uv).rgb * n.z, 1.0);
 }
 """),
+    # Still the shading normal: the MSAA resolve takes its interior pixels by it.
     "constant colour": _cut(MAIN, """void main() {
-    f_normal = vec4(0.0);
-    f_color = vec4(0.5 + 1e-6 * fract(v_normal.x + v_uv.x + v_view_pos.x));
+    f_normal = vec4(facing_normal(v_normal, normalize(-v_view_pos)), 1.0);
+    f_color = vec4(0.5 + 1e-6 * fract(v_uv.x));
 }
 """),
 }
@@ -122,21 +122,14 @@ def measure(config: Config, cameras: list[int], source: str, env: int) -> tuple[
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--env", type=int, default=0)
-    parser.add_argument("--cameras", type=int, default=8)
-    args = parser.parse_args()
     _lenient_uniforms()
-    base = load_config("paper")
-    base = dataclasses.replace(base, damage=dataclasses.replace(base.damage, resolution=512))
-    step = max(1, base.cameras.total // args.cameras)
-    cameras = list(range(0, base.cameras.total, step))[:args.cameras]
-    results: dict = {"environment": args.env, "cameras": cameras, "settings": {}}
+    env, base, cameras = paper_views()
+    results: dict = {"environment": env, "cameras": cameras, "settings": {}}
     for setting, render in SETTINGS.items():
         config = dataclasses.replace(base, render=dataclasses.replace(base.render, **render))
         rows, shipped = {}, None
         for name, edit in VARIANTS.items():
-            ms, digest = measure(config, cameras, edit(SHIPPED), args.env)
+            ms, digest = measure(config, cameras, edit(SHIPPED), env)
             shipped = shipped or digest
             rows[name] = {"color_ms_median": ms, "same_bytes_as_shipped": digest == shipped}
             print(setting, "|", name, rows[name], flush=True)

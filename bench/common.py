@@ -1,5 +1,7 @@
 """Shared helpers for benchmarks: timing medians and a results file that names its command."""
 
+import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -8,6 +10,8 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+from glsynth.core.config import Config, load_config
 
 RESULTS = Path(__file__).resolve().parent / "results"
 JEMALLOC = "/usr/lib/x86_64-linux-gnu/libjemalloc.so.2"
@@ -49,3 +53,17 @@ def write_results(name: str, results: dict) -> Path:
     path.write_text(json.dumps(payload, indent=2) + "\n")
     print(json.dumps(payload, indent=2))
     return path
+
+
+def paper_views() -> tuple[int, Config, list[int]]:
+    """The setting that bench_passes and bench_shader_cost share, from --env (0) and --cameras
+    (8): the environment, the paper preset with damage textures at 512 px (the open is faster;
+    the texture size barely changes the drawing), and the camera indices spread over it."""
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--env", type=int, default=0)
+    parser.add_argument("--cameras", type=int, default=8)
+    args = parser.parse_args()
+    base = load_config("paper")
+    base = dataclasses.replace(base, damage=dataclasses.replace(base.damage, resolution=512))
+    step = max(1, base.cameras.total // args.cameras)
+    return args.env, base, list(range(0, base.cameras.total, step))[:args.cameras]
