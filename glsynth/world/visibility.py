@@ -46,7 +46,6 @@ def seen_by(corners: np.ndarray, camera: Camera) -> np.ndarray:
     return ~outside
 
 
-
 def in_clip_xy(corners: np.ndarray, clip_from_world: np.ndarray) -> np.ndarray:
     """For boxes (P, 8, 3), whether each is not wholly beyond one side of the clip volume of
     ``clip_from_world`` in x or y (P,); depth is not tested (the shadow pass clamps it)."""
@@ -56,6 +55,7 @@ def in_clip_xy(corners: np.ndarray, clip_from_world: np.ndarray) -> np.ndarray:
     for axis in (0, 1):
         outside |= np.all(clip[..., axis] < -w, axis=1) | np.all(clip[..., axis] > w, axis=1)
     return ~outside
+
 
 def visible_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera]) -> set[str]:
     corners = np.stack([part_corners(p) for p in parts])

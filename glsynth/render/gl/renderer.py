@@ -14,9 +14,10 @@ Passes:
   (glsynth.world.lighting), tested against the label pass's depth so that each pixel is shaded
   once; the sky is drawn last, where no geometry was;
 - multisampled colour (when msaa > 0): the geometry again into multisampled targets that keep
-  each sample's surface (shaders/msaa.frag), then a fullscreen pass in which each sample takes
-  the colour shaded at a pixel centre on its own surface and each pixel the mean of its
-  samples (shaders/msaa_resolve.frag).
+  each sample's surface (shaders/msaa.frag); a fullscreen pass gives a pixel whose samples all
+  lie on its centre's surface that centre's colour (shaders/msaa_interior.frag), and a second,
+  only at the other pixels, gives each sample the colour shaded at a pixel centre on its own
+  surface and the pixel the mean of its samples (shaders/msaa_resolve.frag).
 Only the passes asked for (and those they need) are drawn, and each draws only the parts whose
 boxes may be in its frustum (the camera's; the sun's shadow map and the sky-visibility maps,
 in x and y), which changes no byte. Pixels with no geometry read component 1 (Nonbridge),
@@ -81,8 +82,6 @@ class _Draw:
     damage_mask: moderngl.Texture | None
     center: np.ndarray
     """World-space centre of the bounding box, for front-to-back ordering."""
-    box: np.ndarray
-    """(2, 3) mesh-space bounds."""
     radiance: np.ndarray
     """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
     corners: np.ndarray
@@ -314,7 +313,7 @@ class Renderer:
                 center = pose[:3, :3] @ box.mean(0) + pose[:3, 3]
                 self._draws.append(_Draw(node.name, pose, vaos, (vbo, ibo, reversed_ibo),
                                          info.material,
-                                         textures, float(info.component), mask, center, box,
+                                         textures, float(info.component), mask, center,
                                          _emitted(mat), box_corners(box, pose)))
             if mat is not info.material:
                 # Built for this upload: its maps go now, one column's at a time.
@@ -669,4 +668,3 @@ class Renderer:
             self._ao_pass(camera)
         color = self._color_pass(camera, placed, draws, ao) if "color" in passes else None
         return RenderOutput(color=None if color is None else np.ascontiguousarray(color), **out)
-
