@@ -1,5 +1,6 @@
 """Validation helpers for config dataclasses: every error names the field, value and range."""
 
+import functools
 import math
 import typing
 from typing import Any
@@ -39,6 +40,20 @@ def check_vector(section: str, name: str, value: Any, size: int, lo: float, hi: 
         fail(section, name, value, f"{size} numbers in [{lo}, {hi}]")
 
 
-def check_choice(section: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
-    if value not in choices:
-        fail(section, name, value, "one of " + ", ".join(f'"{c}"' for c in choices))
+@functools.cache
+def literal_choices(cls: type, name: str) -> tuple[Any, ...]:
+    """The allowed values of a ``Literal[...]``-typed field of a config dataclass: the one place
+    each set of choices is written."""
+    hint = typing.get_type_hints(cls)[name]
+    if typing.get_origin(hint) is not typing.Literal:
+        raise TypeError(f"{cls.__name__}.{name} is not Literal-typed")
+    return typing.get_args(hint)
+
+
+def check_literal(section: str, cls: type, name: str, value: Any) -> None:
+    """``value`` is one of the choices of field ``name``'s Literal type, of the same type
+    (so True is not 1, nor 2.0 the integer 2)."""
+    choices = literal_choices(cls, name)
+    if not any(type(value) is type(c) and value == c for c in choices):
+        fail(section, name, value, "one of " + ", ".join(
+            f'"{c}"' if isinstance(c, str) else str(c) for c in choices))

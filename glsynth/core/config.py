@@ -11,10 +11,16 @@ import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from glsynth.core import design
-from glsynth.core.checks import check_choice, check_interval, check_number, check_vector, fail
+from glsynth.core.checks import (
+    check_interval,
+    check_literal,
+    check_number,
+    check_vector,
+    fail,
+)
 from glsynth.core.design import StandardDesign
 from glsynth.core.errors import UserError
 
@@ -70,10 +76,6 @@ class EnvironmentConfig:
         check_number(s, "cylinder_segments", self.cylinder_segments, 3, 256, integer=True)
 
 
-PLACEMENTS = ("within", "at")
-HEIGHTS_FROM = ("origin", "ground")
-
-
 @dataclass(frozen=True)
 class CameraConfig:
     """Synthetic cameras (paper Section 3.4)."""
@@ -85,13 +87,13 @@ class CameraConfig:
     focal_mm: tuple[float, float] = (15.0, 55.0)
     sensor_mm: float = 36.0
     """Sensor width; it spans the image width."""
-    placement: str = "within"
+    placement: Literal["within", "at"] = "within"
     """How D is read (docs/design.md): 'within', a camera anywhere within D of the centre line
     (lateral offset uniform in [-D, D]: under the deck, among the columns, above the track);
     'at', exactly D to one side."""
     regular_distance_m: float = 10.0
     """D of the regular cameras."""
-    height_from: str = "origin"
+    height_from: Literal["origin", "ground"] = "origin"
     """What [h0, h1] is measured from (docs/design.md): 'origin', the world's z = 0, which is
     the ground under the first viaduct (a Blender location); 'ground', the ground under the
     camera."""
@@ -109,10 +111,8 @@ class CameraConfig:
         s = "cameras"
         check_number(s, "n_regular", self.n_regular, 0, 100000, integer=True)
         check_number(s, "n_closeup", self.n_closeup, 0, 100000, integer=True)
-        if self.placement not in PLACEMENTS:
-            fail(s, "placement", self.placement, f"one of {', '.join(PLACEMENTS)}")
-        if self.height_from not in HEIGHTS_FROM:
-            fail(s, "height_from", self.height_from, f"one of {', '.join(HEIGHTS_FROM)}")
+        check_literal(s, CameraConfig, "placement", self.placement)
+        check_literal(s, CameraConfig, "height_from", self.height_from)
         check_interval(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
         check_number(s, "sensor_mm", self.sensor_mm, 1.0, 100.0)
         check_number(s, "regular_distance_m", self.regular_distance_m, 0.0, 1000.0)
@@ -131,42 +131,31 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class RenderConfig:
-    """Image size, antialiasing, clip planes and lighting of the GL renderer."""
+    """Image size, antialiasing, clip planes, shadows and ambient occlusion of the GL renderer,
+    and which renderer colours the images."""
 
     width: int = 1920
     height: int = 1080
-    msaa: int = 4
+    msaa: Literal[0, 2, 4, 8, 16] = 4
     """Samples for the colour pass (0: none; llvmpipe supports up to 4). Labels and depth are
     never multisampled."""
     znear_m: float = 0.05
     zfar_m: float = 2000.0
     """Also the depth of pixels that see no geometry (sky)."""
-    sun_elevation_deg: tuple[float, float] = (20.0, 70.0)
-    """Range of the sun's elevation, drawn once per environment (docs/design.md, Lighting)."""
-    sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
-    """Range of the sun's azimuth, from +x (the initial track direction), counter-clockwise."""
-    sun_intensity: tuple[float, float] = (2.5, 3.5)
-    """Range of the sun's irradiance on a plane facing it (linear units; Blender's sun
-    strength)."""
-    sky: str = "preetham"
-    """Sky model: "preetham" (Blender's Preetham sky texture) or "uniform" (sky_rgb x
-    ambient_intensity everywhere)."""
-    turbidity: tuple[float, float] = (2.0, 4.0)
-    """Range of the Preetham sky's turbidity (2: very clear, 10: hazy)."""
-    sky_strength: float = 1.0
-    """Scale of the Preetham sky (the strength of Blender's Background node)."""
-    ambient_intensity: float = 0.6
-    """Scale of the uniform sky, and of the hemisphere ambient light."""
-    sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
-    """Colour of the uniform sky and of the hemisphere ambient light (linear RGB)."""
-    ground_albedo: float = 0.2
-    """Albedo of the ground that lights surfaces from below in the SH ambient light, where the
-    scene has no ground of its own (pure-texture plates); an environment uses its dressed
-    ground's mean colour."""
-    ambient: str = "sh"
-    """Ambient light of the rasterizer: "sh" (irradiance of the sky and the lit ground, as
-    spherical harmonics) or "hemisphere" (sky colour above, 0.35 x sky colour below)."""
-    ao: str = "off"
+    renderer: Literal["gl", "cycles"] = "gl"
+    """Colour by "gl" (the rasterizer) or "cycles" (the Cycles twin, glsynth.render.cycles;
+    needs Blender; [cycles]). Labels and depth always come from GL."""
+    shadow_map_px: int = 2048
+    """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
+    the shadowed range divided by this."""
+    shadow_distance_m: float = 60.0
+    """Shadows are drawn on surfaces nearer than this to the camera; farther ones are lit."""
+    sky_visibility_maps: Literal[0, 4, 9, 16] = 16
+    """Directions of the sky whose visibility the rasterizer bakes once per environment, as
+    orthographic depth maps (0: off): the sky light under the deck is then occluded by it."""
+    sky_visibility_px: int = 1024
+    """Side of each sky-visibility map."""
+    ao: Literal["ssao", "off"] = "off"
     """Screen-space ambient occlusion of the rasterizer: "ssao" (from the label pass's depth)
     or "off". Off by default: measured against Cycles it changed the error by 0.2 % for 60 %
     more render time (bench/bench_lighting.py); the sky-visibility maps do the occlusion that
@@ -174,62 +163,83 @@ class RenderConfig:
     ao_radius_m: float = 1.0
     """World radius within which geometry occludes ambient light."""
     ao_samples: int = 16
-    sky_visibility_maps: int = 16
-    """Directions of the sky whose visibility the rasterizer bakes once per environment, as
-    orthographic depth maps (0: off): the sky light under the deck is then occluded by it."""
-    sky_visibility_px: int = 1024
-    """Side of each sky-visibility map."""
-    tone_map: str = "standard"
-    """Linear radiance x exposure to 8-bit sRGB: "standard" (clip, then the sRGB curve: Blender's
-    Standard view transform) or "exponential" (1 - exp(-x), then x ** (1 / 2.2))."""
-    exposure: float = 2.0
-    """Scale of linear radiance before the tone map. The paper gives no light levels; at 2 (one
-    stop over 1) the Section 3.4 dark filter removes about as many views of each camera kind as
-    the paper's did, in GL and in Cycles alike (bench/bench_views.py, README "Camera
-    placement")."""
-    renderer: str = "gl"
-    """Colour by "gl" (the rasterizer) or "cycles" (the Cycles twin, glsynth.render.cycles;
-    needs Blender). Labels and depth always come from GL."""
-    cycles_samples: int = 128
-    """Samples per pixel of the Cycles twin."""
-    shadow_map_px: int = 2048
-    """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
-    the shadowed range divided by this."""
-    shadow_distance_m: float = 60.0
-    """Shadows are drawn on surfaces nearer than this to the camera; farther ones are lit."""
 
     def __post_init__(self) -> None:
         s = "render"
         check_number(s, "width", self.width, 1, 16384, integer=True)
         check_number(s, "height", self.height, 1, 16384, integer=True)
-        if self.msaa not in (0, 2, 4, 8, 16):
-            fail(s, "msaa", self.msaa, "one of 0, 2, 4, 8, 16")
+        check_literal(s, RenderConfig, "msaa", self.msaa)
         check_number(s, "znear_m", self.znear_m, 1e-4, 10.0)
         check_number(s, "zfar_m", self.zfar_m, self.znear_m, 1e7, lo_open=True)
-        check_interval(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
-        check_interval(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
-        check_interval(s, "sun_intensity", self.sun_intensity, 0.0, 100.0)
-        check_choice(s, "sky", self.sky, ("preetham", "uniform"))
-        check_interval(s, "turbidity", self.turbidity, 2.0, 10.0)
-        check_number(s, "sky_strength", self.sky_strength, 0.0, 100.0)
-        check_number(s, "ambient_intensity", self.ambient_intensity, 0.0, 100.0)
-        check_vector(s, "sky_rgb", self.sky_rgb, 3, 0.0, 1.0)
-        check_number(s, "ground_albedo", self.ground_albedo, 0.0, 1.0)
-        check_choice(s, "ambient", self.ambient, ("sh", "hemisphere"))
-        check_choice(s, "ao", self.ao, ("ssao", "off"))
-        check_number(s, "ao_radius_m", self.ao_radius_m, 0.01, 100.0)
-        check_number(s, "ao_samples", self.ao_samples, 1, 64, integer=True)
-        if self.sky_visibility_maps not in (0, 4, 9, 16):
-            fail(s, "sky_visibility_maps", self.sky_visibility_maps, "one of 0, 4, 9, 16")
-        check_number(s, "sky_visibility_px", self.sky_visibility_px, 64, 4096, integer=True)
-        check_choice(s, "tone_map", self.tone_map, ("standard", "exponential"))
-        check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
-        check_choice(s, "renderer", self.renderer, ("gl", "cycles"))
-        check_number(s, "cycles_samples", self.cycles_samples, 1, 1 << 16, integer=True)
+        check_literal(s, RenderConfig, "renderer", self.renderer)
         check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
         if 0 < self.shadow_map_px < 64:
             fail(s, "shadow_map_px", self.shadow_map_px, "0 (no shadows) or 64 to 16384")
         check_number(s, "shadow_distance_m", self.shadow_distance_m, 1.0, 1e5)
+        check_literal(s, RenderConfig, "sky_visibility_maps", self.sky_visibility_maps)
+        check_number(s, "sky_visibility_px", self.sky_visibility_px, 64, 4096, integer=True)
+        check_literal(s, RenderConfig, "ao", self.ao)
+        check_number(s, "ao_radius_m", self.ao_radius_m, 0.01, 100.0)
+        check_number(s, "ao_samples", self.ao_samples, 1, 64, integer=True)
+
+
+@dataclass(frozen=True)
+class LightingConfig:
+    """The sun, the sky and the exposure, for both renderers (docs/design.md, Lighting). The
+    ambient light of the rasterizer is always the irradiance of the sky and of the lit ground,
+    as spherical harmonics; the tone map is always Blender's Standard view transform."""
+
+    sun_elevation_deg: tuple[float, float] = (20.0, 70.0)
+    """Range of the sun's elevation, drawn once per environment."""
+    sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
+    """Range of the sun's azimuth, from +x (the initial track direction), counter-clockwise."""
+    sun_irradiance: tuple[float, float] = (2.5, 3.5)
+    """Range of the sun's irradiance on a plane facing it (linear units; Blender's sun
+    strength)."""
+    sky: Literal["preetham", "uniform"] = "preetham"
+    """Sky model: "preetham" (Blender's Preetham sky texture, scaled by sky_strength) or
+    "uniform" (sky_rgb x uniform_sky_strength in every direction)."""
+    turbidity: tuple[float, float] = (2.0, 4.0)
+    """Range of the Preetham sky's turbidity (2: very clear, 10: hazy)."""
+    sky_strength: float = 1.0
+    """Scale of the Preetham sky (the strength of Blender's Background node)."""
+    sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
+    """Colour of the uniform sky (linear RGB)."""
+    uniform_sky_strength: float = 0.6
+    """Scale of the uniform sky (the strength of Blender's Background node)."""
+    ground_albedo: float = 0.2
+    """Albedo of the ground that lights surfaces from below in the ambient light, where the
+    scene has no ground of its own (pure-texture plates); an environment uses its dressed
+    ground's mean colour."""
+    exposure: float = 2.0
+    """Scale of linear radiance before the tone map (clip, then the sRGB curve). The paper
+    gives no light levels; at 2 (one stop over 1) the Section 3.4 dark filter removes about as
+    many views of each camera kind as the paper's did, in GL and in Cycles alike
+    (bench/bench_views.py, README "Camera placement")."""
+
+    def __post_init__(self) -> None:
+        s = "lighting"
+        check_interval(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
+        check_interval(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
+        check_interval(s, "sun_irradiance", self.sun_irradiance, 0.0, 100.0)
+        check_literal(s, LightingConfig, "sky", self.sky)
+        check_interval(s, "turbidity", self.turbidity, 2.0, 10.0)
+        check_number(s, "sky_strength", self.sky_strength, 0.0, 100.0)
+        check_vector(s, "sky_rgb", self.sky_rgb, 3, 0.0, 1.0)
+        check_number(s, "uniform_sky_strength", self.uniform_sky_strength, 0.0, 100.0)
+        check_number(s, "ground_albedo", self.ground_albedo, 0.0, 1.0)
+        check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class CyclesConfig:
+    """The Cycles twin ([render] renderer = "cycles", and the benches that compare with it)."""
+
+    samples: int = 128
+    """Samples per pixel."""
+
+    def __post_init__(self) -> None:
+        check_number("cycles", "samples", self.samples, 1, 1 << 16, integer=True)
 
 
 @dataclass(frozen=True)
@@ -384,6 +394,8 @@ class Config:
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     cameras: CameraConfig = field(default_factory=CameraConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
+    lighting: LightingConfig = field(default_factory=LightingConfig)
+    cycles: CyclesConfig = field(default_factory=CyclesConfig)
     damage: DamageConfig = field(default_factory=DamageConfig)
     materials: MaterialsConfig = field(default_factory=MaterialsConfig)
 
@@ -405,8 +417,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 _SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
-             "cameras": CameraConfig, "render": RenderConfig, "damage": DamageConfig,
-             "materials": MaterialsConfig}
+             "cameras": CameraConfig, "render": RenderConfig, "lighting": LightingConfig,
+             "cycles": CyclesConfig, "damage": DamageConfig, "materials": MaterialsConfig}
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:
@@ -419,6 +431,41 @@ def _coerce(cls: type, key: str, value: Any) -> Any:
     return value
 
 
+_MOVED_FROM_RENDER = {
+    **{f.name: ("lighting", f.name) for f in dataclasses.fields(LightingConfig)},
+    "sun_intensity": ("lighting", "sun_irradiance"),
+    "ambient_intensity": ("lighting", "uniform_sky_strength"),
+    "cycles_samples": ("cycles", "samples"),
+}
+"""Keys that [render] once held, and where they are now."""
+
+_REMOVED_FROM_RENDER = {
+    "ambient": "the ambient light is always the sky's and the lit ground's irradiance as "
+               "spherical harmonics, occluded by [render] sky_visibility_maps",
+    "tone_map": "the tone map is always Blender's Standard view transform (radiance x "
+                "[lighting] exposure, clipped, then the sRGB curve)",
+}
+"""Keys of retired lighting modes, and what glsynth does instead."""
+
+
+def _check_keys(section: str, values: dict[str, Any], cls: type) -> None:
+    """One line for the first key ``section`` does not hold: where it moved, why it was
+    removed, or the keys it does hold."""
+    if section == "render":
+        for key in values:
+            if key in _MOVED_FROM_RENDER:
+                new_section, new_key = _MOVED_FROM_RENDER[key]
+                raise UserError(f"[render] {key} moved: write it as [{new_section}] {new_key}")
+            if key in _REMOVED_FROM_RENDER:
+                raise UserError(f"[render] {key} was removed: {_REMOVED_FROM_RENDER[key]}; "
+                                "delete the line")
+    allowed = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - allowed)
+    if unknown:
+        raise UserError(f"unknown key(s) {unknown} in [{section}]: "
+                        f"allowed keys are {sorted(allowed)}")
+
+
 def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
     """Overlay ``{section: {key: value}}`` on ``base`` (default: the built-in defaults)."""
     base = base or Config()
@@ -428,13 +475,9 @@ def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config
             raise UserError(f"unknown config section [{section}]: "
                             f"allowed sections are {sorted(_SECTIONS)}")
         cls = _SECTIONS[section]
-        allowed = {f.name for f in dataclasses.fields(cls)}
         if not isinstance(values, dict):
             raise UserError(f"config section [{section}] must be a table of key = value")
-        unknown = sorted(set(values) - allowed)
-        if unknown:
-            raise UserError(f"unknown key(s) {unknown} in [{section}]: "
-                            f"allowed keys are {sorted(allowed)}")
+        _check_keys(section, values, cls)
         coerced = {k: _coerce(cls, k, v) for k, v in values.items()}
         sections[section] = dataclasses.replace(getattr(base, section), **coerced)
     return dataclasses.replace(base, **sections)
