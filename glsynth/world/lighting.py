@@ -2,7 +2,7 @@
 the rasterizer derives from them. No GL: the same numbers drive the GLSL shaders and the
 Cycles twin (glsynth.render.cycles), so both renderers see one sky and one sun.
 
-Sky models ([render] sky):
+Sky models ([lighting] sky):
 - ``preetham``: the analytic daylight model of Preetham, Shirley and Smits (1999) as Blender's
   Sky Texture node (type Preetham) evaluates it: Perez functions for luminance Y and the
   chromaticities x, y, normalised so that the zenith gets the model's zenith values; the
@@ -10,9 +10,9 @@ Sky models ([render] sky):
   linear Rec.709 RGB. Directions below the horizon take the horizon's value (Blender clamps
   the view angle the same way). A sun below the horizon lights nothing and the sky is
   evaluated for a sun on the horizon.
-- ``uniform``: one radiance in every direction, ``sky_rgb * ambient_intensity``.
+- ``uniform``: one radiance in every direction, ``sky_rgb * uniform_sky_strength``.
 
-Ambient light for the rasterizer ([render] ambient = "sh"): the irradiance that reaches a
+Ambient light for the rasterizer: the irradiance that reaches a
 surface of normal n from the sky above the horizon and from the ground below it, as order-2
 spherical harmonics (Ramamoorthi and Hanrahan 2001, nine coefficients per channel). The ground
 is a Lambertian plane of albedo ``ground_albedo`` under the sun and the sky. Occlusion by the
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glsynth.core.config import RenderConfig
+from glsynth.core.config import LightingConfig
 from glsynth.core.seeding import Stream, make_rng
 
 # CIE XYZ to linear Rec.709 (sRGB primaries, D65): the matrix Blender's colour management uses
@@ -99,7 +99,7 @@ def _sky_sun(sun: np.ndarray) -> np.ndarray:
     return s
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Lighting:
     """Everything both renderers need to light one environment."""
 
@@ -110,11 +110,13 @@ class Lighting:
     sky: str
     turbidity: float
     sky_strength: float
+    """Scale of the sky: [lighting] sky_strength for Preetham's, uniform_sky_strength for the
+    uniform one."""
     sky_rgb: tuple[float, float, float]
-    """Radiance of the uniform sky (sky = "uniform")."""
+    """Colour of the uniform sky (sky = "uniform"); its radiance is sky_rgb x sky_strength."""
     ground_albedo: tuple[float, float, float]
     """Linear RGB albedo of the ground that lights surfaces from below (the dressed ground's
-    mean, glsynth.appearance.materials.surface_albedo; [render] ground_albedo without one)."""
+    mean, glsynth.appearance.materials.surface_albedo; [lighting] ground_albedo without one)."""
     exposure: float
 
     @property
@@ -180,22 +182,25 @@ def _sphere_grid(rows: int) -> tuple[np.ndarray, np.ndarray]:
     return dirs, np.repeat(band, 2 * rows)
 
 
-def environment_lighting(render: RenderConfig, root_seed: int, env: int, item: int = 0,
+def environment_lighting(config: LightingConfig, root_seed: int, env: int, item: int = 0,
                          ground_albedo: np.ndarray | None = None) -> Lighting:
     """The lighting of environment ``env`` (item 0; pure-texture plate N uses env 0, item
     N + 1): sun elevation, azimuth and irradiance and the sky's turbidity drawn uniformly from
-    their [render] ranges (a range [a, a] fixes the value). ``ground_albedo`` (linear RGB) is
-    the scene's own ground's; without one, [render] ground_albedo in grey."""
+    their [lighting] ranges (a range [a, a] fixes the value). ``ground_albedo`` (linear RGB) is
+    the scene's own ground's; without one, [lighting] ground_albedo in grey."""
     rng = make_rng(root_seed, env, Stream.LIGHTING, item)
     elevation, azimuth, irradiance, turbidity = (
-        float(rng.uniform(*r)) for r in (render.sun_elevation_deg, render.sun_azimuth_deg,
-                                         render.sun_intensity, render.turbidity))
-    return Lighting(elevation, azimuth, irradiance if elevation > 0 else 0.0, render.sky,
-                    turbidity, render.sky_strength if render.sky == "preetham"
-                    else render.ambient_intensity, render.sky_rgb,
-                    tuple(float(c) for c in (
-                        (render.ground_albedo,) * 3 if ground_albedo is None else ground_albedo)),
-                    render.exposure)
+        float(rng.uniform(*r)) for r in (config.sun_elevation_deg, config.sun_azimuth_deg,
+                                         config.sun_irradiance, config.turbidity))
+    albedo = (config.ground_albedo,) * 3 if ground_albedo is None else ground_albedo
+    return Lighting(
+        sun_elevation_deg=elevation, sun_azimuth_deg=azimuth,
+        sun_irradiance=irradiance if elevation > 0 else 0.0,
+        sky=config.sky, turbidity=turbidity,
+        sky_strength=(config.sky_strength if config.sky == "preetham"
+                      else config.uniform_sky_strength),
+        sky_rgb=config.sky_rgb, ground_albedo=tuple(float(c) for c in albedo),
+        exposure=config.exposure)
 
 
 SKY_MIN_ELEVATION_DEG = 8.0
