@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.assess.condition import AssessSettings
-from glsynth.core.config import PRESETS, Config, load_config
+from glsynth.core.config import PRESETS, Config, config_from_dict, load_config
 from glsynth.core.errors import UserError
 from glsynth.core.options import add_options, from_options
 from glsynth.model.settings import TrainSettings
@@ -36,7 +36,7 @@ def _add_renderer_args(p: argparse.ArgumentParser) -> None:
                    help="colour by the GL rasterizer or by Blender Cycles (labels and depth "
                         "always by GL; default: [render] renderer)")
     p.add_argument("--samples", type=_count, default=None,
-                   help="Cycles samples per pixel (default: [render] cycles_samples)")
+                   help="Cycles samples per pixel (default: [cycles] samples)")
 
 
 def _add_env_args(p: argparse.ArgumentParser) -> None:
@@ -85,13 +85,11 @@ def _config(args: argparse.Namespace) -> Config:
         from glsynth.measure.quality import apply_quality
 
         config = apply_quality(config, args.quality)
-    # Only commands with the renderer options (render, generate) override [render] with them.
-    given = (("renderer", args.renderer), ("cycles_samples", args.samples)) \
-        if hasattr(args, "renderer") else ()
-    overrides = {k: v for k, v in given if v is not None}
-    if overrides:
-        config = dataclasses.replace(config,
-                                     render=dataclasses.replace(config.render, **overrides))
+    # Only commands with the renderer options (render, generate) override the config with them.
+    if hasattr(args, "renderer"):
+        given = {"render": {"renderer": args.renderer}, "cycles": {"samples": args.samples}}
+        config = config_from_dict({section: {k: v for k, v in values.items() if v is not None}
+                                   for section, values in given.items()}, config)
     if config.render.renderer == "cycles":
         from glsynth.render.cycles import require_blender
 
@@ -115,9 +113,8 @@ def cmd_export(args: argparse.Namespace) -> None:
                           DamageBank(config.damage, args.seed),
                           {p.name for p in env.parts}).materials
     built = time.perf_counter() - t0
-    light = environment_lighting(config.render, args.seed, args.env)
-    glb, js = export_environment(env, args.out, materials, None if args.flat else config.render,
-                                 light)
+    light = environment_lighting(config.lighting, args.seed, args.env)
+    glb, js = export_environment(env, args.out, materials, None if args.flat else light)
     triangles = sum(len(p.mesh.faces) for p in env.parts)
     print(f"environment {args.env} (seed {args.seed}): {len(env.parts)} parts, {triangles} "
           f"triangles, built in {built:.2f} s -> {glb}, {js}")

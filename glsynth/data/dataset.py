@@ -225,11 +225,11 @@ def _cycles_plate(config: Config, root_seed: int, shot, out: Path) -> np.ndarray
     seed = cycles_seed(root_seed, 0, 1_000_000 + shot.index)
     try:
         result = render_linear([shot.part], {shot.part.name: shot.material}, shot.lighting,
-                               config.render, [shot.camera], [seed],
-                               config.render.cycles_samples, work, require_blender())
+                               [shot.camera], [seed], config.cycles.samples, work,
+                               require_blender())
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return display(result.linear[0], shot.lighting, config.render)
+    return display(result.linear[0], shot.lighting)
 
 
 class _Clock:

@@ -94,5 +94,5 @@ def plate_shot(config: Config, root_seed: int, index: int, repository: TextureRe
             "spin_rad": spin, "tilt_rad": tilt, "tilt_axis_rad": tilt_axis_angle,
             "focal_mm": float(focal), "distance_m": distance,
             "damage_params": dataclasses.asdict(entry.params), "images": list(entry.images)}
-    lighting = environment_lighting(render, root_seed, 0, index + 1)
+    lighting = environment_lighting(config.lighting, root_seed, 0, index + 1)
     return PlateShot(index, scene, camera, lighting, part, material, meta)

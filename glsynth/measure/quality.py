@@ -180,7 +180,7 @@ def _run_preset(config: Config, name: str, root_seed: int, env: int, cameras: li
             # material would be built again on each read).
             materials = dict(view.dressing.materials)
             scene = {"parts": parts, "materials": materials,
-                     "lighting": view.lighting, "render": cfg.render,
+                     "lighting": view.lighting,
                      "truths": [ray_cast(view.environment.parts, materials, p.camera)
                                 for p in placements]}
     finally:
@@ -201,9 +201,9 @@ def _cycles_renders(scene: dict, placements: list, samples: int, seed_offset: in
 
     cams = [dataclasses.replace(p.camera, width=size[0], height=size[1]) for p in placements]
     seeds = [cycles_seed(root_seed, env, p.index) + seed_offset for p in placements]
-    result = render_linear(scene["parts"], scene["materials"], scene["lighting"],
-                           scene["render"], cams, seeds, samples, work, blender)
-    return ([display(x, scene["lighting"], scene["render"]) for x in result.linear],
+    result = render_linear(scene["parts"], scene["materials"], scene["lighting"], cams, seeds,
+                           samples, work, blender)
+    return ([display(x, scene["lighting"]) for x in result.linear],
             result.colour_s)
 
 
@@ -216,7 +216,7 @@ def _cycles_timing(scene: dict, placement, root_seed: int, env: int, work: Path,
     cam = dataclasses.replace(placement.camera, width=1920, height=1080)
     seed = cycles_seed(root_seed, env, placement.index)
     result = render_linear(scene["parts"], scene["materials"], scene["lighting"],
-                           scene["render"], [cam] * 3, [seed] * 3, [1, 1, 4], work, blender)
+                           [cam] * 3, [seed] * 3, [1, 1, 4], work, blender)
     _, one, four = result.colour_s
     per_sample = max(four - one, 0.0) / 3
     return {"fixed_s": one - per_sample, "per_sample_s": per_sample,
@@ -294,7 +294,7 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
                                              else None),
               "noise_floor": floor, "cycles_1080p_timing": timing,
               "lighting": dataclasses.asdict(lighting),
-              "render_knobs": {k: getattr(config.render, k) for k in LIGHTING_KNOBS},
+              "render_knobs": {k: getattr(getattr(config, s), k) for s, k in LIGHTING_KNOBS},
               "note": "time_per_sample_s: glsynth = median render at the preset's own size + "
                       "environment opening / cameras per environment; Cycles = fixed + "
                       "per-sample time of a 1920x1080 render of the first view, measured at 1 "
@@ -309,9 +309,9 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
     return result
 
 
-LIGHTING_KNOBS = ("sky", "ambient", "ao_radius_m", "ao_samples", "tone_map")
-"""The [render] lighting settings a quality run records beside its numbers (the presets set
-shadows, sky maps and ao: each row has its own)."""
+LIGHTING_KNOBS = (("lighting", "sky"), ("render", "ao_radius_m"), ("render", "ao_samples"))
+"""The lighting settings a quality run records beside its numbers, as (section, key) (the
+presets set shadows, sky maps and ao: each row has its own)."""
 
 
 def _fmt(value: float | None, spec: str) -> str:

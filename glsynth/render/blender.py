@@ -73,7 +73,7 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
     job = {"mode": "bench", "glb": str(glb), "out": str(out), "samples": samples,
            "cameras": [camera_json(cam)],
            "seeds": [cycles_seed(root_seed, env, camera_index)],
-           "lighting": describe_lighting(view.lighting, render)}
+           "lighting": describe_lighting(view.lighting)}
     t = time.perf_counter()
     blender_times = run_job(blender, job, out, timeout_s)
     process_s = time.perf_counter() - t

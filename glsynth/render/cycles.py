@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.appearance.materials import Material
-from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.seeding import Stream, make_seed
@@ -100,7 +99,7 @@ class CyclesResult:
 
 
 def render_linear(parts: Sequence[Part], materials: dict[str, Material], lighting: Lighting,
-                  render: RenderConfig, cameras: Sequence[Camera], seeds: Sequence[int],
+                  cameras: Sequence[Camera], seeds: Sequence[int],
                   samples: int | Sequence[int], work: Path, blender: str,
                   timeout_s: float = 24 * 3600.0) -> CyclesResult:
     """Path-trace ``cameras`` of one scene at ``samples`` (one count, or one per camera);
@@ -114,7 +113,7 @@ def render_linear(parts: Sequence[Part], materials: dict[str, Material], lightin
     atomic_write_bytes(glb, gltf_binary(parts, materials))
     job = {"mode": "twin", "glb": str(glb), "out": str(work), "samples": [int(n) for n in counts],
            "seeds": [int(s) for s in seeds], "cameras": [camera_json(c) for c in cameras],
-           "lighting": describe_lighting(lighting, render)}
+           "lighting": describe_lighting(lighting)}
     times = run_job(blender, job, work, timeout_s)
     images = []
     for i, size in enumerate(times["sizes"]):
@@ -124,24 +123,23 @@ def render_linear(parts: Sequence[Part], materials: dict[str, Material], lightin
     return CyclesResult(images, times["colour_s"], times["import_s"], times["blender"])
 
 
-def display(linear: np.ndarray, lighting: Lighting, render: RenderConfig) -> np.ndarray:
+def display(linear: np.ndarray, lighting: Lighting) -> np.ndarray:
     """Cycles' linear radiance through glsynth's exposure and tone map: uint8 sRGB."""
-    return tone_map(linear, render.tone_map, lighting.exposure)
+    return tone_map(linear, lighting.exposure)
 
 
 def cycles_colour(view, placements: Sequence, work: Path, blender: str | None = None
                   ) -> list[np.ndarray]:
     """The Cycles twin's uint8 colour of views of an open EnvironmentView (its uploaded parts,
-    dressing and lighting; [render] cycles_samples), one Blender process for all of them;
+    dressing and lighting; [cycles] samples), one Blender process for all of them;
     ``work`` is removed afterwards."""
-    render = view.config.render
     env = view.environment
     parts = [p for p in env.parts if p.name in view.scene.parts]
     seeds = [cycles_seed(env.root_seed, env.env_index, p.index) for p in placements]
     try:
-        result = render_linear(parts, view.dressing.materials, view.lighting, render,
-                               [p.camera for p in placements], seeds, render.cycles_samples,
-                               work, require_blender(blender))
+        result = render_linear(parts, view.dressing.materials, view.lighting,
+                               [p.camera for p in placements], seeds,
+                               view.config.cycles.samples, work, require_blender(blender))
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return [display(x, view.lighting, render) for x in result.linear]
+    return [display(x, view.lighting) for x in result.linear]

@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 
 from glsynth.appearance.materials import Material
-from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.labels import Component
@@ -84,7 +83,7 @@ def describe(env: Environment) -> dict[str, Any]:
     }
 
 
-def describe_lighting(light: Lighting, render: RenderConfig) -> dict[str, Any]:
+def describe_lighting(light: Lighting) -> dict[str, Any]:
     """The scene.json description of what lights the scene beyond the glTF's sun: enough to
     rebuild the sky and the tone map (glsynth.world.lighting, glsynth.render.tonemap)."""
     return {"sun_direction_zup": light.sun_direction.tolist(),
@@ -94,30 +93,27 @@ def describe_lighting(light: Lighting, render: RenderConfig) -> dict[str, Any]:
             "preetham_turbidity": light.turbidity,
             "preetham_sun_direction_zup": light.sky_sun_direction.tolist(),
             "uniform_sky_rgb_linear": list(light.sky_rgb),
-            "exposure": light.exposure, "tone_map": render.tone_map,
-            "tone_map_formula": TONE_MAP_FORMULA[render.tone_map]}
+            "exposure": light.exposure, "tone_map_formula": TONE_MAP_FORMULA}
 
 
 def export_environment(env: Environment, out: str | Path,
                        materials: Mapping[str, Material] | None = None,
-                       render: RenderConfig | None = None,
                        light: Lighting | None = None) -> tuple[Path, Path]:
     """Write ``out`` (.glb) and scene.json beside it; both atomically. With ``materials`` (the
-    dressing), ``render`` and ``light`` (the environment's sun, sky and exposure) the export is
-    the scene as glsynth renders it; without, flat colours per component and no light."""
+    dressing) and ``light`` (the environment's sun, sky and exposure) the export is the scene
+    as glsynth renders it; without, flat colours per component and no light."""
     out = Path(out)
     if out.suffix.lower() != ".glb":
         raise UserError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
                         "in .glb")
-    lit = render is not None and light is not None
     data = gltf_binary(env.parts, materials or preview_materials(env.parts),
-                       light.sun_direction if lit else None,
-                       light.sun_irradiance if lit else 1.0)
+                       None if light is None else light.sun_direction,
+                       1.0 if light is None else light.sun_irradiance)
     atomic_write_bytes(out, data)
     json_path = out.with_name("scene.json")
     info = describe(env)
     info["materials"] = "dressed" if materials else "flat colours per component"
-    if lit:
-        info["lighting"] = describe_lighting(light, render)
+    if light is not None:
+        info["lighting"] = describe_lighting(light)
     atomic_write_json(json_path, info)
     return out, json_path

@@ -55,7 +55,7 @@ class EnvironmentView:
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
         ground = ground_parts(env.parts)
-        lighting = environment_lighting(config.render, root_seed, env_index, ground_albedo=(
+        lighting = environment_lighting(config.lighting, root_seed, env_index, ground_albedo=(
             surface_albedo(ground, dressing.materials) if ground else None))
         needed = visible | shadowing_parts(env.parts, cameras, config.render, lighting)
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts

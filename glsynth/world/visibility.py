@@ -73,7 +73,7 @@ def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
     directions = []
     if render.shadow_map_px and lighting.sun_irradiance:
         directions.append(lighting.sun_direction)
-    if render.ambient == "sh" and render.sky_visibility_maps:
+    if render.sky_visibility_maps:
         directions.extend(sky_directions(render.sky_visibility_maps))
     if not directions:
         return set()
