@@ -1,15 +1,26 @@
 import math
+import typing
 
 import pytest
 
+from glsynth.core.checks import literal_choices
 from glsynth.core.config import (
     PRESETS,
+    CameraConfig,
     Config,
+    CyclesConfig,
+    DamageConfig,
     DatasetConfig,
     EnvironmentConfig,
+    LightingConfig,
+    MaterialsConfig,
+    RenderConfig,
     config_from_dict,
+    config_to_dict,
     load_config,
 )
+from glsynth.core.design import StandardDesign
+from glsynth.core.errors import UserError
 
 
 def test_presets_are_valid_and_differ_where_meant():
@@ -82,3 +93,87 @@ def test_missing_file_and_unknown_preset():
 def test_configs_are_frozen():
     with pytest.raises(AttributeError):
         Config().environment.n_viaducts = 3
+
+
+def _toml(sections: dict[str, dict]) -> str:
+    """TOML text of flat sections of numbers, strings and sequences of numbers."""
+    def value(v):
+        if isinstance(v, str):
+            return f'"{v}"'
+        if isinstance(v, (tuple, list)):
+            return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+        return repr(v)
+    return "".join(f"[{name}]\n" + "".join(f"{k} = {value(v)}\n" for k, v in keys.items())
+                   for name, keys in sections.items())
+
+
+def test_the_render_lighting_and_cycles_sections_round_trip_through_toml(tmp_path):
+    config = Config(
+        render=RenderConfig(width=640, height=360, msaa=0, renderer="cycles", shadow_map_px=0,
+                            sky_visibility_maps=9, ao="ssao", ao_samples=8),
+        lighting=LightingConfig(sun_elevation_deg=(30.0, 40.0), sun_irradiance=(1.5, 2.0),
+                                sky="uniform", sky_rgb=(0.5, 0.6, 0.7),
+                                uniform_sky_strength=0.8, ground_albedo=0.3, exposure=1.5),
+        cycles=CyclesConfig(samples=16))
+    as_dict = config_to_dict(config)
+    path = tmp_path / "c.toml"
+    path.write_text(_toml({s: as_dict[s] for s in ("render", "lighting", "cycles")}))
+    loaded = load_config("paper", path)
+    assert (loaded.render, loaded.lighting, loaded.cycles) == \
+        (config.render, config.lighting, config.cycles)
+    assert loaded.render != RenderConfig() and loaded.lighting != LightingConfig()
+
+
+@pytest.mark.parametrize("key, value, new", [
+    ("sun_intensity", "[3.0, 3.0]", "[lighting] sun_irradiance"),
+    ("ambient_intensity", "0.6", "[lighting] uniform_sky_strength"),
+    ("cycles_samples", "64", "[cycles] samples"),
+    ("exposure", "1.0", "[lighting] exposure"),
+    ("sky_rgb", "[0.5, 0.5, 0.5]", "[lighting] sky_rgb"),
+    ("turbidity", "[2.0, 3.0]", "[lighting] turbidity"),
+])
+def test_a_key_that_left_render_names_its_new_section_and_key(tmp_path, key, value, new):
+    path = tmp_path / "old.toml"
+    path.write_text(f"[render]\nwidth = 640\n{key} = {value}\n")
+    with pytest.raises(UserError) as info:
+        load_config("demo", path)
+    assert str(info.value) == f"[render] {key} moved: write it as {new}"
+
+
+@pytest.mark.parametrize("key, value, now", [
+    ("ambient", '"hemisphere"', "spherical harmonics"),
+    ("ambient", '"sh"', "spherical harmonics"),
+    ("tone_map", '"exponential"', "Standard view transform"),
+])
+def test_the_retired_lighting_modes_say_they_were_removed(tmp_path, key, value, now):
+    path = tmp_path / "old.toml"
+    path.write_text(f"[render]\n{key} = {value}\n")
+    with pytest.raises(UserError, match=rf"^\[render\] {key} was removed: .*{now}.*; delete "
+                                        "the line$") as info:
+        load_config("demo", path)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("cls, field, good, bad", [
+    (RenderConfig, "msaa", 16, 3), (RenderConfig, "msaa", 0, False),
+    (RenderConfig, "sky_visibility_maps", 4, 5), (RenderConfig, "sky_visibility_maps", 9, 9.0),
+    (RenderConfig, "renderer", "cycles", "blender"), (RenderConfig, "ao", "ssao", "hbao"),
+    (LightingConfig, "sky", "uniform", "hosek"),
+    (CameraConfig, "placement", "at", "beside"), (CameraConfig, "height_from", "ground", "sea"),
+])
+def test_enumerated_fields_take_exactly_their_literal_choices(cls, field, good, bad):
+    choices = typing.get_args(typing.get_type_hints(cls)[field])
+    assert literal_choices(cls, field) == choices and good in choices
+    assert getattr(cls(**{field: good}), field) == good
+    with pytest.raises(UserError, match=rf"\.{field} = {bad!r}: must be one of "):
+        cls(**{field: bad})
+
+
+def test_every_enumerated_config_field_is_literal_typed():
+    """A str field of a config section is a free path or an enumeration: only
+    materials.repository is free, so every other one must list its choices in its type."""
+    for cls in (EnvironmentConfig, CameraConfig, RenderConfig, LightingConfig, CyclesConfig,
+                DamageConfig, DatasetConfig, MaterialsConfig, StandardDesign):
+        for name, hint in typing.get_type_hints(cls).items():
+            if hint is str:
+                assert (cls, name) == (MaterialsConfig, "repository"), (cls.__name__, name)

@@ -63,9 +63,9 @@ def test_a_matte_scene_agrees_with_cycles(tmp_path):
         gl = r.render(cam)
     finally:
         r.release()
-    result = render_linear(parts, materials, lighting, render, [cam], [7], 64,
-                           tmp_path / "work", BLENDER)
-    cycles = display(result.linear[0], lighting, render)
+    result = render_linear(parts, materials, lighting, [cam], [7], 64, tmp_path / "work",
+                           BLENDER)
+    cycles = display(result.linear[0], lighting)
     diff = np.abs(gl.color.astype(float) - cycles.astype(float))
     print(f"matte scene: mean |glsynth - Cycles 64 spp| = {diff.mean():.2f} levels")
     assert diff.mean() <= MATTE_TOLERANCE
@@ -80,9 +80,8 @@ def test_a_matte_scene_agrees_with_cycles(tmp_path):
 @needs_blender
 def test_cycles_is_deterministic_for_a_seed(tmp_path):
     parts, materials = _matte_scene()
-    render = render_config(32, 18)
     cam = camera(32, 18, 18.0, pose=_view())
-    result = render_linear(parts, materials, LIGHT, render, [cam, cam, cam], [3, 3, 4], 2,
+    result = render_linear(parts, materials, LIGHT, [cam, cam, cam], [3, 3, 4], 2,
                            tmp_path / "work", BLENDER)
     first, again, other = result.linear
     assert np.array_equal(first, again)

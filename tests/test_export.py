@@ -10,6 +10,7 @@ import pytest
 import trimesh
 
 from glsynth.render.export import export_environment
+from glsynth.render.tonemap import TONE_MAP_FORMULA
 
 ROOT = Path(__file__).resolve().parents[1]
 VALIDATOR = ROOT / ".tools" / "node_modules" / "gltf-validator"
@@ -141,8 +142,7 @@ def dressed(tmp_path_factory):
     out = tmp_path_factory.mktemp("dressed") / "scene.glb"
     from glsynth.world.lighting import environment_lighting
 
-    export_environment(env, out, dressing.materials, config.render,
-                       environment_lighting(config.render, 0, 0))
+    export_environment(env, out, dressing.materials, environment_lighting(config.lighting, 0, 0))
     return env, dressing.materials, config, out
 
 
@@ -205,7 +205,7 @@ def test_dressed_export_carries_the_sun_and_the_sky(dressed):
     from glsynth.world.lighting import environment_lighting
 
     _, _, config, glb = dressed
-    lighting = environment_lighting(config.render, 0, 0)  # the environment's own sun
+    lighting = environment_lighting(config.lighting, 0, 0)  # the environment's own sun
     gltf, _ = _glb_parts(glb.read_bytes())
     (light,) = gltf["extensions"]["KHR_lights_punctual"]["lights"]
     assert light["type"] == "directional" and light["intensity"] == lighting.sun_irradiance
@@ -223,8 +223,8 @@ def test_dressed_export_carries_the_sun_and_the_sky(dressed):
     assert info["lighting"]["sky"] == "preetham"
     assert info["lighting"]["preetham_turbidity"] == lighting.turbidity
     assert info["lighting"]["sun_elevation_deg"] == lighting.sun_elevation_deg
-    assert info["lighting"]["exposure"] == config.render.exposure
-    assert info["lighting"]["tone_map"] == config.render.tone_map
+    assert info["lighting"]["exposure"] == config.lighting.exposure
+    assert info["lighting"]["tone_map_formula"] == TONE_MAP_FORMULA
 
 
 @pytest.mark.skipif(shutil.which("node") is None or not VALIDATOR.exists(),

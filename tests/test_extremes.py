@@ -204,8 +204,8 @@ def test_bf16_against_fp32_network_outputs():
 def test_shadows_only_darken_with_the_sun_anywhere(elevation):
     config = preview_config(Config(), 160)
     config = dataclasses.replace(
-        config, render=dataclasses.replace(config.render,
-                                           sun_elevation_deg=(elevation, elevation)),
+        config, lighting=dataclasses.replace(config.lighting,
+                                             sun_elevation_deg=(elevation, elevation)),
         cameras=dataclasses.replace(config.cameras, n_regular=2, n_closeup=2))
     view = EnvironmentView.open(config, 0, 0)
     unshadowed = Renderer(dataclasses.replace(config.render, shadow_map_px=0))

@@ -242,15 +242,15 @@ def test_a_bad_manifest_focal_length_names_file_and_line(tmp_path, capsys, focal
 
 def test_a_wrong_config_type_names_the_field(tmp_path, capsys):
     config = tmp_path / "c.toml"
-    config.write_text('[render]\nsky_rgb = "abc"\n')
+    config.write_text('[lighting]\nsky_rgb = "abc"\n')
     assert main(["export", "--seed", "0", "--env", "0", "--config", str(config), "--out",
                  str(tmp_path / "s.glb")]) == 2
-    one_line_error(capsys, "render.sky_rgb = 'abc'", "3 numbers in [0.0, 1.0]")
+    one_line_error(capsys, "lighting.sky_rgb = 'abc'", "3 numbers in [0.0, 1.0]")
 
 
 def test_a_config_that_is_not_utf8_names_the_file(tmp_path, capsys):
     config = tmp_path / "c.toml"
-    config.write_bytes(b"[render]\n# caf\xe9\nexposure = 1.0\n")
+    config.write_bytes(b"[lighting]\n# caf\xe9\nexposure = 1.0\n")
     assert main(["export", "--seed", "0", "--env", "0", "--config", str(config), "--out",
                  str(tmp_path / "s.glb")]) == 2
     one_line_error(capsys, str(config), "not UTF-8")

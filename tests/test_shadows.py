@@ -75,11 +75,11 @@ def _scene(with_roof: bool):
     return scene_of(*items)
 
 
-def _render(scene, sun_intensity: float = 3.0, **render):
+def _render(scene, sun_irradiance: float = 3.0, **render):
     """The sun from kwargs sun_elevation_deg / sun_azimuth_deg; no occlusion of the ambient
     light, so that only the sun's shadow changes pixels."""
     light = {k: render.pop(k) for k in ("sun_elevation_deg", "sun_azimuth_deg") if k in render}
-    lighting = dataclasses.replace(LIGHT, sun_irradiance=sun_intensity, **light)
+    lighting = dataclasses.replace(LIGHT, sun_irradiance=sun_irradiance, **light)
     r = Renderer(dataclasses.replace(render_config(64, 48), ao="off", sky_visibility_maps=0,
                                      **render))
     try:
@@ -94,7 +94,7 @@ def _render(scene, sun_intensity: float = 3.0, **render):
 def test_a_roof_far_towards_the_sun_shadows_exactly_its_half_of_the_ground():
     shadowed = _render(_scene(True), **ZENITH, shadow_map_px=512)
     lit = _render(_scene(True), **ZENITH, shadow_map_px=0)
-    ambient = _render(_scene(True), **ZENITH, shadow_map_px=0, sun_intensity=0.0)
+    ambient = _render(_scene(True), **ZENITH, shadow_map_px=0, sun_irradiance=0.0)
     # The roof covers world x > 0: image columns right of the centre (fx = 64, 64 px wide).
     left, right = slice(0, 29), slice(35, 64)
     assert np.array_equal(shadowed.color[:, left], lit.color[:, left])
