@@ -1,7 +1,7 @@
-"""Each lighting knob's time and colour error, in one run: the default preset's views rendered
-with the default knobs, then with one knob at a time changed (SSAO on; the others back to the
-old approximation), all scored against one Cycles reference of the same views (same sun and
-sky for every row).
+"""Each occlusion knob's time and colour error, in one run: the default preset's views rendered
+with the default knobs, then with one knob at a time changed (SSAO on; the sky-visibility maps
+off), all scored against one Cycles reference of the same views (same sun and sky for every
+row).
 Time per sample = median render + environment opening (the sky-visibility maps are baked
 there) / cameras per environment. Needs Blender.
 
@@ -19,7 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, write_results  # noqa: E402
 
-from glsynth.core.config import load_config  # noqa: E402
+from glsynth.core.config import config_from_dict, load_config  # noqa: E402
 from glsynth.core.images import nearest_resize  # noqa: E402
 from glsynth.measure.quality import area_resize, colour_scores, spread_cameras  # noqa: E402
 from glsynth.render.cycles import (  # noqa: E402
@@ -33,10 +33,8 @@ from glsynth.render.view import EnvironmentView  # noqa: E402
 SIZE = (480, 270)
 VARIANTS = {
     "default (sky maps + SH, SSAO off)": {},
-    "SSAO on": {"ao": "ssao"},
-    "sky visibility maps off": {"sky_visibility_maps": 0},
-    "hemisphere ambient (no SH, no maps)": {"ambient": "hemisphere"},
-    "exponential tone map": {"tone_map": "exponential"},
+    "SSAO on": {"render": {"ao": "ssao"}},
+    "sky visibility maps off": {"render": {"sky_visibility_maps": 0}},
 }
 
 
@@ -59,10 +57,10 @@ def run(config, cameras: list[int], samples: int, blender: str) -> dict:
             parts = [p for p in view.environment.parts if p.name in view.scene.parts]
             cams = [dataclasses.replace(p.camera, width=SIZE[0], height=SIZE[1])
                     for p in placements]
-            result = render_linear(parts, view.dressing.materials, view.lighting,
-                                   config.render, cams, [cycles_seed(0, 0, i) for i in cameras],
-                                   samples, RESULTS / "lighting_work", blender)
-            reference = [display(x, view.lighting, config.render) for x in result.linear]
+            result = render_linear(parts, view.dressing.materials, view.lighting, cams,
+                                   [cycles_seed(0, 0, i) for i in cameras], samples,
+                                   RESULTS / "lighting_work", blender)
+            reference = [display(x, view.lighting) for x in result.linear]
     finally:
         view.renderer.release()
     render_s = statistics.median(times)
@@ -84,7 +82,7 @@ def main() -> None:
                "rows": {}}
     reference = None
     for name, change in VARIANTS.items():
-        config = dataclasses.replace(base, render=dataclasses.replace(base.render, **change))
+        config = config_from_dict(change, base)
         got = run(config, cameras, args.samples if reference is None else 0, blender)
         reference = reference or got["reference"]
         scores = [colour_scores(i, r, c) for i, r, c in

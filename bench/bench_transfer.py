@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, training_env, write_results  # noqa: E402
 
 FIXED_LIGHT = ("sun_elevation_deg = [45.0, 45.0]\nsun_azimuth_deg = [180.0, 180.0]\n"
-               "sun_intensity = [3.0, 3.0]\nturbidity = [3.0, 3.0]\n")
+               "sun_irradiance = [3.0, 3.0]\nturbidity = [3.0, 3.0]\n")
 TRAIN_SETS = {"gl": ("gl", ()), "cycles": ("cycles", ()), "gl_augment": ("gl", ("all",)),
               "gl_fixed_light": ("gl_fixed", ())}
 TASKS = {"component": ("gl", "cycles", "gl_augment", "gl_fixed_light"), "depth": ("gl", "cycles")}
@@ -51,7 +51,7 @@ def dataset_configs(args: argparse.Namespace) -> dict[str, tuple[str, list[str]]
     return {"gl": (full + plates + cameras, []),
             "cycles": (full + plates + cameras, ["--renderer", "cycles", "--samples",
                                                  str(args.samples)]),
-            "gl_fixed": (train_only + plates + cameras + "[render]\n" + FIXED_LIGHT, [])}
+            "gl_fixed": (train_only + plates + cameras + "[lighting]\n" + FIXED_LIGHT, [])}
 
 
 def generate(out: Path, args: argparse.Namespace) -> dict:

@@ -31,7 +31,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import write_results  # noqa: E402
 
-from glsynth.core.config import HEIGHTS_FROM, PLACEMENTS, Config, load_config  # noqa: E402
+from glsynth.core.checks import literal_choices  # noqa: E402
+from glsynth.core.config import CameraConfig, Config, load_config  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
 from glsynth.data.filters import removal_reason  # noqa: E402
 from glsynth.data.statistics import PAPER  # noqa: E402
@@ -46,8 +47,9 @@ CLASSES = [c for c in Component if c != Component.UNLABELLED]
 KINDS = ("regular", "closeup")
 
 
-def with_render(config: Config, **changes) -> Config:
-    return dataclasses.replace(config, render=dataclasses.replace(config.render, **changes))
+def with_exposure(config: Config, exposure: float) -> Config:
+    return dataclasses.replace(config, lighting=dataclasses.replace(config.lighting,
+                                                                    exposure=exposure))
 
 
 def view_records(config: Config, env: int, renderer: Renderer) -> list[dict]:
@@ -130,7 +132,7 @@ def cycles_check(config: Config, envs: int, exposures: list[float], samples: int
     try:
         for env in range(envs):
             for e in exposures:
-                view = EnvironmentView.open(with_render(config, exposure=e), 0, env, renderer)
+                view = EnvironmentView.open(with_exposure(config, e), 0, env, renderer)
                 outs = [view.render(i, frozenset({"color", "component", "depth"}))
                         for i in range(config.cameras.total)]
                 gl[e] += [(p.kind, removal_reason(o.color, o.component, o.depth))
@@ -139,12 +141,10 @@ def cycles_check(config: Config, envs: int, exposures: list[float], samples: int
             placements = [p for p, _ in outs]
             linear = render_linear(
                 [p for p in view.environment.parts if p.name in view.scene.parts],
-                view.dressing.materials, view.lighting, config.render,
-                [p.camera for p in placements],
+                view.dressing.materials, view.lighting, [p.camera for p in placements],
                 [cycles_seed(0, env, p.index) for p in placements], samples, work, blender).linear
             for e in exposures:
-                cycles[e] += [(p.kind, removal_reason(tone_map(x, config.render.tone_map, e),
-                                                      o.component, o.depth))
+                cycles[e] += [(p.kind, removal_reason(tone_map(x, e), o.component, o.depth))
                               for (p, o), x in zip(outs, linear)]
     finally:
         renderer.release()
@@ -185,7 +185,7 @@ def main() -> None:
     base = preview_config(load_config(args.preset), args.width)
     results = {"paper": {"keep_rate": PAPER["keep_rate"]}, "envs": args.envs,
                "size": [base.render.width, base.render.height],
-               "exposure": base.render.exposure, "readings": {}, "exposures": {}}
+               "exposure": base.lighting.exposure, "readings": {}, "exposures": {}}
     if fences:
         results["fence_heights"] = {}
         for height in fences:
@@ -200,8 +200,8 @@ def main() -> None:
     if args.only == "fence":
         write_results("views_fence", results)
         return
-    for placement in PLACEMENTS:
-        for height_from in HEIGHTS_FROM:
+    for placement in literal_choices(CameraConfig, "placement"):
+        for height_from in literal_choices(CameraConfig, "height_from"):
             name = f"placement={placement}, height_from={height_from}"
             config = dataclasses.replace(base, cameras=dataclasses.replace(
                 base.cameras, placement=placement, height_from=height_from))
@@ -211,8 +211,8 @@ def main() -> None:
         f"placement={base.cameras.placement}, height_from={base.cameras.height_from}"]
     for e in exposures:
         results["exposures"][f"exposure={e:g}"] = (
-            default if e == base.render.exposure else measure(with_render(base, exposure=e),
-                                                              args.envs))
+            default if e == base.lighting.exposure else measure(with_exposure(base, e),
+                                                                args.envs))
         print(f"exposure={e:g}", results["exposures"][f"exposure={e:g}"]["keep_rate"],
               flush=True)
     if args.cycles_envs:
