@@ -180,7 +180,7 @@ def _sun_rotation(sun: np.ndarray) -> list[float]:
 
 
 def gltf_binary(parts: Sequence[Part], materials: Mapping[str, Material],
-                sun: np.ndarray | None = None, sun_intensity: float = 1.0) -> bytes:
+                sun: np.ndarray | None = None, sun_irradiance: float = 1.0) -> bytes:
     """The .glb bytes of ``parts`` dressed with ``materials`` (by part name), lit by a sun
     towards ``sun`` (z-up world) of the given intensity (glsynth's radiance units); no light
     when ``sun`` is None."""
@@ -223,7 +223,7 @@ def gltf_binary(parts: Sequence[Part], materials: Mapping[str, Material],
         b.tree["extensionsUsed"] = ["KHR_lights_punctual"]
         b.tree["extensions"] = {"KHR_lights_punctual": {"lights": [
             {"name": "sun", "type": "directional", "color": [1.0, 1.0, 1.0],
-             "intensity": float(sun_intensity)}]}}
+             "intensity": float(sun_irradiance)}]}}
         b.tree["nodes"].append({"name": "sun", "rotation": _sun_rotation(sun),
                                 "extensions": {"KHR_lights_punctual": {"light": 0}}})
         nodes.append(len(b.tree["nodes"]) - 1)
