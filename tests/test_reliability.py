@@ -92,8 +92,8 @@ def _run_folder(tmp_path: Path, name: str, data: bytes | None = None, *,
                 settings_task: str = "component", model_task: str = "component") -> Path:
     torch = pytest.importorskip("torch", reason="needs the [model] extra")
     from glsynth.model.fcn58 import FCN58
+    from glsynth.model.runtime import save_torch
     from glsynth.model.settings import N_OUTPUTS
-    from glsynth.model.train import save_torch
 
     run = tmp_path / name
     run.mkdir()
