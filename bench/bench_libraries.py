@@ -19,6 +19,7 @@ times are medians (and minima) of --repeats calls. Writes bench/results/librarie
 """
 
 import argparse
+import json
 import math
 import subprocess
 import sys
@@ -35,6 +36,7 @@ from glsynth.model.data import load_image, load_map  # noqa: E402
 from glsynth.model.metrics import confusion, segmentation_scores  # noqa: E402
 from glsynth.model.settings import AUGMENTATIONS, CLASS_NAMES, TrainSettings  # noqa: E402
 
+from glsynth.data.dataset import RUN_FILE  # noqa: E402
 from glsynth.data.tokaido import read_manifest  # noqa: E402
 
 IMAGE_SIZE = (480, 270)
@@ -231,8 +233,12 @@ def main() -> None:
     import importlib.metadata as meta
 
     versions = {p: meta.version(p) for p in ("torch", "kornia", "torchmetrics", "tyro")}
+    run = json.loads((args.data / RUN_FILE).read_text()) if (args.data / RUN_FILE).is_file() \
+        else {}
     write_results("libraries", {
         "versions": versions, "install_mib": weights(),
+        "dataset": {"root_seed": run.get("root_seed"), "config_sha256": run.get("config_sha256"),
+                    "views": [r.image for r in views(args.data)]},
         "augment": weigh_augment(args.data, args.repeats),
         "metrics": {task: weigh_task(args.data, task, args.repeats) for task in CLASS_NAMES},
         "options": weigh_options(args.repeats)})
