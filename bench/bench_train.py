@@ -50,7 +50,8 @@ def bare_steps(size: tuple[int, int], steps: int, bf16: bool) -> float:
 def loop_rate(data: Path, size: tuple[int, int]) -> tuple[float, int]:
     """Images per second of glsynth's training loop over the dataset's training images: the
     second of two epochs (the first pays for oneDNN's kernel set-up)."""
-    from glsynth.model.train import TrainSettings, train
+    from glsynth.model.settings import TrainSettings
+    from glsynth.model.train import train
 
     with tempfile.TemporaryDirectory() as tmp:
         settings = TrainSettings(task="component", data=str(data), image_size=size,
@@ -72,7 +73,7 @@ def main() -> None:
     if not (data / "files_train.csv").exists():
         sys.exit(f"--data {data}: no dataset there; run bash scripts/setup.sh first")
     import torch
-    from glsynth.model.train import bf16_helps
+    from glsynth.model.runtime import bf16_helps
 
     native = bf16_helps(torch.device("cpu"))
     results = {"allocator": "jemalloc" if JEMALLOC in os.environ.get("LD_PRELOAD", "")

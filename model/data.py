@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
-from glsynth.model.settings import N_OUTPUTS, TASKS, target_size
+from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS, TASKS, VIEWS, target_size
 from PIL import Image
 from torch.utils.data import Dataset
 
@@ -118,8 +118,8 @@ class TokaidoDataset(Dataset):
             raise ValueError("puretex = True: plate images have only damage labels; use "
                              "task='damage'")
         views = views or ("all" if task == "damage" else "regular")
-        if views not in ("regular", "closeup", "all"):
-            raise ValueError(f"views = {views!r}: choose 'regular', 'closeup' or 'all'")
+        if views not in VIEWS:
+            raise ValueError(f"views = {views!r}: choose one of {VIEWS}")
         self.root, self.task, self.size = Path(root), task, image_size
         self.cache = InputCache(self.root, image_size) if cache else None
         frames: list[FrameRecord] = read_manifest(self.root, f"files_{split}.csv")
@@ -155,7 +155,7 @@ class ImageFolder(Dataset):
 
     def __init__(self, root: str | Path, task: str,
                  image_size: tuple[int, int] = (1920, 1080)) -> None:
-        if task not in ("component", "damage"):
+        if task not in CLASS_NAMES:
             raise UserError(f"extra image folders carry labels; task {task!r} has none "
                             "(use them for component or damage)")
         self.root, self.task, self.size = Path(root), task, image_size

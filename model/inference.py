@@ -11,8 +11,8 @@ import torch
 from glsynth.model.data import TokaidoDataset, image_tensor
 from glsynth.model.fcn58 import FCN58
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
+from glsynth.model.runtime import bf16_helps, load_torch, pick_device, predict_ids
 from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS
-from glsynth.model.train import bf16_helps, load_torch, pick_device, predict_ids
 from PIL import Image
 
 from glsynth.assess.condition import read_rgb

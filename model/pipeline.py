@@ -10,14 +10,12 @@ import torch
 from glsynth.model.data import image_tensor
 from glsynth.model.inference import Predictor, load_predictor, resize_map
 from glsynth.model.metrics import confusion, segmentation_scores
-from glsynth.model.settings import CLASS_NAMES
+from glsynth.model.settings import CLASS_NAMES, TASKS
 from PIL import Image
 
 from glsynth.assess.condition import ASSESS_DEFAULTS, AssessSettings, Maps, Photo, read_rgb
 from glsynth.core.errors import UserError
 from glsynth.data.filters import rrdr
-
-TASK_NAMES = ("component", "damage", "depth")
 
 
 def parse_runs(text: str) -> dict[str, str]:
@@ -25,10 +23,10 @@ def parse_runs(text: str) -> dict[str, str]:
     runs = {}
     for part in text.split(","):
         task, _, run = part.partition("=")
-        if task not in TASK_NAMES or not run:
+        if task not in TASKS or not run:
             raise UserError(f"--runs {text!r}: write component=RUN1,damage=RUN2,depth=RUN3")
         runs[task] = run
-    missing = set(TASK_NAMES) - set(runs)
+    missing = set(TASKS) - set(runs)
     if missing:
         raise UserError(f"--runs {text!r}: missing {', '.join(sorted(missing))}; give all "
                         "three trained runs")

@@ -2,18 +2,22 @@
 build its options from them without importing torch."""
 
 import dataclasses
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 from glsynth.core.errors import UserError
+from glsynth.core.labels import LABEL_MAPS
 
-TASKS = ("component", "damage", "depth")
-N_OUTPUTS = {"component": 8, "damage": 3, "depth": 1}
+CLASS_NAMES = {task: [label.name.lower() for label in labels if label]
+               for task, labels in LABEL_MAPS.items()}
+"""Class names of the label tasks, by id 1..K (0, unlabelled, is never predicted)."""
+TASKS = (*CLASS_NAMES, "depth")
+N_OUTPUTS = {**{task: len(names) for task, names in CLASS_NAMES.items()}, "depth": 1}
 """Network output channels per task: ids 1..8 (components), 1..3 (damage), metres (depth)."""
-CLASS_NAMES = {"component": ["nonbridge", "slab", "beam", "column", "nonstructural", "rail",
-                             "sleeper", "other"],
-               "damage": ["no_damage", "concrete", "rebar"]}
+VIEWS = ("regular", "closeup", "all")
+PRECISIONS = ("auto", "bf16", "fp32")
 PAPER_SCHEDULE = ((1e-3, 200), (1e-4, 50), (1e-5, 10))
 MIN_SIDE = 96
 """FCN58's smallest input side: /3, /2 and four 2x2 pools leave one pixel at the deepest scale."""
@@ -71,7 +75,9 @@ def _folder(text: str) -> str:
 
 @dataclass(frozen=True)
 class TrainSettings:
-    task: Literal["component", "damage", "depth"]
+    # Literal[tuple] is Literal of the tuple's items: the command line's choices come from
+    # these types (glsynth.core.options), so each list of values is written once, above.
+    task: Literal[TASKS]
     """Which network: component labels, damage labels or depth."""
     data: str = field(metadata={"parse": _folder, "metavar": "DIR"})
     """Tokaido-layout dataset root (glsynth's output or the released dataset)."""
@@ -100,7 +106,7 @@ class TrainSettings:
     the training device; off by default, as the paper used flips only."""
     seed: int = 0
     """Seed of the validation split, the initial weights, shuffling and flips."""
-    precision: Literal["auto", "bf16", "fp32"] = "auto"
+    precision: Literal[PRECISIONS] = "auto"
     """bf16 autocast, fp32, or auto: bf16 only where the hardware runs it natively."""
     channels_last: bool = True
     """NHWC memory layout (faster on CPUs and GPUs)."""
@@ -112,14 +118,13 @@ class TrainSettings:
     first decode no PNG. The tensors are the same as without it."""
     time_budget_min: float | None = None
     """Stop after the step that passes this many minutes of training (then validate, save)."""
-    views: Literal["regular", "closeup", "all"] | None = None
+    views: Literal[VIEWS] | None = None
     """Camera kinds to train on; default regular for component/depth, all for damage."""
     device: str = field(default="auto", compare=False)
     """auto, cpu, cuda or cuda:N."""
 
     def __post_init__(self) -> None:
-        if self.task not in TASKS:
-            raise UserError(f"--task {self.task!r}: choose one of {', '.join(TASKS)}")
+        self._check_choices()
         for name, lo in (("batch_size", 1), ("val_count", 0), ("loader_workers", 0)):
             value = getattr(self, name)
             if not isinstance(value, int) or value < lo:
@@ -129,19 +134,27 @@ class TrainSettings:
                             "and EPOCHS >= 1, e.g. 1e-3:200,1e-4:50,1e-5:10")
         if not self.weight_decay >= 0:
             raise UserError(f"--weight-decay {self.weight_decay}: give a number >= 0")
-        if self.precision not in ("auto", "bf16", "fp32"):
-            raise UserError(f"--precision {self.precision!r}: choose auto, bf16 or fp32")
         if self.time_budget_min is not None and not self.time_budget_min > 0:
             raise UserError(f"--time-budget-min {self.time_budget_min}: give minutes > 0")
         unknown = [a for a in self.augment if a not in AUGMENTATIONS]
         if unknown:
             raise UserError(f"--augment {','.join(self.augment)}: unknown {', '.join(unknown)}; "
                             f"choose from {', '.join(AUGMENTATIONS)}")
-        if self.views not in (None, "regular", "closeup", "all"):
-            raise UserError(f"--views {self.views!r}: choose regular, closeup or all")
         if self.extra and self.task == "depth":
             raise UserError("--extra: real image folders carry labels, not depth; drop it "
                             "for --task depth")
+
+    def _check_choices(self) -> None:
+        """Each Literal-typed field holds one of its values: the command line allows only
+        those, but a caller or a settings.json may give anything."""
+        hints = typing.get_type_hints(type(self))
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            choices = [c for t in (hints[f.name], *typing.get_args(hints[f.name]))
+                       if typing.get_origin(t) is Literal for c in typing.get_args(t)]
+            if choices and value is not None and value not in choices:
+                raise UserError(f"--{f.name.replace('_', '-')} {value!r}: choose one of "
+                                f"{', '.join(choices)}")
 
     @property
     def epochs(self) -> int:

@@ -149,7 +149,7 @@ def test_input_cache_decodes_a_changed_image_again(tiny_dataset, tmp_path):
 
 
 def test_augmented_cached_training_is_reproducible(tiny_dataset, tmp_path):
-    from glsynth.model.train import load_torch
+    from glsynth.model.runtime import load_torch
 
     options = ["--task", "component", "--data", str(tiny_dataset), "--image-size", "192x108",
                "--batch-size", "2", "--schedule", "1e-3:1", "--loader-workers", "0",

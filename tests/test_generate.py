@@ -43,6 +43,7 @@ def test_format_compliance(reference):
     train = read_manifest(root, "files_train.csv")
     test = read_manifest(root, "files_test.csv")
     assert train and test
+    damage_pixels = np.zeros(len(DAMAGE_IDS), np.int64)  # of the damage task's images, by id
     assert all("case0_" in r.image for r in train) and all("case1_" in r.image for r in test)
     for r in train + test:
         image = np.asarray(Image.open(root / r.image))
@@ -56,6 +57,8 @@ def test_format_compliance(reference):
         assert set(np.unique(dmg)) <= DAMAGE_IDS
         assert 15.0 <= r.focal_mm <= 55.0
         assert r.damage_in_rrdr == bool(np.isin(dmg, [2, 3]).any())
+        if r.damage_in_rrdr:
+            damage_pixels += np.bincount(dmg.ravel(), minlength=len(DAMAGE_IDS))
         index = int(r.image.rsplit("_frame", 1)[1].split("_")[0])
         assert r.regular == (index < 3)
         meta = json.loads((root / "meta" / ("train" if r in train else "test")
@@ -67,14 +70,20 @@ def test_format_compliance(reference):
         root, "files_puretex_test.csv")
     assert len(pure) == 3 and len(read_manifest(root, "files_puretex_test.csv")) == 1
     for r in pure:
-        assert np.asarray(Image.open(root / r.damage)).shape == (360, 640)
+        dmg = np.asarray(Image.open(root / r.damage))
+        assert dmg.shape == (360, 640)
+        damage_pixels += np.bincount(dmg.ravel(), minlength=len(DAMAGE_IDS))
     report = json.loads((root / "report.json").read_text())
     assert report["kept"] == len(train) + len(test)
     stats = report["statistics"]
     removed = sum(sum(r.values()) for r in stats["removed"].values())
     assert report["kept"] + removed == 2 * 5
     assert stats["images"]["regular"] + sum(stats["removed"]["regular"].values()) == 2 * 3
-    assert 0 <= stats["damage_share"]["concrete"] + stats["damage_share"]["rebar"] <= 1
+    # The shares of the damage task's labelled pixels, as the label files hold them.
+    labelled = damage_pixels[1:].sum()
+    assert damage_pixels[2] > 0 and labelled > damage_pixels[2:].sum()
+    assert stats["damage_share"] == {"concrete": pytest.approx(damage_pixels[2] / labelled),
+                                     "rebar": pytest.approx(damage_pixels[3] / labelled)}
     assert (root / "contact_sheet.png").stat().st_size > 1000
 
 

@@ -9,7 +9,8 @@ import torch
 from glsynth.model.fcn58 import FCN58, count_macs, parameter_count
 from glsynth.model.losses import berhu, class_frequencies, mfb_weights, weighted_cross_entropy
 from glsynth.model.metrics import confusion, depth_errors, pooled_depth, segmentation_scores
-from glsynth.model.train import flip_batch, predict_ids, seeded_torch, torch_generator
+from glsynth.model.runtime import predict_ids
+from glsynth.model.train import flip_batch, seeded_torch, torch_generator
 
 from glsynth.cli import main
 
@@ -185,7 +186,9 @@ def test_training_run_writes_its_files(component_run):
 
 
 def test_resumed_training_equals_an_uninterrupted_run(tiny_dataset, component_run, tmp_path):
-    from glsynth.model.train import load_torch, settings_from_json, train
+    from glsynth.model.runtime import load_torch
+    from glsynth.model.settings import settings_from_json
+    from glsynth.model.train import train
 
     settings = settings_from_json(json.loads((component_run / "settings.json").read_text()))
 

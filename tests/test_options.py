@@ -76,3 +76,17 @@ def test_the_train_command_is_built_from_train_settings():
     assert settings.task == "depth" and settings.image_size == (480, 270)
     assert settings.schedule == ((1e-3, 2),) and settings.batch_size == 8
     assert settings.data.endswith("/d")  # resolved to an absolute folder
+
+
+def test_train_settings_take_their_names_from_the_labels_and_check_every_choice():
+    from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS, TrainSettings
+
+    from glsynth.core.errors import UserError
+    from glsynth.core.labels import Component, Damage
+
+    assert CLASS_NAMES["component"][Component.SLEEPER - 1] == "sleeper"
+    assert CLASS_NAMES["damage"][Damage.REBAR - 1] == "rebar"
+    assert N_OUTPUTS == {"component": 8, "damage": 3, "depth": 1}  # the paper's FCN58 heads
+    for name, value in (("task", "segment"), ("precision", "fp16"), ("views", "aerial")):
+        with pytest.raises(UserError, match=f"--{name} '{value}': choose one of"):
+            TrainSettings(**{"task": "depth", "data": "d", name: value})

@@ -24,3 +24,6 @@ class Damage(IntEnum):
 
 COMPONENT_IDS = frozenset(int(c) for c in Component)
 DAMAGE_IDS = frozenset(int(d) for d in Damage)
+LABEL_MAPS: dict[str, type[IntEnum]] = {"component": Component, "damage": Damage}
+"""The two label maps by the name the Tokaido layout, its manifests and the networks' tasks
+give them."""
