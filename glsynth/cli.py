@@ -395,7 +395,7 @@ def _samples(text: str) -> list[int]:
 
 
 def cmd_bench_blender(args: argparse.Namespace) -> int:
-    from glsynth.render.blender import bench_blender, blender_table
+    from glsynth.measure.blender_bench import bench_blender, blender_table
     from glsynth.render.cycles import find_blender
 
     blender = find_blender(args.blender)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from glsynth.cli import main
-from glsynth.render.blender import compare_labels_depth, read_pass
+from glsynth.measure.blender_bench import compare_labels_depth, read_pass
 
 
 def test_compare_counts_blender_sky_as_nonbridge_and_depth_where_both_hit():
