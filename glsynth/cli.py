@@ -24,7 +24,7 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_quality_arg(p: argparse.ArgumentParser) -> None:
-    from glsynth.measure.quality import QUALITY
+    from glsynth.data.quality import QUALITY
 
     p.add_argument("--quality", choices=list(QUALITY), default=None,
                    help="quality preset overriding resolution, MSAA, textures, octaves, "
@@ -82,7 +82,7 @@ def _check_cameras(config: Config, indices: list[int]) -> None:
 def _config(args: argparse.Namespace) -> Config:
     config = load_config(args.preset, args.config)
     if getattr(args, "quality", None):
-        from glsynth.measure.quality import apply_quality
+        from glsynth.data.quality import apply_quality
 
         config = apply_quality(config, args.quality)
     # Only commands with the renderer options (render, generate) override [render] with them.
@@ -367,7 +367,8 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_quality(args: argparse.Namespace) -> None:
-    from glsynth.measure.quality import QUALITY, bench_quality, quality_table, spread_cameras
+    from glsynth.data.quality import QUALITY
+    from glsynth.measure.quality_bench import bench_quality, quality_table, spread_cameras
     from glsynth.render.cycles import require_blender
 
     presets = args.presets.split(",") if args.presets else list(QUALITY)

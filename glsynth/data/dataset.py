@@ -40,6 +40,7 @@ from glsynth.data.statistics import (
     read_removals,
 )
 from glsynth.data.tokaido import (
+    IMAGE_SIZE,
     LABEL_STRIDE,
     FrameRecord,
     PuretexRecord,
@@ -56,10 +57,11 @@ REASONS = ("dark", "single_component", "too_close")
 
 def check_format(config: Config) -> None:
     r = config.render
-    if (r.width, r.height) != (1920, 1080):
-        raise UserError(f"render size {r.width}x{r.height}: the Tokaido format needs "
-                        "1920x1080 images (labels 640x360); set [render] width = 1920 and "
-                        "height = 1080")
+    (w, h), stride = IMAGE_SIZE, LABEL_STRIDE
+    if (r.width, r.height) != IMAGE_SIZE:
+        raise UserError(f"render size {r.width}x{r.height}: the Tokaido format needs {w}x{h} "
+                        f"images (labels {w // stride}x{h // stride}); set [render] width = {w} "
+                        f"and height = {h}")
 
 
 def environment_split(config: Config, env: int) -> str:
@@ -334,7 +336,7 @@ def merge(config: Config, out: Path) -> dict:
     stats = dataset_statistics(counts, read_removals(out))
     return {"kept": stats["images"]["regular"] + stats["images"]["closeup"],
             "plates": stats["images"]["plate"], "statistics": stats,
-            "label_size": [1920 // LABEL_STRIDE, 1080 // LABEL_STRIDE]}
+            "label_size": [side // LABEL_STRIDE for side in IMAGE_SIZE]}
 
 
 def _frame_number(image: str) -> int:

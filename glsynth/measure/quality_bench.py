@@ -1,14 +1,6 @@
-"""Quality presets, from ``preview`` to ``reference``, and the measured trade between speed and
-accuracy (``glsynth bench quality``).
-
-A preset sets these knobs of a config (each documented in README.md):
-- render resolution, as a scale of 1920x1080 (the Tokaido format needs 1.0);
-- MSAA samples for colour (labels and depth are never multisampled);
-- texture resolution of repository materials, and of damage textures;
-- noise octaves of the damage textures;
-- tessellation of cylinders (poles and wires; rebar lives in the damage textures);
-- the sun's shadow map size (0: no shadows);
-- the sky-visibility maps (0, 4, 9 or 16) and screen-space ambient occlusion ("ssao"/"off").
+"""``glsynth bench quality``: the quality presets (glsynth/data/quality.py) measured, speed
+against accuracy. Colour is scored against Blender Cycles or the 'reference' preset, labels and
+depth against an Embree ray cast of the reference scene.
 """
 
 import dataclasses
@@ -22,60 +14,19 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.config import Config
-from glsynth.core.errors import UserError
 from glsynth.core.fileio import png_bytes
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Component
+from glsynth.data.quality import QUALITY, apply_quality
+from glsynth.data.tokaido import IMAGE_SIZE
 from glsynth.world.lighting import LUMINANCE
 
-
-@dataclass(frozen=True)
-class Quality:
-    render_scale: float
-    msaa: int
-    texture_size: int
-    damage_resolution: int
-    octaves: int
-    cylinder_segments: int
-    shadow_map_px: int
-    sky_visibility_maps: int
-    ao: str
-
-
-QUALITY = {
-    "preview": Quality(0.25, 0, 128, 256, 4, 6, 512, 4, "off"),
-    "fast": Quality(0.5, 0, 256, 512, 6, 8, 1024, 16, "off"),
-    "balanced": Quality(1.0, 0, 512, 1024, 8, 12, 2048, 16, "off"),
-    "default": Quality(1.0, 4, 512, 1024, 8, 12, 2048, 16, "off"),
-    "high": Quality(1.0, 4, 512, 2048, 8, 12, 2048, 16, "off"),
-    "reference": Quality(1.0, 4, 1024, 2048, 8, 24, 4096, 16, "ssao"),
-}
-"""'default' is Config()'s own setting; 'high' matches the paper preset's 2048 px damage.
-'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has),
-and SSAO (2 % less colour error against Cycles for 0.2 s a frame). 'preview' keeps sun
-shadows (without them, shade is wrong everywhere) on a small map, and 4 sky maps."""
+_FULL_SIZE = "x".join(map(str, IMAGE_SIZE))
 
 
 def spread_cameras(total: int, count: int) -> list[int]:
     """``count`` camera indices spread evenly over an environment's ``total`` cameras."""
     return sorted({round(i * (total - 1) / max(1, count - 1)) for i in range(count)})
-
-
-def apply_quality(config: Config, name: str) -> Config:
-    if name not in QUALITY:
-        raise UserError(f"quality {name!r}: choose one of {', '.join(QUALITY)}")
-    q = QUALITY[name]
-    width, height = round(1920 * q.render_scale), round(1080 * q.render_scale)
-    return dataclasses.replace(
-        config,
-        render=dataclasses.replace(config.render, width=width, height=height, msaa=q.msaa,
-                                   shadow_map_px=q.shadow_map_px,
-                                   sky_visibility_maps=q.sky_visibility_maps, ao=q.ao),
-        materials=dataclasses.replace(config.materials, texture_size=q.texture_size),
-        damage=dataclasses.replace(config.damage, resolution=q.damage_resolution,
-                                   octaves=q.octaves),
-        environment=dataclasses.replace(config.environment,
-                                        cylinder_segments=q.cylinder_segments))
 
 
 def _upsample(values: np.ndarray, shape: tuple[int, int], nearest: bool) -> np.ndarray:
@@ -209,11 +160,11 @@ def _cycles_renders(scene: dict, placements: list, samples: int, seed_offset: in
 
 def _cycles_timing(scene: dict, placement, root_seed: int, env: int, work: Path,
                    blender: str) -> dict:
-    """Cycles' time for one 1920x1080 view as fixed + per sample: the view at 1, 1 and 4
+    """Cycles' time for one full-size (Tokaido) view as fixed + per sample: the view at 1, 1 and 4
     samples in one process (the first render loads the scene; the next two are timed)."""
     from glsynth.render.cycles import cycles_seed, render_linear
 
-    cam = dataclasses.replace(placement.camera, width=1920, height=1080)
+    cam = dataclasses.replace(placement.camera, width=IMAGE_SIZE[0], height=IMAGE_SIZE[1])
     seed = cycles_seed(root_seed, env, placement.index)
     result = render_linear(scene["parts"], scene["materials"], scene["lighting"],
                            scene["render"], [cam] * 3, [seed] * 3, [1, 1, 4], work, blender)
@@ -297,7 +248,7 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
               "render_knobs": {k: getattr(config.render, k) for k in LIGHTING_KNOBS},
               "note": "time_per_sample_s: glsynth = median render at the preset's own size + "
                       "environment opening / cameras per environment; Cycles = fixed + "
-                      "per-sample time of a 1920x1080 render of the first view, measured at 1 "
+                      f"per-sample time of a {_FULL_SIZE} render of the first view, measured at 1 "
                       "and 4 samples with the scene already loaded. Colour compared "
                       "at the comparison size (glsynth area-averaged down to it); "
                       "vs_raycast: labels and depth against an Embree ray cast of the "
@@ -335,7 +286,7 @@ def quality_table(result: dict) -> str:
             f"{_fmt(r['ciede2000_shadowed'], '.2f')} |")
     for n, r in result["cycles"].items():
         lines.append(
-            f"| Cycles {n} spp | 1920x1080 | - | - | - | - | - | - | "
+            f"| Cycles {n} spp | {_FULL_SIZE} | - | - | - | - | - | - | "
             f"{r['time_per_sample_s']:.1f} s | {r['psnr_db']:.1f} dB | "
             f"{r['ssim']:.3f} | {r['ciede2000']:.2f} | {_fmt(r['ciede2000_columns'], '.2f')} "
             f"| {_fmt(r['ciede2000_deck_underside'], '.2f')} | "
@@ -380,7 +331,7 @@ def plot_trade_curve(result: dict, path: Path) -> None:
         a.axhline(result["noise_floor"]["ciede2000"], color="grey", ls=":",
                   label="reference noise floor")
     a.set_xscale("log")
-    a.set_xlabel("time per 1920x1080 sample [s]")
+    a.set_xlabel(f"time per {_FULL_SIZE} sample [s]")
     a.set_ylabel(f"mean CIEDE2000 vs {result['reference']}")
     a.legend()
     b.plot(x, [100 * r["vs_raycast"]["component_agreement"] for r in rows], "o-",
