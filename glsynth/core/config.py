@@ -11,7 +11,7 @@ import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from glsynth.core import design
 from glsynth.core.checks import check_choice, check_interval, check_number, check_vector, fail
@@ -187,7 +187,7 @@ class RenderConfig:
     stop over 1) the Section 3.4 dark filter removes about as many views of each camera kind as
     the paper's did, in GL and in Cycles alike (bench/bench_views.py, README "Camera
     placement")."""
-    renderer: str = "gl"
+    renderer: Literal["gl", "cycles"] = "gl"
     """Colour by "gl" (the rasterizer) or "cycles" (the Cycles twin, glsynth.render.cycles;
     needs Blender). Labels and depth always come from GL."""
     cycles_samples: int = 128
