@@ -4,6 +4,7 @@ depth against an Embree ray cast of the reference scene.
 """
 
 import dataclasses
+import functools
 import shutil
 import statistics
 import sys
@@ -174,6 +175,83 @@ def _cycles_timing(scene: dict, placement, root_seed: int, env: int, work: Path,
             "first_render_s": result.colour_s[0], "import_s": result.import_s}
 
 
+@dataclass
+class _Reference:
+    """The colour every preset is scored against, at the comparison size."""
+
+    name: str
+    images: list[np.ndarray]
+    render_s: list[float] = dataclasses.field(default_factory=list)
+    """Cycles' times at the comparison size (none for glsynth's reference preset)."""
+    noise_floor: dict | None = None
+    cycles_1080p_timing: dict | None = None
+    cycles_rows: dict = dataclasses.field(default_factory=dict)
+    """Cycles at each sample count of the time axis, scored as the presets are."""
+
+
+def _median_colour_scores(images: list[np.ndarray], reference: list[np.ndarray],
+                          components: list[np.ndarray]) -> dict:
+    return _median_scores([colour_scores(i, r, c)
+                           for i, r, c in zip(images, reference, components)])
+
+
+def _run_presets(config: Config, presets: list[str], root_seed: int, env: int,
+                 cameras: list[int]) -> tuple[dict[str, _PresetRun], dict]:
+    """Each preset's renders, the 'reference' preset's first; its scene (with the ray-cast
+    truths) is returned for scoring and for Cycles."""
+    runs: dict[str, _PresetRun] = {}
+    scene = None
+    for name in ["reference"] + [p for p in presets if p != "reference"]:
+        runs[name], kept = _run_preset(config, name, root_seed, env, cameras,
+                                       keep_scene=name == "reference")
+        scene = kept or scene
+    return runs, scene
+
+
+def _cycles_reference(scene: dict, placements: list, components: list[np.ndarray],
+                      size: tuple[int, int], root_seed: int, env: int, out: Path, blender: str,
+                      reference_samples: int, cycles_samples: tuple[int, ...]) -> _Reference:
+    """Cycles at ``reference_samples`` as the reference, rendered twice with different seeds
+    (its noise floor), and Cycles at each of ``cycles_samples`` scored against it."""
+    from glsynth.core.fileio import atomic_write_bytes
+
+    work = out / "cycles_work"
+    render = functools.partial(_cycles_renders, scene, placements, size=size,
+                               root_seed=root_seed, env=env, work=work, blender=blender)
+    images, times = render(reference_samples, 0)
+    second, _ = render(reference_samples, 1_000_003)
+    reference = _Reference(
+        name=f"Cycles {reference_samples} samples", images=images, render_s=times,
+        noise_floor=_median_colour_scores(second, images, components),
+        cycles_1080p_timing=_cycles_timing(scene, placements[0], root_seed, env, work, blender))
+    timing = reference.cycles_1080p_timing
+    for n in cycles_samples:
+        noisy, times = render(n, 2_000_006)
+        reference.cycles_rows[str(n)] = {
+            "samples": n, "render_s_at_size": statistics.median(times),
+            "time_per_sample_s": timing["fixed_s"] + timing["per_sample_s"] * n,
+            **_median_colour_scores(noisy, images, components)}
+        atomic_write_bytes(out / f"cycles_{n}spp.png", png_bytes(noisy[0]))
+    shutil.rmtree(work, ignore_errors=True)
+    atomic_write_bytes(out / "cycles_reference.png", png_bytes(images[0]))
+    return reference
+
+
+def _preset_row(run: _PresetRun, images: list[np.ndarray], reference: _Reference,
+                components: list[np.ndarray], truths: list, zfar: float) -> dict:
+    """A preset's knobs and times, its colour ``images`` (at the comparison size) scored
+    against the reference, and its labels and depth against the ray cast."""
+    return {**run.row, **_median_colour_scores(images, reference.images, components),
+            "vs_raycast": _median_scores([label_scores(o, t, zfar)
+                                          for o, t in zip(run.renders, truths)])}
+
+
+def _side_by_side(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The image, the reference and their difference x 4."""
+    diff = np.clip(np.abs(image.astype(int) - reference.astype(int)) * 4, 0, 255)
+    return np.concatenate([image, reference, diff.astype(np.uint8)], axis=1)
+
+
 def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], out: Path,
                   presets: list[str] | None = None, blender: str | None = None,
                   size: tuple[int, int] = (480, 270), reference_samples: int = 128,
@@ -186,65 +264,32 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 
     presets = presets or list(QUALITY)
-    order = ["reference"] + [p for p in presets if p != "reference"]
-    runs: dict[str, _PresetRun] = {}
-    scene = None
-    for name in order:
-        runs[name], kept = _run_preset(config, name, root_seed, env, cameras,
-                                       keep_scene=name == "reference")
-        scene = kept or scene
-    reference_run = runs["reference"]
-    components = [nearest_resize(o.component, size[::-1]) for o in reference_run.renders]
-    cycles_rows: dict[str, dict] = {}
-    if blender is not None:
-        work = out / "cycles_work"
-        reference, ref_times = _cycles_renders(scene, reference_run.placements,
-                                               reference_samples, 0, size, root_seed, env,
-                                               work, blender)
-        second, _ = _cycles_renders(scene, reference_run.placements, reference_samples,
-                                    1_000_003, size, root_seed, env, work, blender)
-        floor = _median_scores([colour_scores(b, a, c)
-                                for a, b, c in zip(reference, second, components)])
-        timing = _cycles_timing(scene, reference_run.placements[0], root_seed, env, work,
-                                blender)
-        for n in cycles_samples:
-            images, times = _cycles_renders(scene, reference_run.placements, n, 2_000_006,
-                                            size, root_seed, env, work, blender)
-            cycles_rows[str(n)] = {
-                "samples": n, "render_s_at_size": statistics.median(times),
-                "time_per_sample_s": timing["fixed_s"] + timing["per_sample_s"] * n,
-                **_median_scores([colour_scores(i, r, c)
-                                  for i, r, c in zip(images, reference, components)])}
-            atomic_write_bytes(out / f"cycles_{n}spp.png", png_bytes(images[0]))
-        shutil.rmtree(work, ignore_errors=True)
-        atomic_write_bytes(out / "cycles_reference.png", png_bytes(reference[0]))
-        reference_name = f"Cycles {reference_samples} samples"
+    runs, scene = _run_presets(config, presets, root_seed, env, cameras)
+    renders = runs["reference"].renders
+    components = [nearest_resize(o.component, size[::-1]) for o in renders]
+    if blender is None:
+        reference = _Reference(name="glsynth 'reference' preset",
+                               images=[area_resize(o.color, size) for o in renders])
     else:
-        reference = [area_resize(o.color, size) for o in reference_run.renders]
-        floor, ref_times, timing = None, [], None
-        reference_name = "glsynth 'reference' preset"
-    zfar = config.render.zfar_m
+        reference = _cycles_reference(scene, runs["reference"].placements, components, size,
+                                      root_seed, env, out, blender, reference_samples,
+                                      cycles_samples)
     rows = {}
     for name in presets:
-        run = runs[name]
-        images = [area_resize(o.color, size) for o in run.renders]
-        rows[name] = {**run.row, **_median_scores(
-            [colour_scores(i, r, c) for i, r, c in zip(images, reference, components)])}
-        truth = [label_scores(o, t, zfar) for o, t in zip(run.renders, scene["truths"])]
-        rows[name]["vs_raycast"] = _median_scores(truth)
+        images = [area_resize(o.color, size) for o in runs[name].renders]
+        rows[name] = _preset_row(runs[name], images, reference, components, scene["truths"],
+                                 config.render.zfar_m)
         if name == "default":
-            d = images[0]
-            diff = np.clip(np.abs(d.astype(int) - reference[0].astype(int)) * 4, 0, 255)
-            atomic_write_bytes(out / "side_by_side.png", png_bytes(np.concatenate(
-                [d, reference[0], diff.astype(np.uint8)], axis=1)))
-    lighting = scene["lighting"]
+            atomic_write_bytes(out / "side_by_side.png",
+                               png_bytes(_side_by_side(images[0], reference.images[0])))
     result = {"command": " ".join(["glsynth", *sys.argv[1:]]), "root_seed": root_seed,
               "env": env, "cameras": cameras, "size": list(size),
-              "reference": reference_name, "reference_samples": reference_samples,
-              "reference_render_s_at_size": (statistics.median(ref_times) if ref_times
-                                             else None),
-              "noise_floor": floor, "cycles_1080p_timing": timing,
-              "lighting": dataclasses.asdict(lighting),
+              "reference": reference.name, "reference_samples": reference_samples,
+              "reference_render_s_at_size": (statistics.median(reference.render_s)
+                                             if reference.render_s else None),
+              "noise_floor": reference.noise_floor,
+              "cycles_1080p_timing": reference.cycles_1080p_timing,
+              "lighting": dataclasses.asdict(scene["lighting"]),
               "render_knobs": {k: getattr(config.render, k) for k in LIGHTING_KNOBS},
               "note": "time_per_sample_s: glsynth = median render at the preset's own size + "
                       "environment opening / cameras per environment; Cycles = fixed + "
@@ -253,7 +298,7 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
                       "at the comparison size (glsynth area-averaged down to it); "
                       "vs_raycast: labels and depth against an Embree ray cast of the "
                       "reference preset's scene",
-              "presets": rows, "cycles": cycles_rows}
+              "presets": rows, "cycles": reference.cycles_rows}
     atomic_write_json(out / "quality.json", result)
     atomic_write_bytes(out / "quality.md", quality_table(result).encode())
     plot_trade_curve(result, out / "quality.png")
