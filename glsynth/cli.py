@@ -461,41 +461,47 @@ def cmd_assess(args: argparse.Namespace) -> int:
             raise UserError("--oracle takes its images from the dataset; drop IMAGES")
         photos = oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit)
     else:
-        from glsynth.model.pipeline import (
-            evaluate_rrdr,
-            load_predictors,
-            network_photos,
-            parse_runs,
-        )
-
-        if bool(args.images) == bool(args.data):
-            raise UserError("with --runs give IMAGES to assess, or --data DIR to assess and "
-                            "evaluate a labelled split")
-        predictors = load_predictors(parse_runs(args.runs), args.device)
-        images, focals = list(args.images), [args.focal_mm] * len(args.images)
-        if args.data:
-            from glsynth.data.tokaido import read_manifest
-
-            result = evaluate_rrdr(predictors, Path(args.data), out / "evaluation", settings,
-                                   args.split, use_focal=not args.ignore_focal,
-                                   sensor_mm=args.sensor_mm)
-            b, a = result["before"]["per_class"], result["after"]["per_class"]
-            for name in ("concrete", "rebar"):
-                print(f"{name}: " + "; ".join(
-                    f"{when} P/R/IoU " + "/".join(
-                        "-" if s[k] is None else f"{100 * s[k]:.1f}"
-                        for k in ("precision", "recall", "iou"))
-                    for when, s in (("before", b[name]), ("after RRDR", a[name]))))
-            rows = read_manifest(Path(args.data), f"files_{args.split}.csv")[:args.limit]
-            images = [str(Path(args.data) / r.image) for r in rows]
-            focals = [None if args.ignore_focal else r.focal_mm for r in rows]
-        photos = network_photos(predictors, images, focals, args.sensor_mm)
+        photos = _network_photos(args, settings, out)
     summary = assess_photos(photos, out, settings)
     for failure in summary["failed"]:
         print(f"glsynth assess: {failure['image']}: {failure['error']}", file=sys.stderr)
     print(f"assessed {len(summary['assessed'])} images, {len(summary['failed'])} failed -> "
           f"{out}")
     return 1 if summary["failed"] else 0
+
+
+def _network_photos(args: argparse.Namespace, settings: AssessSettings, out: Path) -> list:
+    """assess --runs: the networks' maps of IMAGES, or of a labelled split (--data), which is
+    also evaluated before and after RRDR."""
+    from glsynth.model.pipeline import evaluate_rrdr, load_predictors, network_photos, parse_runs
+
+    if bool(args.images) == bool(args.data):
+        raise UserError("with --runs give IMAGES to assess, or --data DIR to assess and "
+                        "evaluate a labelled split")
+    predictors = load_predictors(parse_runs(args.runs), args.device)
+    images, focals = list(args.images), [args.focal_mm] * len(args.images)
+    if args.data:
+        from glsynth.data.tokaido import read_manifest
+
+        result = evaluate_rrdr(predictors, Path(args.data), out / "evaluation", settings,
+                               args.split, use_focal=not args.ignore_focal,
+                               sensor_mm=args.sensor_mm)
+        _print_rrdr_scores(result)
+        rows = read_manifest(Path(args.data), f"files_{args.split}.csv")[:args.limit]
+        images = [str(Path(args.data) / r.image) for r in rows]
+        focals = [None if args.ignore_focal else r.focal_mm for r in rows]
+    return network_photos(predictors, images, focals, args.sensor_mm)
+
+
+def _print_rrdr_scores(result: dict) -> None:
+    """Damage precision, recall and IoU before and after RRDR masking."""
+    b, a = result["before"]["per_class"], result["after"]["per_class"]
+    for name in ("concrete", "rebar"):
+        print(f"{name}: " + "; ".join(
+            f"{when} P/R/IoU " + "/".join(
+                "-" if s[k] is None else f"{100 * s[k]:.1f}"
+                for k in ("precision", "recall", "iou"))
+            for when, s in (("before", b[name]), ("after RRDR", a[name]))))
 
 
 def add_bench_parser(sub: Commands) -> None:
