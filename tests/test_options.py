@@ -7,7 +7,13 @@ from typing import Literal
 import pytest
 
 from glsynth.core.errors import UserError
-from glsynth.core.options import add_options, field_docs, from_options, parse_size
+from glsynth.core.options import (
+    add_options,
+    field_choices,
+    field_docs,
+    from_options,
+    parse_size,
+)
 
 
 def _pair(text: str) -> tuple[int, int]:
@@ -115,3 +121,12 @@ def test_the_commands_take_sizes_with_their_own_minimum(argv, message, capsys):
     with pytest.raises(SystemExit):
         build_parser().parse_args(argv)
     assert message in capsys.readouterr().err
+
+
+def test_choices_come_from_a_fields_literal_type():
+    from glsynth.core.config import RenderConfig
+
+    assert field_choices(Example, "mode") == ("a", "b")
+    assert field_choices(RenderConfig, "renderer") == ("gl", "cycles")
+    with pytest.raises(TypeError, match="not a Literal"):
+        field_choices(Example, "name")
