@@ -21,7 +21,7 @@ from common import RESULTS, write_results  # noqa: E402
 
 from glsynth.core.config import config_from_dict, load_config  # noqa: E402
 from glsynth.core.images import nearest_resize  # noqa: E402
-from glsynth.measure.quality import area_resize, colour_scores, spread_cameras  # noqa: E402
+from glsynth.measure.quality_bench import area_resize, colour_scores, spread_cameras  # noqa: E402
 from glsynth.render.cycles import (  # noqa: E402
     cycles_seed,
     display,

@@ -2,7 +2,7 @@
 
 import argparse
 import dataclasses
-import json
+import functools
 import sys
 import time
 from collections.abc import Sequence
@@ -11,10 +11,49 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.assess.condition import AssessSettings
-from glsynth.core.config import PRESETS, Config, config_from_dict, load_config
+from glsynth.core.config import PRESETS, Config, RenderConfig, config_from_dict, load_config
 from glsynth.core.errors import UserError
-from glsynth.core.options import add_options, from_options
+from glsynth.core.options import (
+    add_options,
+    argparse_type,
+    field_choices,
+    from_options,
+    parse_size,
+)
+from glsynth.data.engines import ENGINES
+from glsynth.data.quality import QUALITY, apply_quality
 from glsynth.model.settings import TrainSettings
+
+# Each command has an add_<command>_parser, which declares its options, and a cmd_<command>,
+# which runs it. An option that several commands take is declared once, in an _add_*_arg(s)
+# function below.
+
+
+def non_negative_int(text: str) -> int:
+    """Seeds, indices and counts that may be zero."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 0")
+    return value
+
+
+def positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 1")
+    return value
+
+
+def positive_int_list(text: str) -> list[int]:
+    """'1,16,64' -> [1, 16, 64], each an integer >= 1."""
+    try:
+        values = [int(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give integers >= 1, comma-separated "
+                                         "(e.g. 1,16,64)")
+    return values
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -24,49 +63,50 @@ def _add_config_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_quality_arg(p: argparse.ArgumentParser) -> None:
-    from glsynth.measure.quality import QUALITY
-
     p.add_argument("--quality", choices=list(QUALITY), default=None,
                    help="quality preset overriding resolution, MSAA, textures, octaves, "
                         "tessellation (README: Quality presets)")
 
 
 def _add_renderer_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--renderer", choices=("gl", "cycles"), default=None,
+    p.add_argument("--renderer", choices=field_choices(RenderConfig, "renderer"), default=None,
                    help="colour by the GL rasterizer or by Blender Cycles (labels and depth "
                         "always by GL; default: [render] renderer)")
-    p.add_argument("--samples", type=_count, default=None,
+    p.add_argument("--samples", type=positive_int, default=None,
                    help="Cycles samples per pixel (default: [cycles] samples)")
 
 
-def _add_env_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--env", type=_seed, required=True, help="environment index")
+def _add_seed_arg(p: argparse.ArgumentParser, required: bool = True) -> None:
+    """``--seed``, required by the commands that make data, 0 by default in the benches."""
+    p.add_argument("--seed", type=non_negative_int, required=required,
+                   default=None if required else 0, help="root seed")
 
 
-def _seed(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 0")
-    return value
+def _add_env_args(p: argparse.ArgumentParser, required: bool = True) -> None:
+    _add_seed_arg(p, required)
+    p.add_argument("--env", type=non_negative_int, required=required,
+                   default=None if required else 0, help="environment index")
 
 
-def _count(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 1")
-    return value
+def _add_cameras_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--cameras", type=positive_int, default=6,
+                   help="how many cameras, spread evenly over the environment (default 6)")
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        w = h = 0
-    if min(w, h) < 16:
-        raise argparse.ArgumentTypeError(f"{text!r}: write WIDTHxHEIGHT, each >= 16, "
-                                         "e.g. 480x270")
-    return w, h
+def _add_blender_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
+
+
+def _add_run_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--run", required=True, help="folder of a trained run (glsynth train --out)")
+
+
+def _add_split_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--split", choices=("train", "test"), default="test")
+
+
+def _add_device_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N (default: auto)")
 
 
 def _check_cameras(config: Config, indices: list[int]) -> None:
@@ -82,8 +122,6 @@ def _check_cameras(config: Config, indices: list[int]) -> None:
 def _config(args: argparse.Namespace) -> Config:
     config = load_config(args.preset, args.config)
     if getattr(args, "quality", None):
-        from glsynth.measure.quality import apply_quality
-
         config = apply_quality(config, args.quality)
     # Only commands with the renderer options (render, generate) override the config with them.
     if hasattr(args, "renderer"):
@@ -95,6 +133,21 @@ def _config(args: argparse.Namespace) -> Config:
 
         require_blender(getattr(args, "blender", None))
     return config
+
+
+Commands = argparse._SubParsersAction
+"""What ``add_subparsers`` returns: each add_<command>_parser adds its command to it."""
+
+
+def add_export_parser(sub: Commands) -> None:
+    p = sub.add_parser("export", help="write one environment as .glb plus scene.json")
+    _add_config_args(p)
+    _add_env_args(p)
+    p.add_argument("--out", required=True, help="output .glb path (scene.json goes beside it)")
+    p.add_argument("--flat", action="store_true",
+                   help="flat colours per component, no textures or light (small files)")
+    _add_quality_arg(p)
+    p.set_defaults(func=cmd_export)
 
 
 def cmd_export(args: argparse.Namespace) -> None:
@@ -120,6 +173,16 @@ def cmd_export(args: argparse.Namespace) -> None:
           f"triangles, built in {built:.2f} s -> {glb}, {js}")
 
 
+def add_histograms_parser(sub: Commands) -> None:
+    p = sub.add_parser("histograms", help="height/curvature histograms (paper Fig. 7) as PNG")
+    _add_config_args(p)
+    _add_seed_arg(p)
+    p.add_argument("--count", type=non_negative_int, default=0,
+                   help="trajectories (default: the preset's n_environments)")
+    p.add_argument("--out", required=True, help="output .png path")
+    p.set_defaults(func=cmd_histograms)
+
+
 def cmd_histograms(args: argparse.Namespace) -> None:
     from glsynth.core.plots import trajectory_histograms
     from glsynth.core.seeding import Stream, make_rng
@@ -139,6 +202,20 @@ def cmd_histograms(args: argparse.Namespace) -> None:
     straight = np.mean(np.abs(c) < 1 / 5000.0) * 100
     print(f"{h.size} viaducts: height {h.min():.2f}-{h.max():.2f} m, {straight:.1f} % straight "
           f"-> {args.out}")
+
+
+def add_render_parser(sub: Commands) -> None:
+    p = sub.add_parser("render", help="render cameras of one environment at full resolution")
+    _add_config_args(p)
+    _add_env_args(p)
+    _add_quality_arg(p)
+    p.add_argument("--camera", type=non_negative_int, nargs="+", required=True,
+                   help="camera index: the [cameras] n_regular regular ones first, then the "
+                        "close-ups (paper preset: 0-49, 50-99); several make subfolders")
+    _add_renderer_args(p)
+    _add_blender_arg(p)
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_render)
 
 
 def cmd_render(args: argparse.Namespace) -> None:
@@ -171,6 +248,17 @@ def cmd_render(args: argparse.Namespace) -> None:
               f"{describe_output(output)}; rendered in {elapsed:.2f} s -> {out}")
 
 
+def add_preview_parser(sub: Commands) -> None:
+    p = sub.add_parser("preview", help="low-resolution contact sheet of one environment")
+    _add_config_args(p)
+    _add_env_args(p)
+    _add_cameras_arg(p)
+    p.add_argument("--width", type=positive_int, default=384,
+                   help="width of each tile in pixels")
+    p.add_argument("--out", required=True, help="output .png")
+    p.set_defaults(func=cmd_preview)
+
+
 def cmd_preview(args: argparse.Namespace) -> None:
     from glsynth.core.fileio import atomic_write_bytes, png_bytes
     from glsynth.render.view import EnvironmentView, preview_config, preview_sheet
@@ -185,13 +273,21 @@ def cmd_preview(args: argparse.Namespace) -> None:
           f"-> {args.out}")
 
 
-def cmd_textures(args: argparse.Namespace) -> None:
-    from glsynth.appearance.repository import generate_repository
-
-    t0 = time.perf_counter()
-    root = generate_repository(args.out, args.seed, args.count, args.size)
-    print(f"procedural texture repository ({args.count} per category, {args.size} px) in "
-          f"{time.perf_counter() - t0:.1f} s -> {root}")
+def add_generate_parser(sub: Commands) -> None:
+    p = sub.add_parser("generate", help="render a dataset in the released Tokaido layout")
+    _add_config_args(p)
+    _add_quality_arg(p)
+    _add_renderer_args(p)
+    _add_seed_arg(p)
+    p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
+    p.add_argument("--workers", type=positive_int, default=1,
+                   help="worker processes (local) or Ray actors, one GL context each")
+    p.add_argument("--engine", choices=ENGINES, default="local",
+                   help="local processes, or Ray actors sharded by environment")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster address ('auto', 'host:6379', 'ray://host:10001'); "
+                        "default starts a local Ray. --out must be shared by all nodes")
+    p.set_defaults(func=cmd_generate)
 
 
 def cmd_generate(args: argparse.Namespace) -> None:
@@ -207,23 +303,6 @@ def cmd_generate(args: argparse.Namespace) -> None:
         _generate(args, config, out)
 
 
-def _earlier_runs(report: Path) -> list[dict]:
-    """The runs recorded in an earlier report.json of this folder: its list, or the one run
-    a report from before the list held; none if there is no report."""
-    if not report.exists():
-        return []
-    try:
-        earlier = json.loads(report.read_text())
-    except ValueError as error:
-        raise UserError(f"{report}: not valid JSON ({error}); move it aside and run "
-                        f"again") from None
-    if "runs" in earlier:
-        return list(earlier["runs"])
-    keys = ("engine", "workers", "wall_s", "images_written_this_run", "images_per_s",
-            "worker_seconds_by_phase", "worker_peak_rss_mib")
-    return [{k: earlier.get(k) for k in keys}] if "wall_s" in earlier else []
-
-
 def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     """The run itself, while this process holds the output folder's lock."""
     from tqdm import tqdm
@@ -231,46 +310,48 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
     from glsynth.data.dataset import merge, plan, prepare_output
     from glsynth.data.engines import execute
-    from glsynth.data.report import contact_sheet
+    from glsynth.data.report import (
+        contact_sheet,
+        recorded_runs,
+        run_record,
+        tally_results,
+        with_runs,
+    )
 
     prepare_output(out, config, args.seed)
-    earlier = _earlier_runs(out / "report.json")  # refused before any work if unreadable
+    earlier = recorded_runs(out / "report.json")  # refused before any work if unreadable
     tasks = plan(config)
     t0 = time.perf_counter()
-    images, timings, peaks = 0, {}, {}
-    with tqdm(total=len(tasks), unit="unit", desc="glsynth generate") as bar:
-        bar.update(sum((out / t.marker).exists() for t in tasks))
-        for result in execute(config, args.seed, out, args.workers, args.engine, args.address):
-            images += len(result["rows"]) if result["kind"] == "env" else \
-                sum(len(v) for v in result["rows"].values())
-            for phase, seconds in result["timings"].items():
-                timings[phase] = timings.get(phase, 0.0) + seconds
-            worker = result["worker"]
-            peaks[worker["pid"]] = max(peaks.get(worker["pid"], 0), worker["peak_rss_mib"])
-            bar.update(1)
-    wall = time.perf_counter() - t0
-    summary = merge(config, out)
-    run = {"engine": args.engine, "workers": args.workers, "wall_s": round(wall, 2),
-           "images_written_this_run": images,
-           "images_per_s": round(images / wall, 3) if wall > 0 and images else None,
-           "worker_seconds_by_phase": {k: round(v, 2) for k, v in timings.items()},
-           "worker_peak_rss_mib": sorted(peaks.values())}
-    # This run's figures on top, every run's below: a resumed or repeated run must not
-    # overwrite the timing of the run that made the data.
-    runs = earlier + [run]
-    summary.update(run, runs=runs, wall_s_all_runs=round(sum(r["wall_s"] or 0 for r in runs), 2),
-                   images_written_all_runs=sum(r["images_written_this_run"] or 0 for r in runs))
-    atomic_write_json(out / "report.json", summary)
+    results = execute(config, args.seed, out, args.workers, args.engine, args.address)
+    with tqdm(results, total=len(tasks), initial=sum((out / t.marker).exists() for t in tasks),
+              unit="unit", desc="glsynth generate") as bar:
+        tally = tally_results(bar)
+    run = run_record(tally, args.engine, args.workers, time.perf_counter() - t0)
+    report = with_runs(merge(config, out), earlier, run)
+    atomic_write_json(out / "report.json", report)
     atomic_write_bytes(out / "contact_sheet.png", png_bytes(contact_sheet(out)))
-    stats = summary["statistics"]
+    print(_generated(report, out))
+
+
+def _generated(report: dict, out: Path) -> str:
+    """The line that sums up a finished generate run."""
+    stats = report["statistics"]
     keep = ", ".join(f"{k} {100 * v:.1f} %" for k, v in stats["keep_rate"].items()
                      if v is not None)
     dmg = stats["damage_share"]
-    print(f"kept {summary['kept']} views (keep rate {keep}), {summary['plates']} plates; "
-          f"concrete damage {100 * (dmg['concrete'] or 0):.1f} %, exposed rebar "
-          f"{100 * (dmg['rebar'] or 0):.2f} % of damage-task pixels; "
-          f"{summary['images_per_s'] or 0:.2f} images/s -> {out} (glsynth stats {out} for "
-          "the table beside the paper's)")
+    return (f"kept {report['kept']} views (keep rate {keep}), {report['plates']} plates; "
+            f"concrete damage {100 * (dmg['concrete'] or 0):.1f} %, exposed rebar "
+            f"{100 * (dmg['rebar'] or 0):.2f} % of damage-task pixels; "
+            f"{report['images_per_s'] or 0:.2f} images/s -> {out} (glsynth stats {out} for "
+            "the table beside the paper's)")
+
+
+def add_stats_parser(sub: Commands) -> None:
+    p = sub.add_parser("stats", help="a dataset's statistics beside the paper's (glsynth's or "
+                                     "the released Tokaido dataset)")
+    p.add_argument("dataset", help="Tokaido-layout dataset root")
+    p.add_argument("--out", required=True, help="folder for stats.json, stats.md, stats.png")
+    p.set_defaults(func=cmd_stats)
 
 
 def cmd_stats(args: argparse.Namespace) -> None:
@@ -282,12 +363,32 @@ def cmd_stats(args: argparse.Namespace) -> None:
     print(f"-> {out}/stats.json, stats.md, stats.png")
 
 
+def add_train_parser(sub: Commands) -> None:
+    p = sub.add_parser("train", help="train FCN58 on a Tokaido-layout dataset (needs torch)")
+    add_options(p, TrainSettings)
+    p.add_argument("--out", required=True, help="run folder (new, or a run to resume)")
+    p.set_defaults(func=cmd_train)
+
+
 def cmd_train(args: argparse.Namespace) -> None:
     from glsynth.model.train import train
 
     settings = from_options(TrainSettings, args)
     last = train(settings, args.out)
     print(f"trained {args.task} for {last.get('epoch', 0)} epochs -> {args.out}/model.pt")
+
+
+def add_evaluate_parser(sub: Commands) -> None:
+    p = sub.add_parser("evaluate", help="metrics of a trained run on a dataset split")
+    _add_run_arg(p)
+    p.add_argument("--data", required=True, help="Tokaido-layout dataset root")
+    _add_split_arg(p)
+    p.add_argument("--out", default=None, help="default: RUN/eval_<split>")
+    p.add_argument("--examples", type=non_negative_int, default=6,
+                   help="example overlays to write")
+    p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
+    _add_device_arg(p)
+    p.set_defaults(func=cmd_evaluate)
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -307,11 +408,42 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
               f"{100 * (m['mean']['iou'] or 0):.1f} % ({scores}) -> {out}")
 
 
+def add_predict_parser(sub: Commands) -> None:
+    p = sub.add_parser("predict", help="run a trained network on photos")
+    _add_run_arg(p)
+    p.add_argument("images", nargs="+")
+    p.add_argument("--out", required=True)
+    _add_device_arg(p)
+    p.set_defaults(func=cmd_predict)
+
+
 def cmd_predict(args: argparse.Namespace) -> None:
     from glsynth.model.inference import predict_files
 
     written = predict_files(args.run, args.images, args.out, args.device)
     print(f"{len(written)} predictions -> {args.out}")
+
+
+def add_assess_parser(sub: Commands) -> None:
+    p = sub.add_parser("assess", help="condition assessment: damage x RRDR x component")
+    p.add_argument("images", nargs="*", help="photos to assess (with --runs)")
+    p.add_argument("--runs", default=None, metavar="component=R1,damage=R2,depth=R3")
+    p.add_argument("--oracle", default=None, metavar="DATA",
+                   help="use a dataset's ground-truth maps instead of networks")
+    p.add_argument("--data", default=None,
+                   help="with --runs: assess a labelled split and evaluate before/after RRDR")
+    _add_split_arg(p)
+    p.add_argument("--limit", type=positive_int, default=None,
+                   help="at most this many dataset images")
+    p.add_argument("--focal-mm", type=float, default=None,
+                   help="focal length of the photos; unknown: RRDR from the depth range")
+    p.add_argument("--ignore-focal", action="store_true",
+                   help="with --data: RRDR from the depth range, as the paper's Table 13")
+    p.add_argument("--sensor-mm", type=float, default=36.0, help="sensor width [mm]")
+    add_options(p, AssessSettings)
+    _add_device_arg(p)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_assess)
 
 
 def cmd_assess(args: argparse.Namespace) -> int:
@@ -326,35 +458,7 @@ def cmd_assess(args: argparse.Namespace) -> int:
             raise UserError("--oracle takes its images from the dataset; drop IMAGES")
         photos = oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit)
     else:
-        from glsynth.model.pipeline import (
-            evaluate_rrdr,
-            load_predictors,
-            network_photos,
-            parse_runs,
-        )
-
-        if bool(args.images) == bool(args.data):
-            raise UserError("with --runs give IMAGES to assess, or --data DIR to assess and "
-                            "evaluate a labelled split")
-        predictors = load_predictors(parse_runs(args.runs), args.device)
-        images, focals = list(args.images), [args.focal_mm] * len(args.images)
-        if args.data:
-            from glsynth.data.tokaido import read_manifest
-
-            result = evaluate_rrdr(predictors, Path(args.data), out / "evaluation", settings,
-                                   args.split, use_focal=not args.ignore_focal,
-                                   sensor_mm=args.sensor_mm)
-            b, a = result["before"]["per_class"], result["after"]["per_class"]
-            for name in ("concrete", "rebar"):
-                print(f"{name}: " + "; ".join(
-                    f"{when} P/R/IoU " + "/".join(
-                        "-" if s[k] is None else f"{100 * s[k]:.1f}"
-                        for k in ("precision", "recall", "iou"))
-                    for when, s in (("before", b[name]), ("after RRDR", a[name]))))
-            rows = read_manifest(Path(args.data), f"files_{args.split}.csv")[:args.limit]
-            images = [str(Path(args.data) / r.image) for r in rows]
-            focals = [None if args.ignore_focal else r.focal_mm for r in rows]
-        photos = network_photos(predictors, images, focals, args.sensor_mm)
+        photos = _network_photos(args, settings, out)
     summary = assess_photos(photos, out, settings)
     for failure in summary["failed"]:
         print(f"glsynth assess: {failure['image']}: {failure['error']}", file=sys.stderr)
@@ -363,8 +467,77 @@ def cmd_assess(args: argparse.Namespace) -> int:
     return 1 if summary["failed"] else 0
 
 
+def _network_photos(args: argparse.Namespace, settings: AssessSettings, out: Path) -> list:
+    """assess --runs: the networks' maps of IMAGES, or of a labelled split (--data), which is
+    also evaluated before and after RRDR."""
+    from glsynth.model.pipeline import evaluate_rrdr, load_predictors, network_photos, parse_runs
+
+    if bool(args.images) == bool(args.data):
+        raise UserError("with --runs give IMAGES to assess, or --data DIR to assess and "
+                        "evaluate a labelled split")
+    predictors = load_predictors(parse_runs(args.runs), args.device)
+    images, focals = list(args.images), [args.focal_mm] * len(args.images)
+    if args.data:
+        from glsynth.data.tokaido import read_manifest
+
+        result = evaluate_rrdr(predictors, Path(args.data), out / "evaluation", settings,
+                               args.split, use_focal=not args.ignore_focal,
+                               sensor_mm=args.sensor_mm)
+        _print_rrdr_scores(result)
+        rows = read_manifest(Path(args.data), f"files_{args.split}.csv")[:args.limit]
+        images = [str(Path(args.data) / r.image) for r in rows]
+        focals = [None if args.ignore_focal else r.focal_mm for r in rows]
+    return network_photos(predictors, images, focals, args.sensor_mm)
+
+
+def _print_rrdr_scores(result: dict) -> None:
+    """Damage precision, recall and IoU before and after RRDR masking."""
+    b, a = result["before"]["per_class"], result["after"]["per_class"]
+    for name in ("concrete", "rebar"):
+        print(f"{name}: " + "; ".join(
+            f"{when} P/R/IoU " + "/".join(
+                "-" if s[k] is None else f"{100 * s[k]:.1f}"
+                for k in ("precision", "recall", "iou"))
+            for when, s in (("before", b[name]), ("after RRDR", a[name]))))
+
+
+def add_bench_parser(sub: Commands) -> None:
+    p = sub.add_parser("bench", help="measurements: 'quality' (speed against accuracy), "
+                                     "'blender' (against Cycles, if Blender is installed)")
+    bench = p.add_subparsers(dest="bench", required=True)
+    add_bench_quality_parser(bench)
+    add_bench_blender_parser(bench)
+
+
+def _add_sample_counts_arg(p: argparse.ArgumentParser, default: list[int], use: str) -> None:
+    p.add_argument("--samples", type=positive_int_list, default=default,
+                   help=f"Cycles sample counts {use}, comma-separated (default "
+                        f"{','.join(map(str, default))})")
+
+
+def add_bench_quality_parser(sub: Commands) -> None:
+    p = sub.add_parser("quality", help="render fixed views under each quality preset")
+    _add_config_args(p)
+    _add_env_args(p, required=False)
+    _add_cameras_arg(p)
+    p.add_argument("--presets", default=None, help="comma-separated (default: all)")
+    p.add_argument("--reference", choices=("cycles", "glsynth"), default="cycles",
+                   help="colour reference: Blender Cycles (needs Blender) or glsynth's "
+                        "'reference' preset")
+    p.add_argument("--reference-samples", type=positive_int, default=128)
+    _add_sample_counts_arg(p, [1, 4, 16, 64], "for the time axis")
+    # SSIM compares 7x7 windows: 16 px a side leaves it room.
+    p.add_argument("--size", type=argparse_type(functools.partial(parse_size, minimum=16),
+                                                "--size"),
+                   default=(480, 270), metavar="WxH",
+                   help="size at which colour is compared (default 480x270)")
+    _add_blender_arg(p)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_bench_quality)
+
+
 def cmd_bench_quality(args: argparse.Namespace) -> None:
-    from glsynth.measure.quality import QUALITY, bench_quality, quality_table, spread_cameras
+    from glsynth.measure.quality_bench import bench_quality, quality_table, spread_cameras
     from glsynth.render.cycles import require_blender
 
     presets = args.presets.split(",") if args.presets else list(QUALITY)
@@ -380,19 +553,23 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
     print(f"-> {args.out}/quality.md, quality.png, quality.json")
 
 
-def _samples(text: str) -> list[int]:
-    try:
-        values = [int(v) for v in text.split(",")]
-    except ValueError:
-        values = []
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: give sample counts >= 1, comma-separated "
-                                         "(e.g. 1,16,64)")
-    return values
+def add_bench_blender_parser(sub: Commands) -> None:
+    p = sub.add_parser("blender", help="one camera in Blender Cycles against glsynth: time, "
+                                       "component labels, depth (optional)")
+    _add_config_args(p)
+    _add_quality_arg(p)
+    _add_env_args(p, required=False)
+    p.add_argument("--camera", type=non_negative_int, default=0,
+                   help="camera index in the environment")
+    _add_sample_counts_arg(p, [1, 16], "of the colour renders")
+    _add_blender_arg(p)
+    p.add_argument("--timeout-min", type=float, default=30.0)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_bench_blender)
 
 
 def cmd_bench_blender(args: argparse.Namespace) -> int:
-    from glsynth.render.blender import bench_blender, blender_table
+    from glsynth.measure.blender_bench import bench_blender, blender_table
     from glsynth.render.cycles import find_blender
 
     blender = find_blender(args.blender)
@@ -410,151 +587,33 @@ def cmd_bench_blender(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_textures_parser(sub: Commands) -> None:
+    p = sub.add_parser("textures", help="generate a procedural texture repository folder")
+    p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
+    _add_seed_arg(p, required=False)
+    p.add_argument("--count", type=positive_int, default=12, help="images per category")
+    p.add_argument("--size", type=positive_int, default=512, help="image size in pixels")
+    p.set_defaults(func=cmd_textures)
+
+
+def cmd_textures(args: argparse.Namespace) -> None:
+    from glsynth.appearance.repository import generate_repository
+
+    t0 = time.perf_counter()
+    root = generate_repository(args.out, args.seed, args.count, args.size)
+    print(f"procedural texture repository ({args.count} per category, {args.size} px) in "
+          f"{time.perf_counter() - t0:.1f} s -> {root}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of every error, user errors too")
     sub = parser.add_subparsers(dest="command", required=True)
-
-    p = sub.add_parser("export", help="write one environment as .glb plus scene.json")
-    _add_config_args(p)
-    _add_env_args(p)
-    p.add_argument("--out", required=True, help="output .glb path (scene.json goes beside it)")
-    p.add_argument("--flat", action="store_true",
-                   help="flat colours per component, no textures or light (small files)")
-    _add_quality_arg(p)
-    p.set_defaults(func=cmd_export)
-
-    p = sub.add_parser("histograms", help="height/curvature histograms (paper Fig. 7) as PNG")
-    _add_config_args(p)
-    p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--count", type=_seed, default=0,
-                   help="trajectories (default: the preset's n_environments)")
-    p.add_argument("--out", required=True, help="output .png path")
-    p.set_defaults(func=cmd_histograms)
-
-    p = sub.add_parser("render", help="render cameras of one environment at full resolution")
-    _add_config_args(p)
-    _add_env_args(p)
-    _add_quality_arg(p)
-    p.add_argument("--camera", type=_seed, nargs="+", required=True,
-                   help="camera index: the [cameras] n_regular regular ones first, then the "
-                        "close-ups (paper preset: 0-49, 50-99); several make subfolders")
-    _add_renderer_args(p)
-    p.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
-    p.add_argument("--out", required=True, help="output folder")
-    p.set_defaults(func=cmd_render)
-
-    p = sub.add_parser("preview", help="low-resolution contact sheet of one environment")
-    _add_config_args(p)
-    _add_env_args(p)
-    p.add_argument("--cameras", type=_count, default=6, help="how many cameras (spread evenly)")
-    p.add_argument("--width", type=_count, default=384, help="width of each tile in pixels")
-    p.add_argument("--out", required=True, help="output .png")
-    p.set_defaults(func=cmd_preview)
-
-    p = sub.add_parser("generate", help="render a dataset in the released Tokaido layout")
-    _add_config_args(p)
-    _add_quality_arg(p)
-    _add_renderer_args(p)
-    p.add_argument("--seed", type=_seed, required=True, help="root seed")
-    p.add_argument("--out", required=True, help="dataset folder (new, or a run to resume)")
-    p.add_argument("--workers", type=_count, default=1,
-                   help="worker processes (local) or Ray actors, one GL context each")
-    p.add_argument("--engine", choices=("local", "ray"), default="local",
-                   help="local processes, or Ray actors sharded by environment")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address ('auto', 'host:6379', 'ray://host:10001'); "
-                        "default starts a local Ray. --out must be shared by all nodes")
-    p.set_defaults(func=cmd_generate)
-
-    p = sub.add_parser("stats", help="a dataset's statistics beside the paper's (glsynth's or "
-                                     "the released Tokaido dataset)")
-    p.add_argument("dataset", help="Tokaido-layout dataset root")
-    p.add_argument("--out", required=True, help="folder for stats.json, stats.md, stats.png")
-    p.set_defaults(func=cmd_stats)
-
-    p = sub.add_parser("train", help="train FCN58 on a Tokaido-layout dataset (needs torch)")
-    add_options(p, TrainSettings)
-    p.add_argument("--out", required=True, help="run folder (new, or a run to resume)")
-    p.set_defaults(func=cmd_train)
-
-    p = sub.add_parser("evaluate", help="metrics of a trained run on a dataset split")
-    p.add_argument("--run", required=True)
-    p.add_argument("--data", required=True)
-    p.add_argument("--split", choices=("train", "test"), default="test")
-    p.add_argument("--out", default=None, help="default: RUN/eval_<split>")
-    p.add_argument("--examples", type=_seed, default=6, help="example overlays to write")
-    p.add_argument("--no-puretex", action="store_true", help="damage: leave out the plates")
-    p.add_argument("--device", default="auto")
-    p.set_defaults(func=cmd_evaluate)
-
-    p = sub.add_parser("predict", help="run a trained network on photos")
-    p.add_argument("--run", required=True)
-    p.add_argument("images", nargs="+")
-    p.add_argument("--out", required=True)
-    p.add_argument("--device", default="auto")
-    p.set_defaults(func=cmd_predict)
-
-    p = sub.add_parser("assess", help="condition assessment: damage x RRDR x component")
-    p.add_argument("images", nargs="*", help="photos to assess (with --runs)")
-    p.add_argument("--runs", default=None, metavar="component=R1,damage=R2,depth=R3")
-    p.add_argument("--oracle", default=None, metavar="DATA",
-                   help="use a dataset's ground-truth maps instead of networks")
-    p.add_argument("--data", default=None,
-                   help="with --runs: assess a labelled split and evaluate before/after RRDR")
-    p.add_argument("--split", choices=("train", "test"), default="test")
-    p.add_argument("--limit", type=_count, default=None, help="at most this many dataset images")
-    p.add_argument("--focal-mm", type=float, default=None,
-                   help="focal length of the photos; unknown: RRDR from the depth range")
-    p.add_argument("--ignore-focal", action="store_true",
-                   help="with --data: RRDR from the depth range, as the paper's Table 13")
-    p.add_argument("--sensor-mm", type=float, default=36.0, help="sensor width [mm]")
-    add_options(p, AssessSettings)
-    p.add_argument("--device", default="auto")
-    p.add_argument("--out", required=True)
-    p.set_defaults(func=cmd_assess)
-
-    p = sub.add_parser("bench", help="measurements: 'quality' (speed against accuracy), "
-                                     "'blender' (against Cycles, if Blender is installed)")
-    bench = p.add_subparsers(dest="bench", required=True)
-    q = bench.add_parser("quality", help="render fixed views under each quality preset")
-    _add_config_args(q)
-    q.add_argument("--seed", type=_seed, default=0)
-    q.add_argument("--env", type=_seed, default=0)
-    q.add_argument("--cameras", type=_count, default=6, help="views spread over the environment")
-    q.add_argument("--presets", default=None, help="comma-separated (default: all)")
-    q.add_argument("--reference", choices=("cycles", "glsynth"), default="cycles",
-                   help="colour reference: Blender Cycles (needs Blender) or glsynth's "
-                        "'reference' preset")
-    q.add_argument("--reference-samples", type=_count, default=128)
-    q.add_argument("--samples", type=_samples, default=[1, 4, 16, 64],
-                   help="Cycles sample counts for the time axis (default 1,4,16,64)")
-    q.add_argument("--size", type=_size, default=(480, 270),
-                   help="WIDTHxHEIGHT at which colour is compared (default 480x270)")
-    q.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
-    q.add_argument("--out", required=True)
-    q.set_defaults(func=cmd_bench_quality)
-    b = bench.add_parser("blender", help="one camera in Blender Cycles against glsynth: time, "
-                                         "component labels, depth (optional)")
-    _add_config_args(b)
-    _add_quality_arg(b)
-    b.add_argument("--seed", type=_seed, default=0)
-    b.add_argument("--env", type=_seed, default=0)
-    b.add_argument("--camera", type=_seed, default=0, help="camera index in the environment")
-    b.add_argument("--samples", type=_samples, default=[1, 16],
-                   help="Cycles sample counts, comma-separated (default 1,16)")
-    b.add_argument("--blender", default=None, help="Blender executable (default: PATH)")
-    b.add_argument("--timeout-min", type=float, default=30.0)
-    b.add_argument("--out", required=True)
-    b.set_defaults(func=cmd_bench_blender)
-
-    p = sub.add_parser("textures", help="generate a procedural texture repository folder")
-    p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
-    p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--count", type=_count, default=12, help="images per category")
-    p.add_argument("--size", type=_count, default=512, help="image size in pixels")
-    p.set_defaults(func=cmd_textures)
+    for add in (add_export_parser, add_histograms_parser, add_render_parser, add_preview_parser,
+                add_generate_parser, add_stats_parser, add_train_parser, add_evaluate_parser,
+                add_predict_parser, add_assess_parser, add_bench_parser, add_textures_parser):
+        add(sub)
     return parser
 
 

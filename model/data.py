@@ -25,7 +25,13 @@ from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes
 from glsynth.core.images import nearest_resize
 from glsynth.core.paths import cache_root
-from glsynth.data.tokaido import FrameRecord, PuretexRecord, decode_depth, read_manifest
+from glsynth.data.tokaido import (
+    IMAGE_SIZE,
+    FrameRecord,
+    PuretexRecord,
+    decode_depth,
+    read_manifest,
+)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
 
@@ -106,7 +112,7 @@ class InputCache:
 class TokaidoDataset(Dataset):
     def __init__(self, root: str | Path, split: str = "train", task: str = "component", *,
                  views: str | None = None, puretex: bool = False,
-                 image_size: tuple[int, int] = (1920, 1080), cache: bool = False) -> None:
+                 image_size: tuple[int, int] = IMAGE_SIZE, cache: bool = False) -> None:
         """views: "regular", "closeup" or "all" (default: regular for component/depth, all
         for damage). image_size: (width, height) the images are resized to. cache: read
         them through an InputCache."""
@@ -154,7 +160,7 @@ class ImageFolder(Dataset):
     bmp} holding the task's ids (0 = unlabelled). Images are resized to image_size."""
 
     def __init__(self, root: str | Path, task: str,
-                 image_size: tuple[int, int] = (1920, 1080)) -> None:
+                 image_size: tuple[int, int] = IMAGE_SIZE) -> None:
         if task not in CLASS_NAMES:
             raise UserError(f"extra image folders carry labels; task {task!r} has none "
                             "(use them for component or damage)")

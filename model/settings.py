@@ -9,6 +9,8 @@ from typing import Any, Literal
 
 from glsynth.core.errors import UserError
 from glsynth.core.labels import LABEL_MAPS
+from glsynth.core.options import parse_size
+from glsynth.data.tokaido import IMAGE_SIZE
 
 CLASS_NAMES = {task: [label.name.lower() for label in labels if label]
                for task, labels in LABEL_MAPS.items()}
@@ -28,16 +30,9 @@ def target_size(image_size: tuple[int, int]) -> tuple[int, int]:
     return (-(-image_size[0] // 3), -(-image_size[1] // 3))
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    """'WxH' -> (W, H)."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise UserError(f"image size {text!r}: write it as WIDTHxHEIGHT, e.g. 1920x1080") \
-            from None
-    if min(w, h) < MIN_SIDE:
-        raise UserError(f"image size {text!r}: FCN58 needs at least {MIN_SIDE} px per side")
-    return w, h
+def _image_size(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H), each side at least FCN58's MIN_SIDE."""
+    return parse_size(text, MIN_SIDE)
 
 
 AUGMENTATIONS = ("exposure", "white_balance", "blur", "noise", "jpeg")
@@ -85,8 +80,8 @@ class TrainSettings:
                                                           "metavar": "DIR"})
     """Folders of real labelled photos mixed into training: DIR/images/* and
     DIR/labels/<stem>.png (repeatable)."""
-    image_size: tuple[int, int] = field(default=(1920, 1080), metadata={
-        "parse": parse_size, "metavar": "WxH", "show": "1920x1080"})
+    image_size: tuple[int, int] = field(default=IMAGE_SIZE, metadata={
+        "parse": _image_size, "metavar": "WxH", "show": "x".join(map(str, IMAGE_SIZE))})
     """Input size images are resized to; targets are a third, rounded up."""
     batch_size: int = 8
     """Images per step (paper: 8)."""

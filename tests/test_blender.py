@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from glsynth.cli import main
-from glsynth.render.blender import compare_labels_depth, read_pass
+from glsynth.measure.blender_bench import compare_labels_depth, read_pass
 
 
 def test_compare_counts_blender_sky_as_nonbridge_and_depth_where_both_hit():
@@ -44,7 +44,7 @@ def test_bad_blender_path_camera_and_samples_are_clear_errors(tmp_path, capsys):
     assert "--blender" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["bench", "blender", "--samples", "0", "--out", str(tmp_path)])
-    assert "sample counts >= 1" in capsys.readouterr().err
+    assert "give integers >= 1, comma-separated" in capsys.readouterr().err
     if shutil.which("blender"):
         assert main(["bench", "blender", "--camera", "99", "--out", str(tmp_path)]) == 2
         assert "cameras 0 to 11" in capsys.readouterr().err

@@ -1,10 +1,12 @@
+import argparse
 import json
 import subprocess
 import sys
 
+import pytest
 from PIL import Image
 
-from glsynth.cli import main
+from glsynth.cli import main, non_negative_int, positive_int, positive_int_list
 
 
 def test_export_end_to_end(tmp_path, capsys):
@@ -58,3 +60,30 @@ def test_textures_command(tmp_path):
     assert main(["textures", "--out", str(out), "--count", "1", "--size", "16"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["concrete", "ground", "painted", "scene",
                                                       "steel", "wood"]
+
+
+COMMANDS = [["export"], ["histograms"], ["render"], ["preview"], ["generate"], ["stats"],
+            ["train"], ["evaluate"], ["predict"], ["assess"], ["bench", "quality"],
+            ["bench", "blender"], ["textures"]]
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=" ".join)
+def test_every_command_builds_its_options(command, capsys):
+    with pytest.raises(SystemExit) as done:
+        main([*command, "--help"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: glsynth {' '.join(command)} ")
+
+
+def test_integer_options_take_what_their_names_say():
+    assert non_negative_int("0") == 0 and positive_int("1") == 1
+    assert positive_int_list("1,16,64") == [1, 16, 64]
+    for parse, text, message in ((non_negative_int, "-1", "must be an integer >= 0"),
+                                 (positive_int, "0", "must be an integer >= 1"),
+                                 (positive_int_list, "1,0", "give integers >= 1"),
+                                 (positive_int_list, "1,,2", "give integers >= 1"),
+                                 (positive_int_list, "", "give integers >= 1")):
+        with pytest.raises(argparse.ArgumentTypeError, match=message):
+            parse(text)
+    with pytest.raises(ValueError):  # argparse: "invalid non_negative_int value: 'x'"
+        non_negative_int("x")

@@ -6,7 +6,14 @@ from typing import Literal
 
 import pytest
 
-from glsynth.core.options import add_options, field_docs, from_options
+from glsynth.core.errors import UserError
+from glsynth.core.options import (
+    add_options,
+    field_choices,
+    field_docs,
+    from_options,
+    parse_size,
+)
 
 
 def _pair(text: str) -> tuple[int, int]:
@@ -90,3 +97,50 @@ def test_train_settings_take_their_names_from_the_labels_and_check_every_choice(
     for name, value in (("task", "segment"), ("precision", "fp16"), ("views", "aerial")):
         with pytest.raises(UserError, match=f"--{name} '{value}': choose one of"):
             TrainSettings(**{"task": "depth", "data": "d", name: value})
+
+
+@pytest.mark.parametrize("text, minimum, size", [
+    ("480x270", 16, (480, 270)),
+    ("1920X1080", 96, (1920, 1080)),  # either case of x
+    ("16x16", 16, (16, 16)),  # the minimum itself is allowed
+])
+def test_sizes_parse_from_wxh(text, minimum, size):
+    assert parse_size(text, minimum) == size
+
+
+@pytest.mark.parametrize("text, minimum, message", [
+    ("480", 16, "write WIDTHxHEIGHT"),
+    ("480x", 16, "write WIDTHxHEIGHT"),
+    ("1x2x3", 1, "write WIDTHxHEIGHT"),
+    ("wide x tall", 1, "write WIDTHxHEIGHT"),
+    ("15x270", 16, "each side must be at least 16 px"),
+    ("480x95", 96, "each side must be at least 96 px"),
+    ("-5x10", 1, "at least 1 px"),
+])
+def test_bad_sizes_are_one_clear_line(text, minimum, message):
+    with pytest.raises(UserError, match=message):
+        parse_size(text, minimum)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["train", "--task", "depth", "--data", "d", "--out", "r", "--image-size", "192x95"],
+     "argument --image-size: '192x95': each side must be at least 96 px"),
+    (["bench", "quality", "--out", "q", "--size", "15x15"],
+     "argument --size: '15x15': each side must be at least 16 px"),
+    (["bench", "quality", "--out", "q", "--size", "big"], "'big': write WIDTHxHEIGHT"),
+])
+def test_the_commands_take_sizes_with_their_own_minimum(argv, message, capsys):
+    from glsynth.cli import build_parser
+
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(argv)
+    assert message in capsys.readouterr().err
+
+
+def test_choices_come_from_a_fields_literal_type():
+    from glsynth.core.config import RenderConfig
+
+    assert field_choices(Example, "mode") == ("a", "b")
+    assert field_choices(RenderConfig, "renderer") == ("gl", "cycles")
+    with pytest.raises(TypeError, match="not a Literal"):
+        field_choices(Example, "name")

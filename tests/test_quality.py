@@ -8,7 +8,9 @@ import pytest
 from glsynth.cli import main
 from glsynth.core.config import Config
 from glsynth.core.labels import Component
-from glsynth.measure.quality import QUALITY, apply_quality, colour_scores, label_scores
+from glsynth.data.quality import QUALITY, apply_quality
+from glsynth.data.tokaido import IMAGE_SIZE
+from glsynth.measure.quality_bench import colour_scores, label_scores
 from glsynth.render.gl.renderer import RenderOutput
 
 
@@ -50,8 +52,8 @@ def test_colour_and_label_scores_by_hand():
 def test_presets_set_every_knob():
     for name, q in QUALITY.items():
         c = apply_quality(Config(), name)
-        assert (c.render.width, c.render.height) == (round(1920 * q.render_scale),
-                                                     round(1080 * q.render_scale))
+        assert (c.render.width, c.render.height) == tuple(round(side * q.render_scale)
+                                                          for side in IMAGE_SIZE)
         assert c.render.msaa == q.msaa and c.materials.texture_size == q.texture_size
         assert c.damage.resolution == q.damage_resolution and c.damage.octaves == q.octaves
         assert c.environment.cylinder_segments == q.cylinder_segments

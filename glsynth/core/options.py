@@ -7,6 +7,9 @@ function from the option's text; a ValueError becomes argparse's one-line usage 
 ``metavar``, ``repeat`` (the option may be given several times; the field gets a tuple),
 ``flag`` (another option name), ``show`` (the default as the help shows it) and ``help``
 (instead of the docstring).
+
+The command line's other options use the same pieces: ``field_choices`` (a config field's
+``Literal`` values), ``parse_size`` ('WxH') and ``argparse_type``.
 """
 
 import argparse
@@ -18,6 +21,8 @@ import types
 import typing
 from functools import cache
 from typing import Any, Literal
+
+from glsynth.core.errors import UserError
 
 
 @cache
@@ -34,7 +39,9 @@ def field_docs(cls: type) -> dict[str, str]:
     return docs
 
 
-def _argparse_type(parse: typing.Callable[[str], Any], flag: str) -> typing.Callable[[str], Any]:
+def argparse_type(parse: typing.Callable[[str], Any], flag: str) -> typing.Callable[[str], Any]:
+    """``parse`` as an argparse type: its ValueError (UserError too) becomes argparse's one-line
+    usage error with the message kept."""
     def convert(text: str) -> Any:
         try:
             return parse(text)
@@ -44,11 +51,30 @@ def _argparse_type(parse: typing.Callable[[str], Any], flag: str) -> typing.Call
     return convert
 
 
+def parse_size(text: str, minimum: int) -> tuple[int, int]:
+    """'WxH' (e.g. '480x270') -> (W, H) in pixels, each side at least ``minimum``."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UserError(f"{text!r}: write WIDTHxHEIGHT, e.g. 480x270") from None
+    if min(width, height) < minimum:
+        raise UserError(f"{text!r}: each side must be at least {minimum} px")
+    return width, height
+
+
 def _base_type(hint: Any) -> Any:
     """The type without None (``X | None`` -> X); the option's default is then None."""
     if isinstance(hint, types.UnionType) or typing.get_origin(hint) is typing.Union:
         return next(a for a in typing.get_args(hint) if a is not type(None))
     return hint
+
+
+def field_choices(cls: type, name: str) -> tuple[Any, ...]:
+    """The values field ``name`` of dataclass ``cls`` allows, from its ``Literal`` type."""
+    hint = _base_type(typing.get_type_hints(cls)[name])
+    if typing.get_origin(hint) is not Literal:
+        raise TypeError(f"{cls.__name__}.{name}: {hint} is not a Literal")
+    return typing.get_args(hint)
 
 
 def add_options(parser: argparse.ArgumentParser, cls: type, *, skip: tuple[str, ...] = ()
@@ -79,7 +105,7 @@ def add_options(parser: argparse.ArgumentParser, cls: type, *, skip: tuple[str, 
         if typing.get_origin(hint) is Literal:
             kwargs["choices"] = typing.get_args(hint)
         elif "parse" in meta:
-            kwargs["type"] = _argparse_type(meta["parse"], flag)
+            kwargs["type"] = argparse_type(meta["parse"], flag)
         elif hint in (int, float, str):
             kwargs["type"] = hint
         else:

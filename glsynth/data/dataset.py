@@ -40,6 +40,7 @@ from glsynth.data.statistics import (
     read_removals,
 )
 from glsynth.data.tokaido import (
+    IMAGE_SIZE,
     LABEL_STRIDE,
     FrameRecord,
     PuretexRecord,
@@ -56,10 +57,11 @@ REASONS = ("dark", "single_component", "too_close")
 
 def check_format(config: Config) -> None:
     r = config.render
-    if (r.width, r.height) != (1920, 1080):
-        raise UserError(f"render size {r.width}x{r.height}: the Tokaido format needs "
-                        "1920x1080 images (labels 640x360); set [render] width = 1920 and "
-                        "height = 1080")
+    (w, h), stride = IMAGE_SIZE, LABEL_STRIDE
+    if (r.width, r.height) != IMAGE_SIZE:
+        raise UserError(f"render size {r.width}x{r.height}: the Tokaido format needs {w}x{h} "
+                        f"images (labels {w // stride}x{h // stride}); set [render] width = {w} "
+                        f"and height = {h}")
 
 
 def environment_split(config: Config, env: int) -> str:
@@ -98,19 +100,17 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     manifest rows, the counts of each written image (glsynth.data.statistics) and the views
     removed by camera kind and reason."""
     from glsynth.render.view import EnvironmentView
-    from glsynth.world.visibility import visible_parts
 
     clock = _Clock()
     view = EnvironmentView.open(config, root_seed, env, renderer)
     clock.lap("environment, materials and damage textures")
     split = environment_split(config, env)
-    cams = config.cameras
     rows, counts = [], []
     removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
     to_cycles = []  # (placement, image path) of the kept views, with --renderer cycles
     with BackgroundWriter() as writer:
-        for index in range(cams.total):
+        for index in range(config.cameras.total):
             placement, output = view.render(index)
             clock.lap("render and read back")
             reason = removal_reason(output.color, output.component, output.depth)
@@ -118,56 +118,75 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
                 removed[placement.kind][reason] += 1
                 clock.lap("filters, RRDR and labels")
                 continue
-            camera = placement.camera
-            masked = mask_damage(output.damage, rrdr(output.depth, camera.fx))
-            paths = frame_paths(split, env, index)
-            component = downsample_labels(output.component)
-            damage = downsample_labels(masked)
-            depth = downsample_labels(encode_depth(output.depth))
-            # The flag describes the map that is written: damage inside the RRDR at full size
-            # can vanish in the 3x downsampling.
-            in_rrdr = bool(np.any(damage >= Damage.CONCRETE))
+            maps, in_rrdr = _label_maps(output, placement.camera)
             clock.lap("filters, RRDR and labels")
-            images = {paths["component"]: (component, "BMP"), paths["damage"]: (damage, "BMP"),
-                      paths["depth"]: (depth, "PNG")}
+            paths = frame_paths(split, env, index)
+            images = {paths["component"]: (maps["component"], "BMP"),
+                      paths["damage"]: (maps["damage"], "BMP"),
+                      paths["depth"]: (maps["depth"], "PNG")}
             if config.render.renderer == "cycles":
                 to_cycles.append((placement, paths["image"]))
             else:
                 images[paths["image"]] = (output.color, "PNG")
-            seen = visible_parts(columns, [camera])
-            meta = {"root_seed": root_seed, "env": env, "camera_index": index,
-                    "kind": placement.kind, "split": split, "camera": camera.to_json(),
-                    "placement": {"s_m": placement.s_m, "side": placement.side,
-                                  "distance_m": placement.distance_m,
-                                  "height_m": placement.height_m,
-                                  "euler_xyz_rad": list(placement.euler_xyz_rad)},
-                    "damage_in_rrdr": in_rrdr,
-                    "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
-                                        for n in sorted(seen)}}
+            meta = _view_meta(view, placement, root_seed, env, split, in_rrdr, columns)
             writer.submit(write_files, out, images,
                           {f"meta/{split}/image_case{env}_frame{index}.json": meta})
-            focal = round(camera.focal_mm, 6)
+            focal = round(placement.camera.focal_mm, 6)
             rows.append(dataclasses.asdict(FrameRecord(
                 paths["image"], paths["component"], paths["damage"], paths["depth"], focal,
                 placement.kind == "regular", in_rrdr)))
             counts.append(dataclasses.asdict(image_counts(
-                placement.kind, split, component, damage, depth, focal, in_rrdr)))
+                placement.kind, split, maps["component"], maps["damage"], maps["depth"], focal,
+                in_rrdr)))
             clock.lap("queue files")
     clock.lap("wait for the writer")
     if to_cycles:
-        from glsynth.render.cycles import cycles_colour
-
-        # The same views the GL filters kept, coloured by Cycles; labels stay GL's.
-        colours = cycles_colour(view, [p for p, _ in to_cycles],
-                                out / ".tmp" / f"cycles_{env}")
-        clock.lap("Cycles colour")
-        for (_, image), colour in zip(to_cycles, colours):
-            atomic_write_bytes(out / image, png_bytes(colour))
-        clock.lap("encode and write files")
+        _write_cycles_colour(view, to_cycles, out, env, clock)
     atomic_write_json(out / "meta" / f"env_{env}.json", _env_description(view))
     clock.lap("encode and write files")
     return {"kind": "env", "env": env, "split": split, "rows": rows, "counts": counts,
             "removed": removed, "timings": clock.totals}
+
+
+def _label_maps(output, camera) -> tuple[dict[str, np.ndarray], bool]:
+    """The maps a kept view writes, at a LABEL_STRIDE-th of its size: component ids, damage
+    ids inside the RRDR, encoded depth; and whether the damage map shows damage."""
+    masked = mask_damage(output.damage, rrdr(output.depth, camera.fx))
+    maps = {"component": downsample_labels(output.component),
+            "damage": downsample_labels(masked),
+            "depth": downsample_labels(encode_depth(output.depth))}
+    # The flag describes the map that is written: damage inside the RRDR at full size
+    # can vanish in the 3x downsampling.
+    return maps, bool(np.any(maps["damage"] >= Damage.CONCRETE))
+
+
+def _view_meta(view, placement, root_seed: int, env: int, split: str, in_rrdr: bool,
+               columns: list) -> dict:
+    """meta/<split>/image_case<E>_frame<C>.json: where the camera stands and the damage of the
+    columns it sees."""
+    from glsynth.world.visibility import visible_parts
+
+    seen = visible_parts(columns, [placement.camera])
+    return {"root_seed": root_seed, "env": env, "camera_index": placement.index,
+            "kind": placement.kind, "split": split, "camera": placement.camera.to_json(),
+            "placement": {"s_m": placement.s_m, "side": placement.side,
+                          "distance_m": placement.distance_m,
+                          "height_m": placement.height_m,
+                          "euler_xyz_rad": list(placement.euler_xyz_rad)},
+            "damage_in_rrdr": in_rrdr,
+            "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
+                                for n in sorted(seen)}}
+
+
+def _write_cycles_colour(view, to_cycles: list, out: Path, env: int, clock: "_Clock") -> None:
+    """The views the GL filters kept, coloured by Cycles; their labels stay GL's."""
+    from glsynth.render.cycles import cycles_colour
+
+    colours = cycles_colour(view, [p for p, _ in to_cycles], out / ".tmp" / f"cycles_{env}")
+    clock.lap("Cycles colour")
+    for (_, image), colour in zip(to_cycles, colours):
+        atomic_write_bytes(out / image, png_bytes(colour))
+    clock.lap("encode and write files")
 
 
 def _env_description(view) -> dict:
@@ -334,7 +353,7 @@ def merge(config: Config, out: Path) -> dict:
     stats = dataset_statistics(counts, read_removals(out))
     return {"kept": stats["images"]["regular"] + stats["images"]["closeup"],
             "plates": stats["images"]["plate"], "statistics": stats,
-            "label_size": [1920 // LABEL_STRIDE, 1080 // LABEL_STRIDE]}
+            "label_size": [side // LABEL_STRIDE for side in IMAGE_SIZE]}
 
 
 def _frame_number(image: str) -> int:

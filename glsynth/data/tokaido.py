@@ -27,6 +27,8 @@ from glsynth.core.images import nearest_resize
 DEPTH_NEAR_M = 0.5
 DEPTH_FAR_M = 30.0
 DEPTH_MAX_CODE = 65535
+IMAGE_SIZE = (1920, 1080)
+"""(width, height) of a Tokaido image; its label and depth maps are LABEL_STRIDE times smaller."""
 LABEL_STRIDE = 3  # 1920x1080 -> 640x360
 
 

@@ -1,1 +1,2 @@
-"""Measurements of the renderer: quality presets and their speed against accuracy."""
+"""Measurements of the renderer: the quality presets' speed against accuracy
+(quality_bench) and glsynth against Blender Cycles (blender_bench)."""

@@ -1,17 +1,10 @@
-"""Quality presets, from ``preview`` to ``reference``, and the measured trade between speed and
-accuracy (``glsynth bench quality``).
-
-A preset sets these knobs of a config (each documented in README.md):
-- render resolution, as a scale of 1920x1080 (the Tokaido format needs 1.0);
-- MSAA samples for colour (labels and depth are never multisampled);
-- texture resolution of repository materials, and of damage textures;
-- noise octaves of the damage textures;
-- tessellation of cylinders (poles and wires; rebar lives in the damage textures);
-- the sun's shadow map size (0: no shadows);
-- the sky-visibility maps (0, 4, 9 or 16) and screen-space ambient occlusion ("ssao"/"off").
+"""``glsynth bench quality``: the quality presets (glsynth/data/quality.py) measured, speed
+against accuracy. Colour is scored against Blender Cycles or the 'reference' preset, labels and
+depth against an Embree ray cast of the reference scene.
 """
 
 import dataclasses
+import functools
 import shutil
 import statistics
 import sys
@@ -22,60 +15,19 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.config import Config
-from glsynth.core.errors import UserError
 from glsynth.core.fileio import png_bytes
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Component
+from glsynth.data.quality import QUALITY, apply_quality
+from glsynth.data.tokaido import IMAGE_SIZE
 from glsynth.world.lighting import LUMINANCE
 
-
-@dataclass(frozen=True)
-class Quality:
-    render_scale: float
-    msaa: int
-    texture_size: int
-    damage_resolution: int
-    octaves: int
-    cylinder_segments: int
-    shadow_map_px: int
-    sky_visibility_maps: int
-    ao: str
-
-
-QUALITY = {
-    "preview": Quality(0.25, 0, 128, 256, 4, 6, 512, 4, "off"),
-    "fast": Quality(0.5, 0, 256, 512, 6, 8, 1024, 16, "off"),
-    "balanced": Quality(1.0, 0, 512, 1024, 8, 12, 2048, 16, "off"),
-    "default": Quality(1.0, 4, 512, 1024, 8, 12, 2048, 16, "off"),
-    "high": Quality(1.0, 4, 512, 2048, 8, 12, 2048, 16, "off"),
-    "reference": Quality(1.0, 4, 1024, 2048, 8, 24, 4096, 16, "ssao"),
-}
-"""'default' is Config()'s own setting; 'high' matches the paper preset's 2048 px damage.
-'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has),
-and SSAO (2 % less colour error against Cycles for 0.2 s a frame). 'preview' keeps sun
-shadows (without them, shade is wrong everywhere) on a small map, and 4 sky maps."""
+_FULL_SIZE = "x".join(map(str, IMAGE_SIZE))
 
 
 def spread_cameras(total: int, count: int) -> list[int]:
     """``count`` camera indices spread evenly over an environment's ``total`` cameras."""
     return sorted({round(i * (total - 1) / max(1, count - 1)) for i in range(count)})
-
-
-def apply_quality(config: Config, name: str) -> Config:
-    if name not in QUALITY:
-        raise UserError(f"quality {name!r}: choose one of {', '.join(QUALITY)}")
-    q = QUALITY[name]
-    width, height = round(1920 * q.render_scale), round(1080 * q.render_scale)
-    return dataclasses.replace(
-        config,
-        render=dataclasses.replace(config.render, width=width, height=height, msaa=q.msaa,
-                                   shadow_map_px=q.shadow_map_px,
-                                   sky_visibility_maps=q.sky_visibility_maps, ao=q.ao),
-        materials=dataclasses.replace(config.materials, texture_size=q.texture_size),
-        damage=dataclasses.replace(config.damage, resolution=q.damage_resolution,
-                                   octaves=q.octaves),
-        environment=dataclasses.replace(config.environment,
-                                        cylinder_segments=q.cylinder_segments))
 
 
 def _upsample(values: np.ndarray, shape: tuple[int, int], nearest: bool) -> np.ndarray:
@@ -209,11 +161,11 @@ def _cycles_renders(scene: dict, placements: list, samples: int, seed_offset: in
 
 def _cycles_timing(scene: dict, placement, root_seed: int, env: int, work: Path,
                    blender: str) -> dict:
-    """Cycles' time for one 1920x1080 view as fixed + per sample: the view at 1, 1 and 4
+    """Cycles' time for one full-size (Tokaido) view as fixed + per sample: the view at 1, 1 and 4
     samples in one process (the first render loads the scene; the next two are timed)."""
     from glsynth.render.cycles import cycles_seed, render_linear
 
-    cam = dataclasses.replace(placement.camera, width=1920, height=1080)
+    cam = dataclasses.replace(placement.camera, width=IMAGE_SIZE[0], height=IMAGE_SIZE[1])
     seed = cycles_seed(root_seed, env, placement.index)
     result = render_linear(scene["parts"], scene["materials"], scene["lighting"],
                            [cam] * 3, [seed] * 3, [1, 1, 4], work, blender)
@@ -221,6 +173,83 @@ def _cycles_timing(scene: dict, placement, root_seed: int, env: int, work: Path,
     per_sample = max(four - one, 0.0) / 3
     return {"fixed_s": one - per_sample, "per_sample_s": per_sample,
             "first_render_s": result.colour_s[0], "import_s": result.import_s}
+
+
+@dataclass
+class _Reference:
+    """The colour every preset is scored against, at the comparison size."""
+
+    name: str
+    images: list[np.ndarray]
+    render_s: list[float] = dataclasses.field(default_factory=list)
+    """Cycles' times at the comparison size (none for glsynth's reference preset)."""
+    noise_floor: dict | None = None
+    cycles_1080p_timing: dict | None = None
+    cycles_rows: dict = dataclasses.field(default_factory=dict)
+    """Cycles at each sample count of the time axis, scored as the presets are."""
+
+
+def _median_colour_scores(images: list[np.ndarray], reference: list[np.ndarray],
+                          components: list[np.ndarray]) -> dict:
+    return _median_scores([colour_scores(i, r, c)
+                           for i, r, c in zip(images, reference, components)])
+
+
+def _run_presets(config: Config, presets: list[str], root_seed: int, env: int,
+                 cameras: list[int]) -> tuple[dict[str, _PresetRun], dict]:
+    """Each preset's renders, the 'reference' preset's first; its scene (with the ray-cast
+    truths) is returned for scoring and for Cycles."""
+    runs: dict[str, _PresetRun] = {}
+    scene = None
+    for name in ["reference"] + [p for p in presets if p != "reference"]:
+        runs[name], kept = _run_preset(config, name, root_seed, env, cameras,
+                                       keep_scene=name == "reference")
+        scene = kept or scene
+    return runs, scene
+
+
+def _cycles_reference(scene: dict, placements: list, components: list[np.ndarray],
+                      size: tuple[int, int], root_seed: int, env: int, out: Path, blender: str,
+                      reference_samples: int, cycles_samples: tuple[int, ...]) -> _Reference:
+    """Cycles at ``reference_samples`` as the reference, rendered twice with different seeds
+    (its noise floor), and Cycles at each of ``cycles_samples`` scored against it."""
+    from glsynth.core.fileio import atomic_write_bytes
+
+    work = out / "cycles_work"
+    render = functools.partial(_cycles_renders, scene, placements, size=size,
+                               root_seed=root_seed, env=env, work=work, blender=blender)
+    images, times = render(reference_samples, 0)
+    second, _ = render(reference_samples, 1_000_003)
+    reference = _Reference(
+        name=f"Cycles {reference_samples} samples", images=images, render_s=times,
+        noise_floor=_median_colour_scores(second, images, components),
+        cycles_1080p_timing=_cycles_timing(scene, placements[0], root_seed, env, work, blender))
+    timing = reference.cycles_1080p_timing
+    for n in cycles_samples:
+        noisy, times = render(n, 2_000_006)
+        reference.cycles_rows[str(n)] = {
+            "samples": n, "render_s_at_size": statistics.median(times),
+            "time_per_sample_s": timing["fixed_s"] + timing["per_sample_s"] * n,
+            **_median_colour_scores(noisy, images, components)}
+        atomic_write_bytes(out / f"cycles_{n}spp.png", png_bytes(noisy[0]))
+    shutil.rmtree(work, ignore_errors=True)
+    atomic_write_bytes(out / "cycles_reference.png", png_bytes(images[0]))
+    return reference
+
+
+def _preset_row(run: _PresetRun, images: list[np.ndarray], reference: _Reference,
+                components: list[np.ndarray], truths: list, zfar: float) -> dict:
+    """A preset's knobs and times, its colour ``images`` (at the comparison size) scored
+    against the reference, and its labels and depth against the ray cast."""
+    return {**run.row, **_median_colour_scores(images, reference.images, components),
+            "vs_raycast": _median_scores([label_scores(o, t, zfar)
+                                          for o, t in zip(run.renders, truths)])}
+
+
+def _side_by_side(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The image, the reference and their difference x 4."""
+    diff = np.clip(np.abs(image.astype(int) - reference.astype(int)) * 4, 0, 255)
+    return np.concatenate([image, reference, diff.astype(np.uint8)], axis=1)
 
 
 def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], out: Path,
@@ -235,74 +264,41 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 
     presets = presets or list(QUALITY)
-    order = ["reference"] + [p for p in presets if p != "reference"]
-    runs: dict[str, _PresetRun] = {}
-    scene = None
-    for name in order:
-        runs[name], kept = _run_preset(config, name, root_seed, env, cameras,
-                                       keep_scene=name == "reference")
-        scene = kept or scene
-    reference_run = runs["reference"]
-    components = [nearest_resize(o.component, size[::-1]) for o in reference_run.renders]
-    cycles_rows: dict[str, dict] = {}
-    if blender is not None:
-        work = out / "cycles_work"
-        reference, ref_times = _cycles_renders(scene, reference_run.placements,
-                                               reference_samples, 0, size, root_seed, env,
-                                               work, blender)
-        second, _ = _cycles_renders(scene, reference_run.placements, reference_samples,
-                                    1_000_003, size, root_seed, env, work, blender)
-        floor = _median_scores([colour_scores(b, a, c)
-                                for a, b, c in zip(reference, second, components)])
-        timing = _cycles_timing(scene, reference_run.placements[0], root_seed, env, work,
-                                blender)
-        for n in cycles_samples:
-            images, times = _cycles_renders(scene, reference_run.placements, n, 2_000_006,
-                                            size, root_seed, env, work, blender)
-            cycles_rows[str(n)] = {
-                "samples": n, "render_s_at_size": statistics.median(times),
-                "time_per_sample_s": timing["fixed_s"] + timing["per_sample_s"] * n,
-                **_median_scores([colour_scores(i, r, c)
-                                  for i, r, c in zip(images, reference, components)])}
-            atomic_write_bytes(out / f"cycles_{n}spp.png", png_bytes(images[0]))
-        shutil.rmtree(work, ignore_errors=True)
-        atomic_write_bytes(out / "cycles_reference.png", png_bytes(reference[0]))
-        reference_name = f"Cycles {reference_samples} samples"
+    runs, scene = _run_presets(config, presets, root_seed, env, cameras)
+    renders = runs["reference"].renders
+    components = [nearest_resize(o.component, size[::-1]) for o in renders]
+    if blender is None:
+        reference = _Reference(name="glsynth 'reference' preset",
+                               images=[area_resize(o.color, size) for o in renders])
     else:
-        reference = [area_resize(o.color, size) for o in reference_run.renders]
-        floor, ref_times, timing = None, [], None
-        reference_name = "glsynth 'reference' preset"
-    zfar = config.render.zfar_m
+        reference = _cycles_reference(scene, runs["reference"].placements, components, size,
+                                      root_seed, env, out, blender, reference_samples,
+                                      cycles_samples)
     rows = {}
     for name in presets:
-        run = runs[name]
-        images = [area_resize(o.color, size) for o in run.renders]
-        rows[name] = {**run.row, **_median_scores(
-            [colour_scores(i, r, c) for i, r, c in zip(images, reference, components)])}
-        truth = [label_scores(o, t, zfar) for o, t in zip(run.renders, scene["truths"])]
-        rows[name]["vs_raycast"] = _median_scores(truth)
+        images = [area_resize(o.color, size) for o in runs[name].renders]
+        rows[name] = _preset_row(runs[name], images, reference, components, scene["truths"],
+                                 config.render.zfar_m)
         if name == "default":
-            d = images[0]
-            diff = np.clip(np.abs(d.astype(int) - reference[0].astype(int)) * 4, 0, 255)
-            atomic_write_bytes(out / "side_by_side.png", png_bytes(np.concatenate(
-                [d, reference[0], diff.astype(np.uint8)], axis=1)))
-    lighting = scene["lighting"]
+            atomic_write_bytes(out / "side_by_side.png",
+                               png_bytes(_side_by_side(images[0], reference.images[0])))
     result = {"command": " ".join(["glsynth", *sys.argv[1:]]), "root_seed": root_seed,
               "env": env, "cameras": cameras, "size": list(size),
-              "reference": reference_name, "reference_samples": reference_samples,
-              "reference_render_s_at_size": (statistics.median(ref_times) if ref_times
-                                             else None),
-              "noise_floor": floor, "cycles_1080p_timing": timing,
-              "lighting": dataclasses.asdict(lighting),
+              "reference": reference.name, "reference_samples": reference_samples,
+              "reference_render_s_at_size": (statistics.median(reference.render_s)
+                                             if reference.render_s else None),
+              "noise_floor": reference.noise_floor,
+              "cycles_1080p_timing": reference.cycles_1080p_timing,
+              "lighting": dataclasses.asdict(scene["lighting"]),
               "render_knobs": {k: getattr(getattr(config, s), k) for s, k in LIGHTING_KNOBS},
               "note": "time_per_sample_s: glsynth = median render at the preset's own size + "
                       "environment opening / cameras per environment; Cycles = fixed + "
-                      "per-sample time of a 1920x1080 render of the first view, measured at 1 "
+                      f"per-sample time of a {_FULL_SIZE} render of the first view, measured at 1 "
                       "and 4 samples with the scene already loaded. Colour compared "
                       "at the comparison size (glsynth area-averaged down to it); "
                       "vs_raycast: labels and depth against an Embree ray cast of the "
                       "reference preset's scene",
-              "presets": rows, "cycles": cycles_rows}
+              "presets": rows, "cycles": reference.cycles_rows}
     atomic_write_json(out / "quality.json", result)
     atomic_write_bytes(out / "quality.md", quality_table(result).encode())
     plot_trade_curve(result, out / "quality.png")
@@ -335,7 +331,7 @@ def quality_table(result: dict) -> str:
             f"{_fmt(r['ciede2000_shadowed'], '.2f')} |")
     for n, r in result["cycles"].items():
         lines.append(
-            f"| Cycles {n} spp | 1920x1080 | - | - | - | - | - | - | "
+            f"| Cycles {n} spp | {_FULL_SIZE} | - | - | - | - | - | - | "
             f"{r['time_per_sample_s']:.1f} s | {r['psnr_db']:.1f} dB | "
             f"{r['ssim']:.3f} | {r['ciede2000']:.2f} | {_fmt(r['ciede2000_columns'], '.2f')} "
             f"| {_fmt(r['ciede2000_deck_underside'], '.2f')} | "
@@ -380,7 +376,7 @@ def plot_trade_curve(result: dict, path: Path) -> None:
         a.axhline(result["noise_floor"]["ciede2000"], color="grey", ls=":",
                   label="reference noise floor")
     a.set_xscale("log")
-    a.set_xlabel("time per 1920x1080 sample [s]")
+    a.set_xlabel(f"time per {_FULL_SIZE} sample [s]")
     a.set_ylabel(f"mean CIEDE2000 vs {result['reference']}")
     a.legend()
     b.plot(x, [100 * r["vs_raycast"]["component_agreement"] for r in rows], "o-",
