@@ -1,13 +1,13 @@
 #version 330 core
 // Metallic-roughness PBR: GGX specular + Burley diffuse under one sun, plus ambient light
-// from the sky and the ground (spherical-harmonic irradiance, or a two-colour hemisphere),
+// from the sky and the ground (spherical-harmonic irradiance, glsynth.world.lighting),
 // occluded by the sky-visibility maps and optionally screen-space ambient occlusion, plus
-// emission (scene panels are emission-only). The normal map (the damage
-// normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
-// derivatives of position and UV, so meshes need no tangent attribute. The sun is shadowed by
-// a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the
-// label pass's depth, so each visible pixel is shaded once; under MSAA the shading normal goes
-// to a second target, for msaa.frag.
+// emission (scene panels are emission-only). The normal map (the damage normal map on damaged
+// columns) perturbs the normal in a tangent frame built from screen-space derivatives of
+// position and UV, so meshes need no tangent attribute. The sun is shadowed by a shadow map
+// (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the label pass's
+// depth, so each visible pixel is shaded once; under MSAA the shading normal goes to a second
+// target, for msaa.frag.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -23,9 +23,7 @@ uniform bool u_has_normal_map;
 
 uniform vec3 u_sun_dir;       // camera space, towards the sun
 uniform vec3 u_sun_color;
-uniform vec3 u_up;            // camera space world up
 uniform mat3 u_world_from_view;
-uniform bool u_ambient_sh;    // true: SH; false: the u_sky_color / u_ground_color hemisphere
 uniform vec3 u_sh_sky[9];     // irradiance = sum u_sh[i] Y_i(world normal) (glsynth.world.lighting)
 uniform vec3 u_sh_ground[9];
 
@@ -34,8 +32,6 @@ uniform int u_vis_count;                // 0: no sky occlusion
 uniform sampler2D u_sky_light;          // (hidden irradiance rgb, visibility by the normal)
 uniform sampler2D u_sky_surface;        // (shading normal, linear depth)
 uniform sampler2D u_sky_open;           // mean visibility over all directions
-uniform vec3 u_sky_color;
-uniform vec3 u_ground_color;
 uniform float u_exposure;
 uniform bool u_has_ao;
 uniform sampler2D u_ao;       // per pixel, from the ssao programs; 1: unoccluded
@@ -192,23 +188,17 @@ vec3 sun_light(Surface s, vec3 n, vec3 v) {
 // hidden: from sky_visibility.
 vec3 ambient_light(Surface s, vec3 n, vec3 v, vec2 vis, vec3 hidden) {
     vec3 r = reflect(-v, n);
-    vec3 env_diffuse, env_specular;
-    if (u_ambient_sh) {
-        // The sky through its visibility, plus the light of the emitting parts that hide it.
-        // The ground's light through the point's mean openness, but at least a quarter of it:
-        // a point under the deck sees the ground the deck shades, and beyond it (for a deck as
-        // wide as it is high, about a quarter of the cosine-weighted view down) ground in full
-        // light. (Finding the shaded ground through the sun's map measured no better.)
-        vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
-        float ground = mix(0.25, 1.0, vis.y);
-        env_diffuse = (sh_irradiance(u_sh_sky, nw) * vis.x
-                       + sh_irradiance(u_sh_ground, nw) * ground + hidden) / PI;
-        env_specular = (sh_irradiance(u_sh_sky, rw) * vis.x
-                        + sh_irradiance(u_sh_ground, rw) * ground) / PI;
-    } else {
-        env_diffuse = mix(u_ground_color, u_sky_color, dot(n, u_up) * 0.5 + 0.5);
-        env_specular = mix(u_ground_color, u_sky_color, dot(r, u_up) * 0.5 + 0.5);
-    }
+    // The sky through its visibility, plus the light of the emitting parts that hide it. The
+    // ground's light through the point's mean openness, but at least a quarter of it: a point
+    // under the deck sees the ground the deck shades, and beyond it (for a deck as wide as it
+    // is high, about a quarter of the cosine-weighted view down) ground in full light.
+    // (Finding the shaded ground through the sun's map measured no better.)
+    vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
+    float ground = mix(0.25, 1.0, vis.y);
+    vec3 env_diffuse = (sh_irradiance(u_sh_sky, nw) * vis.x
+                        + sh_irradiance(u_sh_ground, nw) * ground + hidden) / PI;
+    vec3 env_specular = (sh_irradiance(u_sh_sky, rw) * vis.x
+                         + sh_irradiance(u_sh_ground, rw) * ground) / PI;
     float nv = max(dot(n, v), 1e-4);
     vec3 f_env = s.f0 + (max(vec3(1.0 - s.roughness), s.f0) - s.f0) * pow(1.0 - nv, 5.0);
     vec3 ambient = (1.0 - s.metallic) * s.base * env_diffuse

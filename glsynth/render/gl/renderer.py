@@ -188,7 +188,7 @@ class Renderer:
         self.shadow_map.repeat_x = self.shadow_map.repeat_y = False
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_map)
         # Sky-visibility maps: tiles x tiles maps of sky_visibility_px in one depth atlas.
-        count = self.config.sky_visibility_maps if self.config.ambient == "sh" else 0
+        count = self.config.sky_visibility_maps
         self.vis_tiles = round(count ** 0.5)
         side = self.vis_tiles * self.config.sky_visibility_px if count else 1
         self.vis_map = ctx.depth_texture((side, side))
@@ -430,22 +430,15 @@ class Renderer:
         return light
 
     def _set_lighting(self, lighting: Lighting) -> None:
-        """The uniforms that stay the same for every camera of an environment."""
-        cfg = self.config
+        """The uniforms that stay the same for every camera of an environment: all of them
+        from ``lighting`` (the SH ambient light, the sky, the sun's strength, the exposure)."""
         color, sky = self.programs["color"], self.programs["sky"]
-        tone_map = {"standard": 0, "exponential": 1}[cfg.tone_map]
         for prog in (color, sky):
-            prog["u_tone_map"].value = tone_map
             prog["u_exposure"].value = lighting.exposure
         color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
-        color["u_ambient_sh"].value = cfg.ambient == "sh"
-        if cfg.ambient == "sh":
-            sky_sh, ground_sh = lighting.irradiance_sh()
-            color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
-            color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
-        hemisphere = cfg.ambient_intensity * np.array(cfg.sky_rgb)
-        color["u_sky_color"].value = tuple(hemisphere)
-        color["u_ground_color"].value = tuple(0.35 * hemisphere)
+        sky_sh, ground_sh = lighting.irradiance_sh()
+        color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
+        color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
         sky["u_sky_model"].value = 0 if lighting.sky == "preetham" else 1
         sky["u_sky_strength"].value = lighting.sky_strength
         sky["u_sky_uniform"].value = tuple(lighting.sky_strength * np.array(lighting.sky_rgb))
@@ -575,7 +568,6 @@ class Renderer:
         view3 = view[:3, :3]
         prog["u_projection"].write(camera.projection().astype("f4").T.tobytes())
         prog["u_sun_dir"].value = tuple(view3 @ self.lighting.sun_direction)
-        prog["u_up"].value = tuple(view3 @ np.array([0.0, 0.0, 1.0]))
         prog["u_world_from_view"].write(camera.pose[:3, :3].astype("f4").T.tobytes())
         for unit, name in enumerate(("u_base_color_map", "u_emissive_map", "u_normal_map",
                                      "u_shadow_map", "u_ao")):
