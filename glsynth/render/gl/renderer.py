@@ -188,11 +188,11 @@ class Renderer:
     def __init__(self, config: RenderConfig, platform: str | None = None) -> None:
         self.config = config
         self.ctx, self.platform = create_context(platform)
-        if config.msaa > self.ctx.max_samples:
+        most = self.ctx.max_samples
+        if config.msaa > most:
             self.ctx.release()
             raise UserError(f"[render] msaa = {config.msaa}: this GL ({self.platform}) "
-                            f"supports at most {self.ctx.max_samples} samples; set msaa to "
-                            f"{self.ctx.max_samples} or less")
+                            f"supports at most {most} samples; set msaa to {most} or less")
         self.programs = compile_programs(self.ctx)
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
