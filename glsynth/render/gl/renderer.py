@@ -509,7 +509,9 @@ class Renderer:
 
     # --- one view ---------------------------------------------------------------------------
     def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES) -> RenderOutput:
-        """``passes`` of ``camera``, drawn in the order the module docstring gives."""
+        """``passes`` of ``camera``. The passes run in this order, each into its own targets:
+        sky visibility, shadow, labels, ambient occlusion, colour, MSAA, read-back (the module
+        docstring says what each draws, and when it is skipped)."""
         self._check_request(camera, passes)
         self.make_current()
         draws = self._front_to_back(camera)
