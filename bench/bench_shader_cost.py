@@ -59,7 +59,7 @@ VARIANTS: dict[str, Callable[[str], str]] = {
     vec3 view_dir = normalize(-v_view_pos);
     vec3 n = facing_normal(v_normal, view_dir);
     f_normal = vec4(n, 1.0);
-    if (u_has_normal_map) n = perturbed_normal(n, view_dir);
+    if (u_has_normal_map) n = perturbed_normal(n);
     f_color = vec4(texture(u_base_color_map, v_uv).rgb * n.z, 1.0);
 }
 """),

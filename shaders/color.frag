@@ -1,13 +1,13 @@
 #version 330 core
 // Metallic-roughness PBR: GGX specular + Burley diffuse under one sun, plus ambient light
-// from the sky and the ground (spherical-harmonic irradiance, or a two-colour hemisphere),
+// from the sky and the ground (spherical-harmonic irradiance, glsynth.world.lighting),
 // occluded by the sky-visibility maps and optionally screen-space ambient occlusion, plus
-// emission (scene panels are emission-only). The normal map (the damage
-// normal map on damaged columns) perturbs the normal in a tangent frame built from screen-space
-// derivatives of position and UV, so meshes need no tangent attribute. The sun is shadowed by
-// a shadow map (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the
-// label pass's depth, so each visible pixel is shaded once; under MSAA the shading normal goes
-// to a second target, for msaa.frag.
+// emission (scene panels are emission-only). The normal map (the damage normal map on damaged
+// columns) perturbs the normal in a tangent frame built from screen-space derivatives of
+// position and UV, so meshes need no tangent attribute. The sun is shadowed by a shadow map
+// (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the label pass's
+// depth, so each visible pixel is shaded once; under MSAA the shading normal goes to a second
+// target, for msaa.frag.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -23,9 +23,7 @@ uniform bool u_has_normal_map;
 
 uniform vec3 u_sun_dir;       // camera space, towards the sun
 uniform vec3 u_sun_color;
-uniform vec3 u_up;            // camera space world up
 uniform mat3 u_world_from_view;
-uniform bool u_ambient_sh;    // true: SH; false: the u_sky_color / u_ground_color hemisphere
 uniform vec3 u_sh_sky[9];     // irradiance = sum u_sh[i] Y_i(world normal) (glsynth.world.lighting)
 uniform vec3 u_sh_ground[9];
 
@@ -34,8 +32,6 @@ uniform int u_vis_count;                // 0: no sky occlusion
 uniform sampler2D u_sky_light;          // (hidden irradiance rgb, visibility by the normal)
 uniform sampler2D u_sky_surface;        // (shading normal, linear depth)
 uniform sampler2D u_sky_open;           // mean visibility over all directions
-uniform vec3 u_sky_color;
-uniform vec3 u_ground_color;
 uniform float u_exposure;
 uniform bool u_has_ao;
 uniform sampler2D u_ao;       // per pixel, from the ssao programs; 1: unoccluded
@@ -112,7 +108,7 @@ vec2 sky_visibility(vec3 n, out vec3 hidden) {
     return vec2(light.a, matched ? open / weights : best_open);
 }
 
-vec3 perturbed_normal(vec3 n, vec3 view_dir) {
+vec3 perturbed_normal(vec3 n) {
     vec3 dp1 = dFdx(v_view_pos), dp2 = dFdy(v_view_pos);
     vec2 duv1 = dFdx(v_uv), duv2 = dFdy(v_uv);
     vec3 dp2perp = cross(dp2, n), dp1perp = cross(n, dp1);
@@ -137,6 +133,80 @@ float sun_visibility(vec3 n) {
     return lit / 9.0;
 }
 
+// The surface's material at this fragment: base colour (linear), metallic, roughness, and
+// the reflectance at normal incidence.
+struct Surface {
+    vec3 base;
+    float metallic;
+    float roughness;
+    vec3 f0;
+};
+
+Surface surface_at_fragment() {
+    vec4 texel = texture(u_base_color_map, v_uv);
+    vec4 base = u_base_color * vec4(srgb_to_linear(texel.rgb), 1.0);
+    float metallic = clamp(u_metallic * texel.a, 0.0, 1.0);
+    return Surface(base.rgb, metallic, clamp(u_roughness, 0.04, 1.0),
+                   mix(vec3(0.04), base.rgb, metallic));
+}
+
+// GGX specular: Trowbridge-Reitz distribution, Smith-Schlick shadowing, Schlick Fresnel.
+vec3 ggx_specular(float nl, float nv, float nh, float vh, float roughness, vec3 f0) {
+    float alpha = roughness * roughness;
+    float a2 = alpha * alpha;
+    float denom = nh * nh * (a2 - 1.0) + 1.0;
+    float D = a2 / (PI * denom * denom);
+    float k = (roughness + 1.0) * (roughness + 1.0) / 8.0;
+    float G = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k));
+    vec3 F = f0 + (1.0 - f0) * pow(1.0 - vh, 5.0);
+    return D * G * F / max(4.0 * nl * nv, 1e-4);
+}
+
+// Burley's diffuse with retro-reflection, as Cycles' Principled BSDF evaluates it (the glTF
+// importer's material): not reduced by the specular layer's Fresnel. lv: dot(l, v).
+float burley_diffuse(float nl, float nv, float lv, float roughness) {
+    float fl = pow(1.0 - nl, 5.0), fv = pow(1.0 - nv, 5.0);
+    float rr = roughness * (1.0 + lv);
+    return (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1.0));
+}
+
+// The sun's light that normal n reflects towards v, before its shadow.
+vec3 sun_light(Surface s, vec3 n, vec3 v) {
+    vec3 l = normalize(u_sun_dir);
+    vec3 h = normalize(l + v);
+    float nl = max(dot(n, l), 0.0), nv = max(dot(n, v), 1e-4);
+    float nh = max(dot(n, h), 0.0), vh = max(dot(v, h), 0.0);
+    vec3 specular = ggx_specular(nl, nv, nh, vh, s.roughness, s.f0);
+    vec3 diffuse = burley_diffuse(nl, nv, dot(l, v), s.roughness) * (1.0 - s.metallic) * s.base
+                   / PI;
+    return (diffuse + specular) * u_sun_color * nl;
+}
+
+// Ambient: diffuse by the normal; specular by the reflected direction, where the
+// cosine-filtered radiance (irradiance / pi) stands in for the prefiltered radiance: exact
+// for the widest lobe and close for the rough concrete that fills these scenes. vis and
+// hidden: from sky_visibility.
+vec3 ambient_light(Surface s, vec3 n, vec3 v, vec2 vis, vec3 hidden) {
+    vec3 r = reflect(-v, n);
+    // The sky through its visibility, plus the light of the emitting parts that hide it. The
+    // ground's light through the point's mean openness, but at least a quarter of it: a point
+    // under the deck sees the ground the deck shades, and beyond it (for a deck as wide as it
+    // is high, about a quarter of the cosine-weighted view down) ground in full light.
+    // (Finding the shaded ground through the sun's map measured no better.)
+    vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
+    float ground = mix(0.25, 1.0, vis.y);
+    vec3 env_diffuse = (sh_irradiance(u_sh_sky, nw) * vis.x
+                        + sh_irradiance(u_sh_ground, nw) * ground + hidden) / PI;
+    vec3 env_specular = (sh_irradiance(u_sh_sky, rw) * vis.x
+                         + sh_irradiance(u_sh_ground, rw) * ground) / PI;
+    float nv = max(dot(n, v), 1e-4);
+    vec3 f_env = s.f0 + (max(vec3(1.0 - s.roughness), s.f0) - s.f0) * pow(1.0 - nv, 5.0);
+    vec3 ambient = (1.0 - s.metallic) * s.base * env_diffuse
+                 + f_env * env_specular * (1.0 - 0.7 * s.roughness);
+    if (u_has_ao) ambient *= texelFetch(u_ao, ivec2(gl_FragCoord.xy), 0).r;
+    return ambient;
+}
+
 void main() {
     vec3 view_dir = normalize(-v_view_pos);
     vec3 n = facing_normal(v_normal, view_dir);
@@ -144,61 +214,10 @@ void main() {
     float sun = sun_visibility(n);       // by the mesh normal: the normal map only shades
     vec3 hidden;
     vec2 vis = sky_visibility(n, hidden);
-    if (u_has_normal_map) n = perturbed_normal(n, view_dir);
-
-    vec4 texel = texture(u_base_color_map, v_uv);
-    vec4 base = u_base_color * vec4(srgb_to_linear(texel.rgb), 1.0);
-    float metallic = clamp(u_metallic * texel.a, 0.0, 1.0);
-    float roughness = clamp(u_roughness, 0.04, 1.0);
-    float alpha = roughness * roughness;
-
-    vec3 f0 = mix(vec3(0.04), base.rgb, metallic);
-    vec3 l = normalize(u_sun_dir);
-    vec3 h = normalize(l + view_dir);
-    float nl = max(dot(n, l), 0.0), nv = max(dot(n, view_dir), 1e-4);
-    float nh = max(dot(n, h), 0.0), vh = max(dot(view_dir, h), 0.0);
-
-    float a2 = alpha * alpha;
-    float denom = nh * nh * (a2 - 1.0) + 1.0;
-    float D = a2 / (PI * denom * denom);
-    float k = (roughness + 1.0) * (roughness + 1.0) / 8.0;
-    float G = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k));
-    vec3 F = f0 + (1.0 - f0) * pow(1.0 - vh, 5.0);
-    vec3 specular = D * G * F / max(4.0 * nl * nv, 1e-4);
-    // Burley's diffuse with retro-reflection, as Cycles' Principled BSDF evaluates it (the
-    // glTF importer's material): not reduced by the specular layer's Fresnel.
-    float fl = pow(1.0 - nl, 5.0), fv = pow(1.0 - nv, 5.0);
-    float rr = roughness * (1.0 + dot(l, view_dir));
-    float burley = (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1.0));
-    vec3 diffuse = burley * (1.0 - metallic) * base.rgb / PI;
-    vec3 direct = (diffuse + specular) * u_sun_color * nl * sun;
-
-    // Ambient: diffuse by the normal; specular by the reflected direction, where the
-    // cosine-filtered radiance (irradiance / pi) stands in for the prefiltered radiance: exact
-    // for the widest lobe and close for the rough concrete that fills these scenes.
-    vec3 r = reflect(-view_dir, n);
-    vec3 env_diffuse, env_specular;
-    if (u_ambient_sh) {
-        // The sky through its visibility, plus the light of the emitting parts that hide it.
-        // The ground's light through the point's mean openness, but at least a quarter of it:
-        // a point under the deck sees the ground the deck shades, and beyond it (for a deck as
-        // wide as it is high, about a quarter of the cosine-weighted view down) ground in full
-        // light. (Finding the shaded ground through the sun's map measured no better.)
-        vec3 nw = u_world_from_view * n, rw = u_world_from_view * r;
-        float ground = mix(0.25, 1.0, vis.y);
-        env_diffuse = (sh_irradiance(u_sh_sky, nw) * vis.x
-                       + sh_irradiance(u_sh_ground, nw) * ground + hidden) / PI;
-        env_specular = (sh_irradiance(u_sh_sky, rw) * vis.x
-                        + sh_irradiance(u_sh_ground, rw) * ground) / PI;
-    } else {
-        env_diffuse = mix(u_ground_color, u_sky_color, dot(n, u_up) * 0.5 + 0.5);
-        env_specular = mix(u_ground_color, u_sky_color, dot(r, u_up) * 0.5 + 0.5);
-    }
-    vec3 f_env = f0 + (max(vec3(1.0 - roughness), f0) - f0) * pow(1.0 - nv, 5.0);
-    vec3 ambient = (1.0 - metallic) * base.rgb * env_diffuse
-                 + f_env * env_specular * (1.0 - 0.7 * roughness);
-    if (u_has_ao) ambient *= texelFetch(u_ao, ivec2(gl_FragCoord.xy), 0).r;
-
+    if (u_has_normal_map) n = perturbed_normal(n);
+    Surface s = surface_at_fragment();
+    vec3 direct = sun_light(s, n, view_dir) * sun;
+    vec3 ambient = ambient_light(s, n, view_dir, vis, hidden);
     vec3 emissive = u_emissive * srgb_to_linear(texture(u_emissive_map, v_uv).rgb);
     f_color = vec4(tone_map((direct + ambient + emissive) * u_exposure), 1.0);
 }

@@ -9,7 +9,8 @@ from trimesh.visual import TextureVisuals
 from glsynth.appearance.materials import Material, plain_material
 from glsynth.core.config import RenderConfig
 from glsynth.core.labels import Component
-from glsynth.render.scene import build_scene
+from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
+from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Environment, Part
 from glsynth.world.lighting import Lighting
@@ -38,6 +39,31 @@ def camera(width: int = 64, height: int = 48, focal_mm: float = 36.0,
     """Default: at the origin, looking down -z (fx = width)."""
     return Camera(width, height, focal_mm, 36.0, np.eye(4) if pose is None else pose,
                   0.05, zfar)
+
+
+def pixel_plate(cam: Camera, depth: float) -> trimesh.Trimesh:
+    """A plate facing ``cam`` (at the origin, looking down -z) at ``depth`` metres, its corners
+    on the image's outer pixel edges: with the default uvs, texel (c, r) of a texture the
+    image's size covers pixel (c, r) exactly (pixel c spans u in [c / width, (c + 1) / width],
+    row 0 is the top, v = 1)."""
+    k = cam.K
+    x0, x1 = (-0.5 - k[0, 2]) / k[0, 0] * depth, (cam.width - 0.5 - k[0, 2]) / k[0, 0] * depth
+    y1 = -(-0.5 - k[1, 2]) / k[1, 1] * depth
+    y0 = -(cam.height - 0.5 - k[1, 2]) / k[1, 1] * depth
+    return quad([[x0, y0, -depth], [x1, y0, -depth], [x1, y1, -depth], [x0, y1, -depth]])
+
+
+def render_once(scene: RenderScene, config: RenderConfig, cam: Camera | None = None,
+                passes: frozenset[str] | set[str] = PASSES,
+                platform: str | None = None) -> RenderOutput:
+    """``scene`` under LIGHT from ``cam`` (default: camera()) by a renderer of its own (on
+    ``platform`` if given), released however the render ends; GL must report no error."""
+    with Renderer(config, platform) as r:
+        assert platform is None or r.platform == platform
+        r.load(scene, LIGHT)
+        out = r.render(cam or camera(), passes)
+        assert r.ctx.error == "GL_NO_ERROR"
+    return out
 
 
 def render_config(width: int = 64, height: int = 48, msaa: int = 0) -> RenderConfig:

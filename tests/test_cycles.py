@@ -55,14 +55,11 @@ def test_a_matte_scene_agrees_with_cycles(tmp_path):
     lighting = dataclasses.replace(LIGHT, sun_elevation_deg=35.0, sun_azimuth_deg=250.0)
     render = render_config(96, 54)
     cam = camera(96, 54, 18.0, pose=_view())
-    r = Renderer(render)
-    try:
+    with Renderer(render) as r:
         from glsynth.render.scene import build_scene
 
         r.load(build_scene(parts, materials), lighting)
         gl = r.render(cam)
-    finally:
-        r.release()
     result = render_linear(parts, materials, lighting, [cam], [7], 64, tmp_path / "work",
                            BLENDER)
     cycles = display(result.linear[0], lighting)

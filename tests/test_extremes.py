@@ -47,9 +47,8 @@ def assert_sane(output, zfar: float = 2000.0) -> None:
 
 @pytest.fixture(scope="module")
 def small():
-    r = Renderer(render_config(64, 48))
-    yield r
-    r.release()
+    with Renderer(render_config(64, 48)) as r:
+        yield r
 
 
 @pytest.mark.parametrize("distance", [0.05 * 1.001, 0.5, 30.0, 1000.0])
@@ -72,8 +71,8 @@ def test_viaduct_views_at_the_extremes(focal, height, radius):
         config, environment=environment,
         cameras=dataclasses.replace(config.cameras, n_regular=3, n_closeup=3,
                                     focal_mm=(focal, focal)))
-    view = EnvironmentView.open(config, 0, 0)
-    try:
+    with Renderer(config.render) as renderer:
+        view = EnvironmentView.open(config, 0, 0, renderer)
         assert all(v.height_m == height for v in view.environment.viaducts)
         for index in range(6):
             placement, out = view.render(index)
@@ -85,8 +84,6 @@ def test_viaduct_views_at_the_extremes(focal, height, radius):
             near = out.depth.astype(np.float64) <= fx / 150
             edge = np.isclose(out.depth, fx / 150, rtol=1e-6)
             assert np.array_equal(rrdr(out.depth, fx)[~edge], near[~edge])
-    finally:
-        view.renderer.release()
 
 
 @pytest.mark.parametrize("area", [0.0, 1.0])
@@ -207,9 +204,9 @@ def test_shadows_only_darken_with_the_sun_anywhere(elevation):
         config, lighting=dataclasses.replace(config.lighting,
                                              sun_elevation_deg=(elevation, elevation)),
         cameras=dataclasses.replace(config.cameras, n_regular=2, n_closeup=2))
-    view = EnvironmentView.open(config, 0, 0)
-    unshadowed = Renderer(dataclasses.replace(config.render, shadow_map_px=0))
-    try:
+    with (Renderer(config.render) as renderer,
+          Renderer(dataclasses.replace(config.render, shadow_map_px=0)) as unshadowed):
+        view = EnvironmentView.open(config, 0, 0, renderer)
         # The same sky-visibility maps as the view's (fitted to the whole environment).
         unshadowed.load(view.scene, view.lighting, occlusion_extent(view.environment.parts))
         darker = 0
@@ -223,6 +220,3 @@ def test_shadows_only_darken_with_the_sun_anywhere(elevation):
             darker += int((out.color.astype(int) < lit.color.astype(int) - 8).any(axis=2).sum())
         if elevation == 50.0:  # a mid-height sun: the deck's shadow is in these views
             assert darker > 0
-    finally:
-        unshadowed.release()
-        view.renderer.release()

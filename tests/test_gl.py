@@ -1,12 +1,22 @@
 """Renderer tests on Mesa (llvmpipe in CI) at small sizes, against analytic depth, a CPU ray
 cast (trimesh) and constructed label textures. The GL error state is checked around each test."""
 
+import itertools
 import re
 
 import numpy as np
 import pytest
 import trimesh
-from glhelpers import LIGHT, camera, plain_materials, quad, render_config, scene_of
+from glhelpers import (
+    LIGHT,
+    camera,
+    pixel_plate,
+    plain_materials,
+    quad,
+    render_config,
+    render_once,
+    scene_of,
+)
 from trimesh.visual import TextureVisuals
 
 from glsynth.appearance.materials import Material, plain_material
@@ -23,9 +33,8 @@ PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
 
 @pytest.fixture(scope="module")
 def renderer():
-    r = Renderer(render_config(64, 48))
-    yield r
-    r.release()
+    with Renderer(render_config(64, 48)) as r:
+        yield r
 
 
 @pytest.fixture(autouse=True)
@@ -106,13 +115,7 @@ def test_image_labels_and_depth_are_aligned(renderer):
 
 def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
     """A fronto-parallel plate whose UVs map the texture exactly onto the 64 x 48 image."""
-    d = 10.0
     cam = camera()
-    k = cam.K
-    # Plate corners at the outer pixel edges: pixel (c, r) covers uv [c/64, (c+1)/64] etc.
-    x0, x1 = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
-    y1, y0 = -(-0.5 - k[1, 2]) / k[1, 1] * d, -(47.5 - k[1, 2]) / k[1, 1] * d
-    corners = [[x0, y0, -d], [x1, y0, -d], [x1, y1, -d], [x0, y1, -d]]
     rng = make_rng(5, 0, Stream.DAMAGE)
     mask = rng.choice(np.array([1, 2, 3], np.uint8), size=(48, 64), p=[0.6, 0.3, 0.1])
     bumps = np.zeros((48, 64, 3), np.uint8)
@@ -120,7 +123,7 @@ def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
     normal = np.dstack([tilt, np.ones((48, 64))])
     normal /= np.linalg.norm(normal, axis=2, keepdims=True)
     bumps[:] = np.round((normal * 0.5 + 0.5) * 255)
-    plate = quad(corners)
+    plate = pixel_plate(cam, 10.0)
     base = Material(base_color=(0.7, 0.7, 0.7, 1.0), damage_mask=mask)
     bumpy = Material(base_color=(0.7, 0.7, 0.7, 1.0), damage_mask=mask, normal_map=bumps)
     renderer.load(scene_of(("column_plate", Component.COLUMN, plate, base)), LIGHT)
@@ -139,11 +142,7 @@ def test_damage_mask_projects_exactly_and_normal_map_only_shades(renderer):
 def test_metallic_map_travels_in_the_base_textures_alpha(renderer):
     """The renderer samples the metallic map from the base colour texture's alpha: where the
     map is 255 the plate renders as the metallic factor alone, where it is 0 as metallic 0."""
-    d = 10.0
-    k = camera().K
-    x0, x1 = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
-    y1, y0 = -(-0.5 - k[1, 2]) / k[1, 1] * d, -(47.5 - k[1, 2]) / k[1, 1] * d
-    plate = quad([[x0, y0, -d], [x1, y0, -d], [x1, y1, -d], [x0, y1, -d]])
+    plate = pixel_plate(camera(), 10.0)
     colour = make_rng(6, 0, Stream.DAMAGE).integers(60, 200, (48, 64, 3), dtype=np.uint8)
     metal = np.zeros((48, 64), np.uint8)
     metal[:, :32] = 255
@@ -168,14 +167,7 @@ def test_msaa_changes_colour_edges_only_never_labels_or_depth():
     b = box((1.0, 1.0, 1.0))
     b.apply_transform(pose(0.4, [0.3, 0.2, -6.0]))
     scene = scene_of(("column_box", Component.COLUMN, b, plain_material(Component.COLUMN)))
-    outs = []
-    for msaa in (0, 4):
-        r = Renderer(render_config(64, 48, msaa=msaa))
-        r.load(scene, LIGHT)
-        outs.append(r.render(camera()))
-        assert r.ctx.error == "GL_NO_ERROR"
-        r.release()
-    a, b4 = outs
+    a, b4 = (render_once(scene, render_config(64, 48, msaa=msaa)) for msaa in (0, 4))
     assert np.array_equal(a.component, b4.component) and np.array_equal(a.depth, b4.depth)
     changed = np.any(a.color != b4.color, axis=2)
     assert changed.any()
@@ -216,11 +208,7 @@ def test_colour_shows_the_surface_the_labels_name_where_surfaces_tie(msaa):
                      ("column_pair", Component.COLUMN, pair,
                       Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=(2.0, 2.0, 2.0),
                                emissive_map=halves, damage_mask=mask)))
-    r = Renderer(render_config(64, 48, msaa=msaa))
-    r.load(scene, LIGHT)
-    out = r.render(camera())
-    assert r.ctx.error == "GL_NO_ERROR"
-    r.release()
+    out = render_once(scene, render_config(64, 48, msaa=msaa))
     red, green = out.color[..., 0].astype(int), out.color[..., 1].astype(int)
     # Away from silhouettes (MSAA blends those), each pixel glows in its labelled part's colour.
     inner = np.ones(out.component.shape, bool)
@@ -269,11 +257,7 @@ def test_parts_out_of_view_are_not_drawn_and_change_no_byte(monkeypatch, msaa):
     outputs = []
     for test in (counting, lambda corners, cam: np.ones(len(corners), bool)):
         monkeypatch.setattr(renderer_module, "seen_by", test)
-        r = Renderer(render_config(64, 48, msaa=msaa))
-        r.load(scene, LIGHT)
-        outputs.append(r.render(camera()))
-        assert r.ctx.error == "GL_NO_ERROR"
-        r.release()
+        outputs.append(render_once(scene, render_config(64, 48, msaa=msaa)))
     assert seen_counts == [3]  # the floor and two columns; not the beams
     culled, everything = outputs
     for name in ("color", "component", "damage", "depth"):
@@ -290,13 +274,8 @@ def test_msaa_keeps_the_single_sample_colour_inside_a_surface_to_the_byte():
     scene = scene_of(("slab_wall", Component.SLAB, wall,
                       Material(base_color=(0.0, 0.0, 0.0, 1.0), emissive=(1.5, 1.5, 1.5),
                                emissive_map=levels)))
-    images = []
-    for msaa in (0, 4):
-        r = Renderer(render_config(64, 48, msaa=msaa))
-        r.load(scene, LIGHT)
-        images.append(r.render(camera(), {"color"}).color)
-        assert r.ctx.error == "GL_NO_ERROR"
-        r.release()
+    images = [render_once(scene, render_config(64, 48, msaa=msaa), passes={"color"}).color
+              for msaa in (0, 4)]
     assert len(np.unique(images[0].reshape(-1, 3), axis=0)) > 500  # no flat field
     assert np.array_equal(images[0], images[1])
 
@@ -307,12 +286,11 @@ def test_every_pixel_of_the_shading_normal_target_is_written_sky_included():
     llvmpipe left varying garbage (NaN included) at sky pixels, so a few edge pixels changed
     from run to run. The sky writes a zero normal; surfaces write unit normals."""
     square = quad([[-1.0, -1.0, -6.0], [1.0, -1.0, -6.0], [1.0, 1.0, -6.0], [-1.0, 1.0, -6.0]])
-    r = Renderer(render_config(64, 48, msaa=4))
-    r.load(scene_of(("column_square", Component.COLUMN, square, PLAIN)), LIGHT)
-    out = r.render(camera())
-    normals = np.frombuffer(r.normal_target.read(), np.float16).reshape(48, 64, 4)[::-1]
-    assert r.ctx.error == "GL_NO_ERROR"
-    r.release()
+    with Renderer(render_config(64, 48, msaa=4)) as r:
+        r.load(scene_of(("column_square", Component.COLUMN, square, PLAIN)), LIGHT)
+        out = r.render(camera())
+        normals = np.frombuffer(r.normal_target.read(), np.float16).reshape(48, 64, 4)[::-1]
+        assert r.ctx.error == "GL_NO_ERROR"
     sky = out.component != Component.COLUMN
     assert 100 < sky.sum() < sky.size - 100
     assert np.all(normals[sky].view(np.uint16) == 0)  # bit for bit: no -0, no NaN
@@ -333,14 +311,8 @@ def test_msaa_samples_on_a_silhouette_take_their_own_surfaces_colour():
     square.apply_transform(pose(0.5, [0.2, 0.1, -6.0]))
     scene = scene_of(("slab_wall", Component.SLAB, wall, _glowing((0.0, 0.6, 0.0))),
                      ("column_square", Component.COLUMN, square, _glowing((0.6, 0.0, 0.0))))
-    images = []
-    for msaa in (0, 4):
-        r = Renderer(render_config(64, 48, msaa=msaa))
-        r.load(scene, LIGHT)
-        images.append(r.render(camera(), {"color"}).color.astype(int))
-        assert r.ctx.error == "GL_NO_ERROR"
-        r.release()
-    single, multi = images
+    single, multi = (render_once(scene, render_config(64, 48, msaa=msaa), passes={"color"})
+                     .color.astype(int) for msaa in (0, 4))
     padded = np.pad(single, ((1, 1), (1, 1), (0, 0)), mode="edge")
     windows = np.stack([padded[i:i + 48, j:j + 64] for i in range(3) for j in range(3)])
     assert np.all(multi >= windows.min(0) - 1) and np.all(multi <= windows.max(0) + 1)
@@ -371,6 +343,15 @@ def test_msaa_samples_on_a_silhouette_take_their_own_surfaces_colour():
     assert wall_green > square_green + 60
 
 
+def test_more_msaa_samples_than_the_gl_has_is_one_clear_error():
+    with Renderer(render_config()) as r:
+        most = r.ctx.max_samples
+    if 2 * most > 16:
+        pytest.skip(f"this GL has {most} samples, more than [render] msaa allows")
+    with pytest.raises(UserError, match=rf"msaa = {2 * most}: .* at most {most} samples"):
+        Renderer(render_config(msaa=2 * most))
+
+
 def test_unknown_platform_and_failure_message(monkeypatch):
     with pytest.raises(UserError, match="GL platform 'vulkan'"):
         gl_context.create_context("vulkan")
@@ -395,15 +376,7 @@ def test_egl_and_osmesa_render_the_same(env0):
     rc = render_config(96, 54)
     scene = build_scene(env0.parts, plain_materials(env0))
     cam = environment_camera(env0.trajectory, Config().cameras, rc, 0, 0, 60).camera
-    outs = {}
-    for platform in ("egl", "osmesa"):
-        r = Renderer(rc, platform=platform)
-        assert r.platform == platform
-        r.load(scene, LIGHT)
-        outs[platform] = r.render(cam)
-        assert r.ctx.error == "GL_NO_ERROR"
-        r.release()
-    e, o = outs["egl"], outs["osmesa"]
+    e, o = (render_once(scene, rc, cam, platform=platform) for platform in ("egl", "osmesa"))
     assert np.array_equal(e.component, o.component) and np.array_equal(e.depth, o.depth)
     assert np.abs(e.color.astype(int) - o.color.astype(int)).max() <= 1
 
@@ -418,18 +391,19 @@ def test_rendered_damage_plate_shows_ids_exactly_where_the_mask_says(tmp_path):
     cfg = DamageConfig(resolution=64)
     entry = DamageBank(cfg, 0, cache_dir=tmp_path).entry("severe", 3, repo)
     material = damage_material(entry, repo, cfg, scale=1.0)
-    r = Renderer(render_config(64, 64))
     cam = camera(64, 64)
-    k, d = cam.K, 4.0
-    lo, hi = (-0.5 - k[0, 2]) / k[0, 0] * d, (63.5 - k[0, 2]) / k[0, 0] * d
-    plate = quad([[lo, -hi, -d], [hi, -hi, -d], [hi, hi, -d], [lo, hi, -d]])
-    r.load(scene_of(("column_plate", Component.COLUMN, plate, material)), LIGHT)
-    out = r.render(cam)
-    assert r.ctx.error == "GL_NO_ERROR"
-    r.release()
-    assert (entry.maps.mask != 1).any() and (entry.maps.mask == 3).any()
-    assert np.array_equal(out.damage, entry.maps.mask)
+    plate = pixel_plate(cam, 4.0)
+    out = render_once(scene_of(("column_plate", Component.COLUMN, plate, material)),
+                      render_config(64, 64), cam)
+    mask = entry.maps.mask
+    assert (mask == 2).any() and (mask == 3).any()
+    assert np.array_equal(out.damage, mask)
     assert np.all(out.component == Component.COLUMN)
-    # Exposed rebar is metallic steel, concrete damage shows the second concrete image.
-    assert not np.array_equal(out.color[entry.maps.mask == 3].mean(0),
-                              out.color[entry.maps.mask == 1].mean(0))
+    # Sound concrete (1), the second concrete image where concrete is damaged (2) and metallic
+    # steel where rebar is exposed (3): the colour maps follow the mask if the three regions'
+    # mean luminances lie more than two pixel standard deviations apart, pair by pair (here
+    # 3.0, 7.6 and 2.8). Maps one texel off the mask leave them at most 1.7 apart, maps flipped
+    # or 8 texels off at most 0.7 (measured on this plate), so the test tells them apart.
+    luminance = out.color.astype(float) @ np.array([0.2126, 0.7152, 0.0722])
+    for a, b in itertools.combinations([luminance[mask == v] for v in (1, 2, 3)], 2):
+        assert abs(a.mean() - b.mean()) > 2 * np.sqrt((a.var() + b.var()) / 2)

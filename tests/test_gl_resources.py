@@ -47,9 +47,8 @@ def _held_mb() -> float:
 
 def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
     config = preview_config(Config(), 128)
-    view = EnvironmentView.open(config, 0, 0, Renderer(config.render))
-    renderer = view.renderer
-    try:
+    with Renderer(config.render) as renderer:
+        view = EnvironmentView.open(config, 0, 0, renderer)
         is_buffer, is_texture = _gl_function("glIsBuffer"), _gl_function("glIsTexture")
         camera = view.camera(0).camera
         highest = 0
@@ -81,8 +80,6 @@ def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
         slope = float(np.median((after[j] - after[i]) / (j - i)))
         assert slope < 1.0, f"held memory grew {slope:.2f} MB per load: " \
             f"{[round(h, 1) for h in held]}"
-    finally:
-        renderer.release()
 
 
 def test_read_only_textures_outlive_their_scene_until_a_scene_stops_drawing_them():
@@ -104,8 +101,7 @@ def test_read_only_textures_outlive_their_scene_until_a_scene_stops_drawing_them
         return scene_of(("column_plate", Component.COLUMN, plate,
                          Material(base_color_map=image, damage_mask=mask)))
 
-    renderer = Renderer(render_config(16, 12))
-    try:
+    with Renderer(render_config(16, 12)) as renderer:
         renderer.load(scene(shared, np.ones((8, 8), np.uint8)), LIGHT)
         kept = renderer._draws[0].textures["base"]
         mask = renderer._draws[0].damage_mask
@@ -118,8 +114,6 @@ def test_read_only_textures_outlive_their_scene_until_a_scene_stops_drawing_them
         assert [t for _, t in renderer._textures.values()] == [
             renderer._draws[0].textures["base"]]  # the first image's texture was freed
         assert not is_texture(kept.glo)
-    finally:
-        renderer.release()
 
 
 def test_texture_data_flips_rows_and_packs_alpha_as_numpy_would():

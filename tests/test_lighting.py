@@ -31,16 +31,13 @@ NO_OCCLUSION = dict(ao="off", sky_visibility_maps=0, shadow_map_px=0)
 def _render(scene, lighting, passes=frozenset({"color", "component", "damage", "depth"}),
             cam=None, **render):
     config = dataclasses.replace(render_config(64, 48), **render)
-    r = Renderer(config)
-    try:
+    with Renderer(config) as r:
         r.load(scene, lighting)
         out = r.render(cam or camera(), passes)
         assert r.ctx.error == "GL_NO_ERROR"
         ao = np.frombuffer(r.ao.read(), np.float16).reshape(config.height, config.width)
         ao = ao[::-1].astype(float)
         return out, ao
-    finally:
-        r.release()
 
 
 def _floor(material: Material, size: float = 50.0):
@@ -237,11 +234,10 @@ def test_sky_visibility_is_upsampled_within_each_surface():
     for parts in ((("ground_plane", Component.NONBRIDGE, floor, matte),
                    ("slab_plate", Component.SLAB, plate, matte)),
                   (("slab_plate", Component.SLAB, plate, matte),)):
-        r = Renderer(render_config(64, 48))
-        r.load(scene_of(*parts), dark, extent)
-        outs.append(r.render(cam))
-        assert r.ctx.error == "GL_NO_ERROR"
-        r.release()
+        with Renderer(render_config(64, 48)) as r:
+            r.load(scene_of(*parts), dark, extent)
+            outs.append(r.render(cam))
+            assert r.ctx.error == "GL_NO_ERROR"
     with_floor, alone = outs
     on_plate = with_floor.component == Component.SLAB
     assert np.array_equal(on_plate, alone.component == Component.SLAB) and on_plate.sum() > 500
@@ -311,11 +307,9 @@ def test_no_lighting_knob_changes_labels_or_depth():
     reference = None
     for change in variants:
         config = config_from_dict(change, base)
-        view = EnvironmentView.open(config, 0, 0)
-        try:
+        with Renderer(config.render) as renderer:
+            view = EnvironmentView.open(config, 0, 0, renderer)
             outs = [view.render(i)[1] for i in (0, 5, 11)]
-        finally:
-            view.renderer.release()
         if reference is None:
             reference = outs
             continue

@@ -21,9 +21,8 @@ CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=128),
 def setup(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("plates")
     repo = TextureRepository(generate_repository(tmp / "r", 0, 2, 32), 32)
-    renderer = Renderer(CONFIG.render)
-    yield repo, DamageBank(CONFIG.damage, 0, cache_dir=tmp), renderer
-    renderer.release()
+    with Renderer(CONFIG.render) as renderer:
+        yield repo, DamageBank(CONFIG.damage, 0, cache_dir=tmp), renderer
 
 
 def shoot(setup, index):

@@ -182,12 +182,9 @@ def test_a_second_writer_is_refused_with_the_holders_pid(small_config, tmp_path,
 
 def test_a_run_cannot_start_while_an_earlier_runs_workers_live(tmp_path):
     out = tmp_path / "ds"
-    worker = RunLock(out, worker=True).acquire()
-    try:
-        with pytest.raises(UserError, match="worker processes of an earlier run"):
-            RunLock(out).acquire()
-    finally:
-        worker.release()
+    with (RunLock(out, worker=True),
+          pytest.raises(UserError, match="worker processes of an earlier run")):
+        RunLock(out).acquire()
     with RunLock(out):  # once they are gone, the folder is free
         pass
 

@@ -24,11 +24,10 @@ CAMERAS = Config().cameras
 
 @pytest.fixture(scope="module")
 def loaded(env0):
-    r = Renderer(RC)
-    r.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
-    yield r
-    assert r.ctx.error == "GL_NO_ERROR"
-    r.release()
+    with Renderer(RC) as r:
+        r.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
+        yield r
+        assert r.ctx.error == "GL_NO_ERROR"
 
 
 def cam(env0, index):
@@ -77,10 +76,9 @@ def test_label_maps_hold_only_valid_ids(env0, loaded):
 
 def test_a_camera_renders_the_same_bytes_alone_or_in_a_batch(env0, loaded):
     batch = [loaded.render(cam(env0, i)) for i in range(4)]
-    alone = Renderer(RC)
-    alone.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
-    single = alone.render(cam(env0, 2))
-    alone.release()
+    with Renderer(RC) as alone:
+        alone.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
+        single = alone.render(cam(env0, 2))
     for name in ("color", "component", "damage", "depth"):
         assert getattr(single, name).tobytes() == getattr(batch[2], name).tobytes()
 
@@ -133,9 +131,9 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
     config = preview_config(Config(), 160)
     config = dataclasses.replace(config, cameras=dataclasses.replace(
         config.cameras, n_regular=3, n_closeup=3))
-    culled = EnvironmentView.open(config, 0, 1)
-    full = EnvironmentView.open(config, 0, 1, renderer=culled.renderer, cull=False)
-    try:
+    with Renderer(config.render) as renderer:
+        culled = EnvironmentView.open(config, 0, 1, renderer)
+        full = EnvironmentView.open(config, 0, 1, renderer=renderer, cull=False)
         assert len(culled.scene.parts) < len(full.scene.parts) == len(full.environment.parts)
         outputs = {}
         for view in (culled, full):
@@ -145,8 +143,6 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
         for a, b in zip(outputs[True], outputs[False]):
             for name in ("color", "component", "damage", "depth"):
                 assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
-    finally:
-        culled.renderer.release()
 
 
 def test_parts_that_only_shadow_a_view_or_hide_its_sky_are_kept():
@@ -159,8 +155,8 @@ def test_parts_that_only_shadow_a_view_or_hide_its_sky_are_kept():
     config = preview_config(Config(), 160)
     config = dataclasses.replace(config, cameras=dataclasses.replace(
         config.cameras, n_regular=3, n_closeup=3))
-    view = EnvironmentView.open(config, 0, 1)
-    try:
+    with Renderer(config.render) as renderer:
+        view = EnvironmentView.open(config, 0, 1, renderer)
         seen = visible_parts(view.environment.parts, [view.camera(i).camera for i in range(6)])
         assert seen < set(view.scene.parts) < {p.name for p in view.environment.parts}
         kept = [view.render(i)[1].color for i in range(6)]
@@ -169,8 +165,6 @@ def test_parts_that_only_shadow_a_view_or_hide_its_sky_are_kept():
         seen_only = [view.render(i)[1].color for i in range(6)]
         # Dropping the unseen casters would lose shadows or sky occlusion in some view.
         assert any(not np.array_equal(a, b) for a, b in zip(kept, seen_only))
-    finally:
-        view.renderer.release()
 
 
 def test_mask_lookup_samples_like_gl():
@@ -182,8 +176,9 @@ def test_mask_lookup_samples_like_gl():
 def test_damage_labels_match_the_ray_cast_through_the_damage_masks():
     from glsynth.render.view import EnvironmentView, preview_config
 
-    view = EnvironmentView.open(preview_config(Config(), 320), 0, 0)
-    try:
+    config = preview_config(Config(), 320)
+    with Renderer(config.render) as renderer:
+        view = EnvironmentView.open(config, 0, 0, renderer)
         damaged = 0.0
         # Views not removed for their geometry (a camera inside a column is clipped by the near
         # plane where the ray cast is not); a view too dark for the dataset is fine here.
@@ -196,8 +191,6 @@ def test_damage_labels_match_the_ray_cast_through_the_damage_masks():
             assert (out.component == truth.component).mean() > 0.9999
             damaged = max(damaged, float((truth.damage >= 2).mean()))
         assert damaged > 0.05
-    finally:
-        view.renderer.release()
 
 
 def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
@@ -207,8 +200,7 @@ def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
     from glsynth.render.view import EnvironmentView, preview_config
 
     config = preview_config(Config(), 96)
-    renderer = Renderer(config.render)
-    try:
+    with Renderer(config.render) as renderer:
         EnvironmentView.open(config, 0, 0, renderer)
         assert renderer._draws
         real_dress = view_module.dress
@@ -223,5 +215,3 @@ def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
         monkeypatch.setattr(view_module, "dress", dress_after_release)
         EnvironmentView.open(config, 0, 1, renderer)
         assert renderer._draws
-    finally:
-        renderer.release()

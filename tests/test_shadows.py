@@ -80,15 +80,12 @@ def _render(scene, sun_irradiance: float = 3.0, **render):
     light, so that only the sun's shadow changes pixels."""
     light = {k: render.pop(k) for k in ("sun_elevation_deg", "sun_azimuth_deg") if k in render}
     lighting = dataclasses.replace(LIGHT, sun_irradiance=sun_irradiance, **light)
-    r = Renderer(dataclasses.replace(render_config(64, 48), ao="off", sky_visibility_maps=0,
-                                     **render))
-    try:
+    with Renderer(dataclasses.replace(render_config(64, 48), ao="off", sky_visibility_maps=0,
+                                      **render)) as r:
         r.load(scene, lighting)
         out = r.render(camera())
         assert r.ctx.error == "GL_NO_ERROR"
         return out
-    finally:
-        r.release()
 
 
 def test_a_roof_far_towards_the_sun_shadows_exactly_its_half_of_the_ground():

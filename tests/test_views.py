@@ -40,9 +40,8 @@ def looks_at_the_track(view: EnvironmentView, placement: CameraPlacement) -> boo
 
 
 def test_views_that_look_at_the_track_show_rails_and_sleepers():
-    renderer = Renderer(CONFIG.render)
     found = 0
-    try:
+    with Renderer(CONFIG.render) as renderer:
         for env in range(ENVIRONMENTS):
             view = EnvironmentView.open(CONFIG, 0, env, renderer)
             for index in range(CONFIG.cameras.total):
@@ -52,14 +51,13 @@ def test_views_that_look_at_the_track_show_rails_and_sleepers():
                 ids = np.unique(view.renderer.render(placement.camera, {"component"}).component)
                 assert Component.RAIL in ids and Component.SLEEPER in ids, (env, index)
                 found += 1
-    finally:
-        renderer.release()
     assert found >= 5  # the reading puts cameras over the track in every few environments
 
 
 def test_a_camera_over_the_track_looking_down_sees_both():
-    view = EnvironmentView.open(CONFIG, 0, 2, cull=False)  # this camera is not one of its own
-    try:
+    with Renderer(CONFIG.render) as renderer:
+        # This camera is not one of the environment's own: everything is uploaded.
+        view = EnvironmentView.open(CONFIG, 0, 2, renderer, cull=False)
         traj = view.environment.trajectory
         s = traj.total_length_m / 2
         point, tangent, normal = traj.frame(np.array([s]))
@@ -73,8 +71,6 @@ def test_a_camera_over_the_track_looking_down_sees_both():
         ids = view.renderer.render(camera, {"component"}).component
         share = {c: float((ids == c).mean()) for c in (Component.RAIL, Component.SLEEPER)}
         assert share[Component.RAIL] > 0.01 and share[Component.SLEEPER] > 0.05
-    finally:
-        view.renderer.release()
 
 
 @pytest.mark.parametrize("height_from", ["origin", "ground"])
