@@ -3,9 +3,12 @@ import re
 import numpy as np
 import pytest
 
+from glsynth.core.config import RenderConfig
 from glsynth.core.labels import Damage
 from glsynth.data.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
 from glsynth.data.tokaido import (
+    IMAGE_SIZE,
+    LABEL_STRIDE,
     FrameRecord,
     PuretexRecord,
     decode_depth,
@@ -15,6 +18,13 @@ from glsynth.data.tokaido import (
     manifest_text,
     read_manifest,
 )
+
+
+def test_the_default_render_size_is_the_tokaido_image_size():
+    # core/ cannot import the data layer's constant, so the config's default restates it:
+    # this keeps the two from drifting apart.
+    assert (RenderConfig().width, RenderConfig().height) == IMAGE_SIZE
+    assert [side // LABEL_STRIDE for side in IMAGE_SIZE] == [640, 360]
 
 
 def test_paths_match_the_released_layout_and_loader_conventions():
