@@ -157,9 +157,9 @@ class RenderConfig:
     """Side of each sky-visibility map."""
     ao: Literal["ssao", "off"] = "off"
     """Screen-space ambient occlusion of the rasterizer: "ssao" (from the label pass's depth)
-    or "off". Off by default: measured against Cycles it changed the error by 0.2 % for 60 %
-    more render time (bench/bench_lighting.py); the sky-visibility maps do the occlusion that
-    matters."""
+    or "off". Off by default: against Cycles it adds no accuracy at the default exposure and
+    costs render time (bench/bench_lighting.py, docs/results.md); the sky-visibility maps do the
+    occlusion that matters."""
     ao_radius_m: float = 1.0
     """World radius within which geometry occludes ambient light."""
     ao_samples: int = 16
