@@ -65,9 +65,9 @@ QUALITY = {
 }
 """'default' is Config()'s own setting; 'high' matches the paper preset's 2048 px damage.
 'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has),
-and SSAO (every occlusion term on; it measured no closer to Cycles than without, see
-docs/results.md "Lighting knobs"). 'preview' keeps sun
-shadows (without them, shade is wrong everywhere) on a small map, and 4 sky maps."""
+and SSAO (every occlusion term on; it measured no closer to Cycles than without: docs/results.md,
+"Lighting knobs"). 'preview' keeps sun shadows (without them, shade is wrong everywhere) on a
+small map, and 4 sky maps."""
 
 
 def apply_quality(config: Config, name: str) -> Config:
