@@ -177,6 +177,44 @@ def test_a_killed_cycles_driver_leaves_no_blender_and_a_rerun_works(tmp_path):
     assert (tmp_path / "out" / "image.png").is_file()
 
 
+def _silent_blender(folder: Path) -> Path:
+    """A stand-in for Blender that says it is one, then, the first time it is given a job,
+    sleeps in silence (a real Blender that prints would die of SIGPIPE once its driver is
+    gone, hiding an orphan); later jobs end at once without output."""
+    folder.mkdir()
+    fake = folder / "blender"
+    fake.write_text('#!/bin/sh\n[ "$1" = --version ] && { echo "Blender 3.4.1"; exit 0; }\n'
+                    '[ -e "$0.pid" ] && exit 0\necho $$ > "$0.pid"\nexec sleep 120\n')
+    fake.chmod(0o755)
+    return fake
+
+
+def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tmp_path):
+    fake = _silent_blender(tmp_path / "bin")
+    config = tmp_path / "c.toml"
+    config.write_text("[cameras]\nn_regular = 1\nn_closeup = 1\n[damage]\nresolution = 64\n"
+                      "[materials]\ntexture_size = 32\nimages_per_category = 3\n[dataset]\n"
+                      "n_environments = 1\nn_test_environments = 0\nn_plates = 1\n"
+                      "n_test_plates = 0\n")
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
+            str(config), "--seed", "3", "--renderer", "cycles", "--samples", "1", "--out",
+            str(out)]
+    env = {**os.environ, "PATH": f"{fake.parent}{os.pathsep}{os.environ['PATH']}"}
+    pid_file = Path(f"{fake}.pid")
+    with _session(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as driver:
+        assert _wait(lambda: pid_file.exists() and pid_file.read_text().strip(), 300)
+        blender = int(pid_file.read_text())
+        assert int(_stat(blender)[1]) == driver.pid
+        assert blender in {pid for pid, _ in lock_holders(out / WORKERS_LOCK)}
+        driver.kill()
+        driver.wait(timeout=10)
+        assert _wait(lambda: not _alive(blender), GONE_S), "Blender outlived its driver"
+        again = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+    # Past the lock and up to Blender, which now ends without output.
+    assert again.returncode == 2 and "wrote no blender_times.json" in again.stderr, again.stderr
+
+
 @pytest.mark.parametrize("program", ["/bin/false", "/bin/true"])
 def test_a_program_that_is_not_blender_is_one_line_before_any_work(tmp_path, capsys, program):
     t0 = time.perf_counter()
