@@ -106,12 +106,21 @@ def test_a_child_holds_the_worker_lock_and_dies_with_its_driver(tmp_path):
         pass
 
 
+@contextmanager
+def _lock_holder(out: Path, then: str, worker: bool = False
+                 ) -> Iterator[tuple[subprocess.Popen, int]]:
+    """A process that takes ``out``'s lock (a worker's, or a driver's) and runs ``then``, which
+    prints a pid; the process and that pid."""
+    code = ("import os, subprocess, time; from glsynth.core.runlock import RunLock; "
+            f"lock = RunLock({str(out)!r}, worker={worker}).acquire(); {then}")
+    with _session(_python(code), stdout=subprocess.PIPE, text=True) as process:
+        yield process, int(process.stdout.readline())
+
+
 def test_a_new_run_names_the_earlier_runs_processes_that_hold_the_folder(tmp_path):
     out = tmp_path / "run"
-    code = (f"import time; from glsynth.core.runlock import RunLock; RunLock({str(out)!r}, "
-            "worker=True).acquire(); print('held', flush=True); time.sleep(60)")
-    with _session(_python(code), stdout=subprocess.PIPE, text=True) as worker:
-        assert worker.stdout.readline().strip() == "held"
+    with _lock_holder(out, "print(os.getpid(), flush=True); time.sleep(60)", worker=True) \
+            as (worker, _):
         with pytest.raises(UserError) as refused:
             RunLock(out).acquire()
     message = str(refused.value)
@@ -121,11 +130,8 @@ def test_a_new_run_names_the_earlier_runs_processes_that_hold_the_folder(tmp_pat
 
 def test_a_driver_that_ended_is_named_beside_the_processes_that_kept_its_lock(tmp_path):
     out = tmp_path / "run"
-    code = ("import subprocess; from glsynth.core.runlock import RunLock; "
-            f"lock = RunLock({str(out)!r}).acquire(); "
-            "print(subprocess.Popen(['sleep', '60'], pass_fds=(lock._fd,)).pid)")
-    with _session(_python(code), stdout=subprocess.PIPE, text=True) as driver:
-        sleeper = int(driver.stdout.readline())
+    with _lock_holder(out, "print(subprocess.Popen(['sleep', '60'], pass_fds=(lock._fd,)).pid)"
+                      ) as (driver, sleeper):
         driver.wait(timeout=30)
         with pytest.raises(UserError) as refused:
             RunLock(out).acquire()
@@ -138,11 +144,8 @@ def test_a_forked_child_does_not_keep_the_run_folder(tmp_path):
     """A data loader's workers are forked from the training driver; a kill of the driver must
     leave the folder free at once, while they still live."""
     out = tmp_path / "run"
-    code = ("import os, time; from glsynth.core.runlock import RunLock; "
-            f"lock = RunLock({str(out)!r}).acquire(); pid = os.fork(); "
-            "pid == 0 and (time.sleep(60), os._exit(0)); print(pid, flush=True); time.sleep(60)")
-    with _session(_python(code), stdout=subprocess.PIPE, text=True) as driver:
-        child = int(driver.stdout.readline())
+    with _lock_holder(out, "pid = os.fork(); pid == 0 and (time.sleep(60), os._exit(0)); "
+                           "print(pid, flush=True); time.sleep(60)") as (driver, child):
         with pytest.raises(UserError, match=f"pid {driver.pid}"):
             RunLock(out).acquire()  # the driver's lock stands while it lives
         driver.kill()
