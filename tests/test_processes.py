@@ -181,18 +181,22 @@ def test_a_killed_cycles_driver_leaves_no_blender_and_a_rerun_works(tmp_path):
 
 
 def _silent_blender(folder: Path) -> Path:
-    """A stand-in for Blender that says it is one, then, the first time it is given a job,
-    sleeps in silence (a real Blender that prints would die of SIGPIPE once its driver is
-    gone, hiding an orphan); later jobs end at once without output."""
+    """A stand-in for Blender that says it is one, then sleeps in silence on every job (a real
+    Blender that prints would die of SIGPIPE once its driver is gone, hiding an orphan),
+    appending its pid to ``<fake>.pids``; once ``<fake>.rerun`` exists, jobs end at once
+    without output."""
     folder.mkdir()
     fake = folder / "blender"
     fake.write_text('#!/bin/sh\n[ "$1" = --version ] && { echo "Blender 3.4.1"; exit 0; }\n'
-                    '[ -e "$0.pid" ] && exit 0\necho $$ > "$0.pid"\nexec sleep 120\n')
+                    '[ -e "$0.rerun" ] && exit 0\necho $$ >> "$0.pids"\nexec sleep 120\n')
     fake.chmod(0o755)
     return fake
 
 
-def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tmp_path):
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tmp_path,
+                                                                               workers):
+    """With one worker the driver starts Blender; with two, a pool worker does."""
     fake = _silent_blender(tmp_path / "bin")
     config = tmp_path / "c.toml"
     config.write_text("[cameras]\nn_regular = 1\nn_closeup = 1\n[damage]\nresolution = 64\n"
@@ -202,17 +206,23 @@ def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tm
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
             str(config), "--seed", "3", "--renderer", "cycles", "--samples", "1", "--out",
-            str(out)]
+            str(out), "--workers", str(workers)]
     env = {**os.environ, "PATH": f"{fake.parent}{os.pathsep}{os.environ['PATH']}"}
-    pid_file = Path(f"{fake}.pid")
+    pids = Path(f"{fake}.pids")
+
+    def started() -> list[int]:
+        return [int(p) for p in pids.read_text().split()] if pids.exists() else []
+
     with _session(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as driver:
-        assert _wait(lambda: pid_file.exists() and pid_file.read_text().strip(), 300)
-        blender = int(pid_file.read_text())
-        assert int(_stat(blender)[1]) == driver.pid
+        blender = _wait(started, 300)[0]
+        parent = int(_stat(blender)[1])
+        assert driver.pid in (parent, int(_stat(parent)[1]))
         assert blender in {pid for pid, _ in lock_holders(out / WORKERS_LOCK)}
         driver.kill()
         driver.wait(timeout=10)
-        assert _wait(lambda: not _alive(blender), GONE_S), "Blender outlived its driver"
+        assert _wait(lambda: not any(_alive(p) for p in started()), GONE_S), \
+            "Blender outlived its driver"
+        Path(f"{fake}.rerun").touch()
         again = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
     # Past the lock and up to Blender, which now ends without output.
     assert again.returncode == 2 and "wrote no blender_times.json" in again.stderr, again.stderr
