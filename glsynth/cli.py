@@ -378,7 +378,7 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
         raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
     blender = None if args.reference == "glsynth" else \
-        require_blender(args.blender, instead="--reference glsynth")
+        require_blender(args.blender, option=True, instead="--reference glsynth")
     cameras = spread_cameras(config.cameras.total, args.cameras)
     result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets,
                            blender, args.size, args.reference_samples, tuple(args.samples))

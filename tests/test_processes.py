@@ -249,20 +249,23 @@ def test_a_blender_that_writes_nothing_is_one_line(tmp_path, capsys):
     assert f"Blender ({fake}) exited 0 but wrote no blender_times.json" in err
 
 
+RENDER = ["render", "--renderer", "cycles", "--seed", "0", "--env", "0", "--camera", "0"]
+GENERATE = ["generate", "--renderer", "cycles", "--seed", "0"]
+BENCH = ["bench", "quality"]
+
+
 @pytest.mark.parametrize("command, suggested, not_suggested", [
-    ("render", "give its path with --blender", "put `blender` on PATH"),
-    ("generate", "put `blender` on PATH", "--blender"),
+    (RENDER, ["give its path with --blender", "or use --renderer gl"], "put `blender`"),
+    (GENERATE, ["put `blender` on PATH", "or use --renderer gl"], "--blender"),
+    (BENCH, ["give its path with --blender", "or use --reference glsynth"], "--renderer"),
 ])
 def test_without_blender_the_message_suggests_what_the_command_accepts(
         tmp_path, capsys, monkeypatch, command, suggested, not_suggested):
     monkeypatch.setenv("PATH", "/nonexistent")
-    args = ["--preset", "demo", "--renderer", "cycles", "--seed", "0",
-            "--out", str(tmp_path / "out")]
-    args += ["--env", "0", "--camera", "0"] if command == "render" else []
-    assert main([command, *args]) == 2
+    assert main([*command, "--preset", "demo", "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Blender was not found" in err, err
-    assert suggested in err and not_suggested not in err and "--renderer gl" in err
+    assert all(s in err for s in suggested) and not_suggested not in err, err
     assert not (tmp_path / "out").exists()
 
 

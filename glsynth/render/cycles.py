@@ -73,7 +73,7 @@ def check_blender(executable: str, named: str, fix: str) -> str:
     return executable
 
 
-def require_blender(path: str | None = None, *, option: bool = True,
+def require_blender(path: str | None = None, *, option: bool = False,
                     instead: str = "--renderer gl") -> str:
     """The Blender executable (see find_blender), or an error saying how to give it: with
     ``--blender`` if the command has that ``option``, else on PATH, or ``instead``, the
