@@ -5,8 +5,9 @@ while anything of the old one still writes.
 
 Death with the parent is Linux's PR_SET_PDEATHSIG: the kernel sends SIGKILL when the *thread*
 that started the child ends, so children are started from a thread that lives as long as the
-run (the main thread, everywhere in glsynth). Elsewhere the worker lock alone guards the
-folder.
+run (the main thread, everywhere in glsynth). The setting survives exec but not fork: a child
+that starts processes of its own must arm them too (Blender starts none). Elsewhere than Linux
+the worker lock alone guards the folder.
 """
 
 import ctypes
