@@ -131,7 +131,9 @@ def _config(args: argparse.Namespace) -> Config:
     if config.render.renderer == "cycles":
         from glsynth.render.cycles import require_blender
 
-        require_blender(getattr(args, "blender", None))
+        require_blender(getattr(args, "blender", None), option=hasattr(args, "blender"),
+                        instead="--renderer gl" if hasattr(args, "renderer")
+                        else '[render] renderer = "gl" in --config')
     return config
 
 
@@ -545,7 +547,8 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
     if unknown:
         raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
-    blender = None if args.reference == "glsynth" else require_blender(args.blender)
+    blender = None if args.reference == "glsynth" else \
+        require_blender(args.blender, option=True, instead="--reference glsynth")
     cameras = spread_cameras(config.cameras.total, args.cameras)
     result = bench_quality(config, args.seed, args.env, cameras, Path(args.out), presets,
                            blender, args.size, args.reference_samples, tuple(args.samples))

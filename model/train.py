@@ -18,6 +18,7 @@ uninterrupted one. Depth is trained and evaluated on the same pixels (metrics.de
 import bisect
 import contextlib
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -49,6 +50,7 @@ from glsynth.model.settings import (
 )
 from torch.utils.data import ConcatDataset, DataLoader, Dataset, DistributedSampler, Subset
 
+from glsynth.core.children import die_with_parent
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_json
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK, RunLock
@@ -358,7 +360,8 @@ def _train(settings: TrainSettings, run: Path, rank: int, world: int,
     state, start_epoch = _start(settings, run, train_set, rank, world, checkpoint)
     loader_options = dict(batch_size=settings.batch_size, num_workers=settings.loader_workers,
                           pin_memory=state.device.type == "cuda",
-                          persistent_workers=settings.loader_workers > 0)
+                          persistent_workers=settings.loader_workers > 0,
+                          worker_init_fn=functools.partial(die_with_parent, os.getpid()))
     sampler = DistributedSampler(train_set, num_replicas=world, rank=rank, shuffle=True,
                                  seed=make_seed(settings.seed, 0, Stream.TRAINING, _SHUFFLE),
                                  drop_last=world > 1)

@@ -6,14 +6,13 @@ depend on the engine, the worker count or the order units finish in. The driver 
 markers into the manifests (glsynth/data/dataset.py).
 """
 
-import ctypes
 import os
-import signal
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from glsynth.core.children import die_with_parent
 from glsynth.core.config import Config
 from glsynth.core.errors import UserError
 from glsynth.core.runlock import RunLock
@@ -80,23 +79,12 @@ def execute(config: Config, root_seed: int, out: Path, workers: int, engine: str
 _PROCESS_WORKER: list[GenerationWorker | BaseException] = []
 
 
-def _init_process(config: Config, root_seed: int, out: str) -> None:
-    _die_with_parent()
+def _init_process(config: Config, root_seed: int, out: str, driver: int) -> None:
+    die_with_parent(driver)  # so no unit outlives its run
     try:
         _PROCESS_WORKER.append(GenerationWorker(config, root_seed, out, separate=True))
     except Exception as error:  # reported by the first unit, in the driver
         _PROCESS_WORKER.append(error)
-
-
-def _die_with_parent() -> None:
-    """Linux: SIGKILL this worker when the driver dies, so no unit outlives its run."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # not Linux: the worker lock still guards the folder
-        pass
-    if os.getppid() == 1:  # the driver died before prctl took effect
-        os._exit(1)
 
 
 def _run_in_process(task: Task) -> dict:
@@ -113,7 +101,8 @@ def _pool(config: Config, root_seed: int, out: Path, workers: int,
     import multiprocessing
 
     ctx = multiprocessing.get_context("spawn")  # fork and GL contexts do not mix
-    pool = ProcessPoolExecutor(workers, ctx, _init_process, (config, root_seed, str(out)))
+    pool = ProcessPoolExecutor(workers, ctx, _init_process,
+                               (config, root_seed, str(out), os.getpid()))
     futures: set[Future] = {pool.submit(_run_in_process, task) for task in pending}
     try:
         while futures:

@@ -12,7 +12,9 @@ one view share their ground truth byte for byte. Cycles runs on the CPU with a s
 Blender is optional: ``blender`` on PATH (Debian's package, 3.4) or a path given by the caller.
 """
 
+import functools
 import json
+import re
 import shutil
 import subprocess
 from collections.abc import Sequence
@@ -22,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.appearance.materials import Material
+from glsynth.core.children import run_child
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.seeding import Stream, make_seed
@@ -33,26 +36,53 @@ from glsynth.world.environment import Part
 from glsynth.world.lighting import Lighting
 
 JOB = Path(__file__).with_name("blender_job.py")
-NO_BLENDER = ("Blender was not found: the Cycles renderer needs it. Install it (Debian: apt "
-              "install blender python3-numpy), give its path with --blender, or use the GL "
-              "renderer (--renderer gl)")
+CHECK_TIMEOUT_S = 60.0
+"""How long ``blender --version`` may take (0.2 s for Debian's Blender 3.4)."""
 
 
 def find_blender(path: str | None = None) -> str | None:
-    """The Blender executable: ``path`` if given (an error if it is not there), else PATH."""
+    """The Blender executable: ``path`` if given (an error if it is not there or not Blender),
+    else ``blender`` from PATH, if any."""
     if path is None:
-        return shutil.which("blender")
+        found = shutil.which("blender")
+        return None if found is None else check_blender(
+            found, "`blender` on PATH", "put Blender 3.4 or later first on PATH")
     found = shutil.which(path)
     if found is None:
         raise UserError(f"--blender {path!r}: no such executable; give the path of Blender, "
                         "or leave it out to use `blender` from PATH")
-    return found
+    return check_blender(found, f"--blender {path!r}", "give the path of Blender 3.4 or later")
 
 
-def require_blender(path: str | None = None) -> str:
+@functools.cache
+def check_blender(executable: str, named: str, fix: str) -> str:
+    """``executable`` if ``executable --version`` says it is Blender: checked once a process,
+    before any work, so a wrong program fails in a second with one line."""
+    try:
+        done = run_child([executable, "--version"], CHECK_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise UserError(f"{named} ({executable}): `--version` ran past {CHECK_TIMEOUT_S:.0f} "
+                        f"s, so it is not Blender; {fix}") from None
+    except OSError as err:
+        raise UserError(f"{named} ({executable}) does not run ({err.strerror}); {fix}") from None
+    if done.returncode != 0 or not re.search(r"^Blender \d", done.stdout, re.MULTILINE):
+        said = " ".join(done.stdout.split()[:4])[:40] or "nothing"
+        raise UserError(f"{named} ({executable}) is not Blender: `--version` exited "
+                        f"{done.returncode} and printed {said!r}; {fix}")
+    return executable
+
+
+def require_blender(path: str | None = None, *, option: bool = False,
+                    instead: str = "--renderer gl") -> str:
+    """The Blender executable (see find_blender), or an error saying how to give it: with
+    ``--blender`` if the command has that ``option``, else on PATH, or ``instead``, the
+    command's way to do without it."""
     found = find_blender(path)
     if found is None:
-        raise UserError(NO_BLENDER)
+        where = "give its path with --blender" if option else "put `blender` on PATH"
+        raise UserError("Blender was not found on PATH: the Cycles renderer needs it. Install "
+                        f"it (Debian: apt install blender python3-numpy) and {where}, or use "
+                        f"{instead}")
     return found
 
 
@@ -76,17 +106,22 @@ def read_raw(path: Path, size: Sequence[int]) -> np.ndarray:
 def run_job(blender: str, job: dict, work: Path, timeout_s: float) -> dict:
     """Run blender_job.py on ``job`` (written to work/job.json); its times and sizes."""
     atomic_write_json(work / "job.json", job)
+    times = work / "blender_times.json"
+    times.unlink(missing_ok=True)  # a stale one must not pass for this job's
     try:
-        done = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",
-                               "-P", str(JOB), "--", str(work / "job.json")],
-                              capture_output=True, text=True, timeout=timeout_s)
+        done = run_child([blender, "-b", "--factory-startup", "--python-exit-code", "1",
+                          "-P", str(JOB), "--", str(work / "job.json")], timeout_s)
     except subprocess.TimeoutExpired as err:
         raise UserError(f"Blender ran past its {timeout_s:.0f} s limit; give fewer samples "
                         "or a longer --timeout") from err
     if done.returncode != 0:
         tail = "\n".join((done.stdout + done.stderr).splitlines()[-15:])
         raise RuntimeError(f"Blender failed (exit {done.returncode}):\n{tail}")
-    return json.loads((work / "blender_times.json").read_text())
+    if not times.exists():
+        raise UserError(f"Blender ({blender}) exited 0 but wrote no {times.name}: it did not "
+                        "run glsynth's job script. Check that it is Blender 3.4 or later with "
+                        "its Python (`blender -b --python-expr 'import bpy'`)")
+    return json.loads(times.read_text())
 
 
 @dataclass(frozen=True)
