@@ -16,16 +16,15 @@ from functools import cache
 import cv2
 import numpy as np
 
-from glsynth.core.labels import Damage
+from glsynth.core.images import nearest_resize
+from glsynth.core.labels import Component, Damage
+from glsynth.core.palette import grade_rgb
 
 TANGENT_RADIUS_PX = 4
 """Half-size of the window of skeleton pixels whose principal axis gives the local direction:
 long enough to average the skeleton's one-pixel steps, short enough to follow a curve."""
 SCAN_STEP_PX = 0.05
 """Step of the scan across the crack; the edge is interpolated between two steps."""
-MAX_PERCENTILE = 95.0
-"""A crack's maximum width is this percentile of its widths along the skeleton, so that one
-mis-measured pixel at a junction does not set it."""
 
 
 @dataclass(frozen=True)
@@ -194,16 +193,20 @@ def edge_offsets(phi: np.ndarray, points: np.ndarray, normals: np.ndarray, reach
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Sub-pixel distances (pixels) from each point to the crack's outline along +normal and
     -normal: the first zero of the signed distance, linearly interpolated between scan steps;
-    NaN where the scan leaves the crack's reach without crossing it."""
+    NaN where the scan leaves the crack's reach, or the image, without crossing it (beyond
+    the border the crack's width is unknown)."""
     steps = np.arange(0.0, reach + SCAN_STEP_PX, SCAN_STEP_PX)
+    rows_max, cols_max = phi.shape[0] - 0.5, phi.shape[1] - 0.5
     out = []
     for sign in (1.0, -1.0):
         x = points[:, :1] + sign * normals[:, :1] * steps
         y = points[:, 1:] + sign * normals[:, 1:] * steps
         values = sample(phi, x, y)
+        in_image = (x >= -0.5) & (x <= cols_max) & (y >= -0.5) & (y <= rows_max)
         outside = values <= 0
         first = np.argmax(outside, axis=1)
-        found = outside.any(axis=1) & (first > 0)
+        leaves = np.where(in_image.all(axis=1), steps.size, np.argmin(in_image, axis=1))
+        found = outside.any(axis=1) & (first > 0) & (first < leaves)
         i = np.maximum(first, 1)
         rows = np.arange(len(points))
         v0, v1 = values[rows, i - 1], values[rows, i]
@@ -317,12 +320,38 @@ def measure_cracks(damage: np.ndarray, depth_m: np.ndarray, intrinsics: Intrinsi
     has_kept = np.bincount(s.crack[s.kept], minlength=labels.max()) > 0
     s.kept |= ~has_kept[s.crack]
     s.kept &= np.isfinite(s.width_m) & np.isfinite(s.width_px)
+    s.width_px, s.width_m = _smooth_along(s, labels.shape)
     skeleton_mm = np.full(labels.shape, np.nan, np.float32)
     skeleton_px = np.full(labels.shape, np.nan, np.float32)
     skeleton_mm[s.rows[s.kept], s.cols[s.kept]] = 1000 * s.width_m[s.kept]
     skeleton_px[s.rows[s.kept], s.cols[s.kept]] = s.width_px[s.kept]
     return CrackMeasure(labels, skeleton, _spread(skeleton_mm, labels), skeleton_mm,
                         skeleton_px, _per_crack(labels, s), spalling)
+
+
+def _smooth_along(s: _Samples, shape: tuple[int, int], radius: int = TANGENT_RADIUS_PX
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Widths averaged over the measured pixels of the same crack within a (2 r + 1)^2 window
+    (about 2 r + 1 pixels of its length): one scan of a binary mask is off by up to half a
+    pixel where the pixel grid meets the crack's edge; the average over a stretch is not."""
+    index = np.full(shape, -1, np.int64)
+    index[s.rows[s.kept], s.cols[s.kept]] = np.flatnonzero(s.kept)
+    total_px, total_m = np.zeros(s.rows.size), np.zeros(s.rows.size)
+    count = np.zeros(s.rows.size)
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            r, c = s.rows + dy, s.cols + dx
+            inside = (r >= 0) & (r < shape[0]) & (c >= 0) & (c < shape[1])
+            other = np.where(inside, index[np.clip(r, 0, shape[0] - 1),
+                                           np.clip(c, 0, shape[1] - 1)], -1)
+            use = (other >= 0) & (s.crack[np.maximum(other, 0)] == s.crack)
+            total_px[use] += s.width_px[other[use]]
+            total_m[use] += s.width_m[other[use]]
+            count[use] += 1
+    keep = s.kept & (count > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (np.where(keep, total_px / count, np.nan),
+                np.where(keep, total_m / count, np.nan))
 
 
 def _spread(skeleton_mm: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -352,7 +381,114 @@ def _per_crack(labels: np.ndarray, s: _Samples) -> list[dict]:
         if on.any():
             mean = np.average(widths, weights=weights) if weights.sum() > 0 else widths.mean()
             entry.update(mean_width_mm=float(1000 * mean),
-                         max_width_mm=float(1000 * np.percentile(widths, MAX_PERCENTILE)),
+                         max_width_mm=float(1000 * widths.max()),
                          mean_width_px=float(s.width_px[on].mean()))
         cracks.append(entry)
     return cracks
+
+
+def attribute_components(measure: CrackMeasure, component: np.ndarray) -> None:
+    """Give each crack the component under most of its pixels (its "component" key)."""
+    on = measure.labels > 0
+    count = len(measure.cracks)
+    votes = np.zeros((count, len(Component)), np.int64)
+    ids = np.clip(component[on].astype(np.int64), 0, len(Component) - 1)
+    np.add.at(votes, (measure.labels[on] - 1, ids), 1)
+    for crack, row in zip(measure.cracks, votes):
+        crack["component"] = Component(int(row.argmax())).name.lower()
+
+
+def component_cracks(cracks: list[dict], thresholds_mm: tuple[float, ...]) -> dict[str, dict]:
+    """Per component (cracks attributed by attribute_components): crack count, total length,
+    length-weighted mean width, maximum width and its grade."""
+    out: dict[str, dict] = {}
+    for name in dict.fromkeys(c["component"] for c in cracks):
+        mine = [c for c in cracks if c["component"] == name]
+        measured = [c for c in mine if c["mean_width_mm"] is not None]
+        length = sum(c["length_m"] for c in mine)
+        weights = [c["length_m"] for c in measured]
+        mean = float(np.average([c["mean_width_mm"] for c in measured], weights=weights)) \
+            if measured and sum(weights) > 0 else None
+        widest = max((c["max_width_mm"] for c in measured), default=None)
+        k = None if widest is None else grade(widest, thresholds_mm)
+        out[name] = {"cracks": len(mine), "length_m": float(length), "mean_width_mm": mean,
+                     "max_width_mm": widest, "grade": k,
+                     "grade_range": None if k is None else grade_range(k, thresholds_mm)}
+    return out
+
+
+def width_errors(measure: CrackMeasure, truth_mm: np.ndarray) -> dict:
+    """Measured against ground-truth widths at the measured skeleton pixels: signed errors
+    [mm], the truth's width in pixels there, and per crack the error of its mean width."""
+    if truth_mm.shape != measure.labels.shape:
+        raise ValueError(f"ground-truth crack widths {truth_mm.shape} and damage map "
+                         f"{measure.labels.shape} differ in size")
+    at = np.isfinite(measure.skeleton_width_mm)
+    truth = truth_mm.astype(np.float64)
+    on = at & (truth > 0)
+    measured = measure.skeleton_width_mm[on].astype(np.float64)
+    px_per_mm = measure.skeleton_width_px[on] / np.maximum(measured, 1e-9)
+    per_crack = []
+    for k in range(len(measure.cracks)):
+        mine = on & (measure.labels == k + 1)
+        if mine.any():
+            per_crack.append(float(measure.skeleton_width_mm[mine].mean() - truth[mine].mean()))
+    return {"error_mm": measured - truth[on], "truth_mm": truth[on],
+            "truth_px": truth[on] * px_per_mm, "crack_error_mm": np.array(per_crack),
+            "off_truth_pixels": int((at & ~(truth > 0)).sum())}
+
+
+def error_summary(errors: list[dict]) -> dict:
+    """Median absolute and relative errors over all pixels and over those whose true width is
+    at least 2 pixels (the issue's goal), and over cracks' mean widths."""
+    def pool(key: str) -> np.ndarray:
+        return np.concatenate([e[key] for e in errors]) if errors else np.zeros(0)
+
+    err, truth, px, crack = (pool(k) for k in ("error_mm", "truth_mm", "truth_px",
+                                                "crack_error_mm"))
+
+    def stats(sel: np.ndarray) -> dict:
+        if not sel.any():
+            return {"pixels": 0, "median_abs_error_mm": None, "median_relative_error": None}
+        return {"pixels": int(sel.sum()),
+                "median_abs_error_mm": float(np.median(np.abs(err[sel]))),
+                "median_relative_error": float(np.median(np.abs(err[sel]) / truth[sel]))}
+
+    return {"all": stats(np.ones(err.size, bool)), "at_least_2px": stats(px >= 2),
+            "cracks": int(crack.size),
+            "crack_mean_median_abs_error_mm": float(np.median(np.abs(crack)))
+            if crack.size else None,
+            "skeleton_pixels_without_truth": int(sum(e["off_truth_pixels"] for e in errors))}
+
+
+def crack_picture(rgb: np.ndarray, measure: CrackMeasure, thresholds_mm: tuple[float, ...]
+                  ) -> np.ndarray:
+    """The photo, dimmed, with each crack pixel coloured by the grade of its width and a
+    legend of the grades in the top-left corner; unmeasured crack pixels are white. The width
+    map is brought to the photo's size by nearest sampling."""
+    width = nearest_resize(measure.width_mm, rgb.shape[:2])
+    on = nearest_resize(measure.labels, rgb.shape[:2]) > 0
+    colours = grade_rgb(len(thresholds_mm) + 1)
+    picture = (rgb.astype(np.float32) * 0.6).round().astype(np.uint8)
+    known = on & np.isfinite(width)
+    k = np.searchsorted(np.asarray(thresholds_mm), width[known], side="right")
+    picture[known] = colours[k]
+    picture[on & ~known] = 255
+    _legend(picture, colours, thresholds_mm)
+    return picture
+
+
+def _legend(picture: np.ndarray, colours: np.ndarray, thresholds_mm: tuple[float, ...]
+            ) -> None:
+    """Swatches and width ranges, scaled to the picture's height, drawn in place."""
+    scale = max(picture.shape[0] / 1080, 0.25)
+    row = max(int(36 * scale), 8)
+    font = 0.8 * scale
+    pad = row // 4
+    for i, colour in enumerate(colours):
+        y = pad + i * row
+        cv2.rectangle(picture, (pad, y), (pad + row - pad, y + row - pad),
+                      tuple(int(c) for c in colour), thickness=-1)
+        cv2.putText(picture, grade_range(i, thresholds_mm), (pad + row, y + row - 2 * pad),
+                    cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), max(1, int(2 * scale)),
+                    cv2.LINE_AA)
