@@ -11,16 +11,9 @@ import json
 import numpy as np
 import pytest
 
+from glsynth.assess import cracks
 from glsynth.assess.condition import AssessSettings, Maps, Photo, assess, assess_photos
-from glsynth.assess.cracks import (
-    Intrinsics,
-    crack_picture,
-    error_summary,
-    grade,
-    grade_range,
-    measure_cracks,
-    width_errors,
-)
+from glsynth.assess.cracks import Intrinsics, measure_cracks
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Damage
 from glsynth.core.palette import grade_rgb
@@ -70,7 +63,7 @@ def straight(width_px: float, angle_deg: float, half_length=80.0, centre=(100.3,
 def measured_against_truth(damage, depth, intrinsics, truth_mm, elongation=5.0) -> dict:
     """Measure a map's cracks and compare them with the ground-truth widths."""
     measure = measure_cracks(damage, depth, intrinsics, elongation)
-    return error_summary([width_errors(measure, truth_mm)])
+    return cracks.error_summary([cracks.width_errors(measure, truth_mm)])
 
 
 # --- accuracy on a fronto-parallel plane ------------------------------------------------------
@@ -165,7 +158,7 @@ def test_the_surface_slant_is_corrected(tilt, direction):
     measure = measure_cracks(damage, depth, k)
     assert len(measure.cracks) == 1
     assert measure.cracks[0]["mean_width_mm"] == pytest.approx(1.5, rel=0.04)
-    summary = error_summary([width_errors(measure, truth)])
+    summary = cracks.error_summary([cracks.width_errors(measure, truth)])
     assert summary["all"]["median_relative_error"] <= 0.05
     if tilt >= 60 and direction == 90:
         # Across the crack runs along the tilt: the image shows it at most half as wide, so
@@ -232,9 +225,9 @@ def test_no_cracks_gives_an_empty_result_without_nan():
     measure = measure_cracks(damage, np.full(SHAPE, DEPTH, np.float32), CENTRED)
     assert measure.cracks == [] and measure.spalling_regions == 0
     assert not measure.skeleton.any() and np.all(measure.width_mm == 0)
-    summary = error_summary([width_errors(measure, np.zeros(SHAPE, np.float32))])
+    summary = cracks.error_summary([cracks.width_errors(measure, np.zeros(SHAPE, np.float32))])
     assert summary["all"]["pixels"] == 0 and summary["cracks"] == 0
-    assert error_summary([])["crack_mean_median_abs_error_mm"] is None
+    assert cracks.error_summary([])["crack_mean_median_abs_error_mm"] is None
 
 
 def test_a_crack_running_off_the_image_is_measured_up_to_the_border():
@@ -263,9 +256,10 @@ def test_invalid_depth_leaves_widths_unmeasured_not_wrong():
 # --- grades, settings, intrinsics -------------------------------------------------------------
 def test_grades_follow_the_threshold_table():
     table = (0.2, 0.3, 0.5, 1.0)
-    assert [grade(w, table) for w in (0.05, 0.2, 0.29, 0.3, 0.7, 1.0, 4.0)] == \
+    assert [cracks.grade(w, table) for w in (0.05, 0.2, 0.29, 0.3, 0.7, 1.0, 4.0)] == \
         [0, 1, 1, 2, 3, 4, 4]
-    assert [grade_range(k, table) for k in (0, 1, 4)] == ["< 0.2 mm", "0.2-0.3 mm", ">= 1 mm"]
+    assert [cracks.grade_range(k, table) for k in (0, 1, 4)] == \
+        ["< 0.2 mm", "0.2-0.3 mm", ">= 1 mm"]
 
 
 @pytest.mark.parametrize("grades,message", [
@@ -339,7 +333,7 @@ def test_the_picture_colours_cracks_by_grade_with_a_legend():
     rgb, maps = crack_maps()
     result = assess(maps)
     table = (0.2, 0.3, 0.5, 1.0)
-    picture = crack_picture(rgb, result.cracks, table)
+    picture = cracks.crack_picture(rgb, result.cracks, table)
     colours = grade_rgb(len(table) + 1)
     skeleton = result.cracks.skeleton
     assert (picture[skeleton] == colours[3]).all()

@@ -4,10 +4,12 @@
 Concrete damage (id 2) is split into 8-connected regions; a region is a crack when its skeleton
 is at least ``elongation`` times as long as its widest width (in pixels), and spalling
 otherwise. Along each crack's skeleton the width in pixels is measured across the crack (a
-sub-pixel scan of the mask's signed distance along the skeleton's normal), and the two edge
-points are back-projected onto the surface with the depth and the intrinsics: the width is
-their distance across the crack's 3-D direction, so the surface's slant is corrected by
-geometry rather than by a cosine. Pure numpy and OpenCV.
+sub-pixel scan of the mask's signed distance along the skeleton's normal, averaged over a few
+pixels of the crack's length), and the two edge points are back-projected onto the surface
+with the depth and the intrinsics: the width is their distance across the crack's 3-D
+direction, so the surface's slant is corrected by geometry rather than by a cosine. Skeleton
+pixels near an end or a junction are not measured (the scan would meet the tip or the other
+branch). Pure numpy and OpenCV.
 """
 
 from dataclasses import dataclass
@@ -62,13 +64,14 @@ class CrackMeasure:
     """(H, W) float32: on every crack pixel the width measured at its nearest skeleton pixel
     [mm]; NaN where it could not be measured, 0 off cracks."""
     skeleton_width_mm: np.ndarray
-    """(H, W) float32: the width at each skeleton pixel [mm]; NaN elsewhere or unmeasured."""
+    """(H, W) float32: the width on the surface at each measured skeleton pixel [mm] (the
+    mean of the scans of the same crack within TANGENT_RADIUS_PX); NaN elsewhere."""
     skeleton_width_px: np.ndarray
-    """(H, W) float32: the width in pixels across the crack at each skeleton pixel; NaN
-    elsewhere or unmeasured."""
+    """(H, W) float32: the same in image pixels across the crack; NaN elsewhere."""
     cracks: list[dict]
-    """Per crack: id, pixels, length_m, mean_width_mm (length-weighted), max_width_mm,
-    mean_width_px."""
+    """Per crack: id, pixels, length_m, mean_width_mm (weighted by length), max_width_mm
+    (the widest skeleton pixel), mean_width_px; the widths are None where no pixel could be
+    measured (no valid depth, or cut lengthwise by the image border)."""
     spalling_regions: int
     """Concrete-damage regions left out as spalling (too wide for their length)."""
 
