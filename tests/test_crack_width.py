@@ -88,11 +88,11 @@ def test_widths_of_2px_and_wider_meet_the_goal(sweep):
     wide = [s for s in sweep if s[0] >= 2]
     crack_err = np.array([abs(mean - w * MM_PER_PX) for w, _, mean, _, _ in wide])
     crack_rel = np.array([abs(mean / (w * MM_PER_PX) - 1) for w, _, mean, _, _ in wide])
-    # Per crack (the mean along it): measured 0.006 mm and 0.3 % medians.
+    # Per crack (the mean along it): measured 0.006 mm and 0.3 % medians, worst 5.7 %.
     assert np.median(crack_err) <= 0.02 and np.median(crack_rel) <= 0.02
     assert crack_rel.max() <= 0.06
-    # Per skeleton pixel (its width averaged over 9 px of the crack): measured 0.055 px
-    # (0.014 mm) and 0.6 % medians; the issue's goal is 0.05 mm and 10 %.
+    # Per skeleton pixel (its width averaged over 9 px of the crack): measured 0.045 px
+    # (0.011 mm) and 0.55 % medians; the issue's goal is 0.05 mm and 10 %.
     pixel_err = np.concatenate([np.abs(px - w) for w, _, _, px, _ in wide])
     pixel_rel = np.concatenate([np.abs(px - w) / w for w, _, _, px, _ in wide])
     assert np.median(pixel_err) <= 0.1 and np.median(pixel_rel) <= 0.02
@@ -358,3 +358,29 @@ def test_oracle_truth_is_read_or_its_absence_said(tmp_path):
     widths, note = crack_truth(tmp_path, rel)
     assert note is None and widths[1, 2] == pytest.approx(0.35) and widths.sum() == \
         pytest.approx(0.35)
+
+
+def test_the_scan_beats_the_distance_transform():
+    """Why widths come from a sub-pixel scan and not from 2 x the distance transform: single
+    scans (before averaging along the crack) against 2 d - 1 and 2 d at the same skeleton
+    pixels of 2-4 px cracks at 7-81 degrees (measured median errors: 7.4 %, 23 % and 17 %)."""
+    import cv2
+
+    errors: dict[str, list] = {"scan": [], "2d-1": [], "2d": []}
+    for w in (2.3, 2.8, 3.4, 3.9):
+        for a in (7, 23, 38, 52, 67, 81):
+            mask = straight(w, a)
+            labels, skeleton, tangents, _ = cracks.split_cracks(mask, 5.0)
+            rows, cols = np.nonzero(skeleton)
+            t = tangents[rows, cols]
+            normals = np.stack([-t[:, 1], t[:, 0]], axis=1)
+            plus, minus = cracks.edge_offsets(cracks.signed_distance(mask),
+                                              np.stack([cols, rows], axis=1).astype(float),
+                                              normals, w + 2)
+            d = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2,
+                                      cv2.DIST_MASK_PRECISE)[rows, cols]
+            for name, width in (("scan", plus + minus), ("2d-1", 2 * d - 1), ("2d", 2 * d)):
+                errors[name].append(np.abs(width - w) / w)
+    median = {k: float(np.median(np.concatenate(v))) for k, v in errors.items()}
+    assert median["scan"] <= 0.08
+    assert median["scan"] < 0.5 * min(median["2d-1"], median["2d"])
