@@ -384,3 +384,41 @@ def test_the_scan_beats_the_distance_transform():
     median = {k: float(np.median(np.concatenate(v))) for k, v in errors.items()}
     assert median["scan"] <= 0.08
     assert median["scan"] < 0.5 * min(median["2d-1"], median["2d"])
+
+
+def test_oracle_cli_reports_the_error_against_ground_truth_widths(tmp_path):
+    """A one-frame Tokaido-layout split with a crackwidth map, through `glsynth assess
+    --oracle`: 600x360 photo, 200x120 maps (stride 3), a column 0.6 m away through a 200 mm
+    lens (0.54 mm per map pixel), a 4 px crack at 25 degrees."""
+    from PIL import Image
+
+    from glsynth.cli import main
+    from glsynth.data.tokaido import FrameRecord, frame_paths, manifest_text
+
+    shape, depth_m, focal_mm = (120, 200), 0.6, 200.0
+    mm_per_px = depth_m / (focal_mm / 36 * 600 / 3) * 1000
+    paths = frame_paths("test", 0, 0)
+    mask = drawn(4, [[30.2, 20.7], [170.4, 85.1]], shape)
+    truth_code = np.where(mask, round(4 * mm_per_px * 100), 0).astype(np.uint16)
+    depth_code = np.full(shape, round((depth_m - 0.5) / 29.5 * 65535), np.uint16)
+    files = {paths["image"]: np.full((360, 600, 3), 120, np.uint8),
+             paths["component"]: np.full(shape, 4, np.uint8), paths["damage"]:
+             damage_of(mask), paths["depth"]: depth_code,
+             paths["damage"].replace("labdmg", "crackwidth").replace(".bmp", ".png"):
+             truth_code}
+    for rel, array in files.items():
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        Image.fromarray(array).save(tmp_path / rel)
+    (tmp_path / "files_test.csv").write_text(manifest_text([FrameRecord(
+        paths["image"], paths["component"], paths["damage"], paths["depth"], focal_mm, True,
+        True)]))
+    assert main(["assess", "--oracle", str(tmp_path), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    truth = summary["cracks"]["truth"]
+    assert truth["cracks"] == 1 and truth["skeleton_pixels_without_truth"] == 0
+    assert truth["at_least_2px"]["pixels"] > 100
+    assert truth["at_least_2px"]["median_abs_error_mm"] <= 0.05
+    assert truth["at_least_2px"]["median_relative_error"] <= 0.10
+    column = summary["cracks"]["components"]["column"]
+    assert column["mean_width_mm"] == pytest.approx(4 * mm_per_px, rel=0.03)
+    assert column["grade_range"] == ">= 1 mm"
