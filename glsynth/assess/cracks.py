@@ -27,6 +27,8 @@ TANGENT_RADIUS_PX = 4
 long enough to average the skeleton's one-pixel steps, short enough to follow a curve."""
 SCAN_STEP_PX = 0.05
 """Step of the scan across the crack; the edge is interpolated between two steps."""
+SCAN_SAMPLES = 2_000_000
+"""Samples per batch of scans (a few tens of MB), whatever the number of skeleton pixels."""
 
 
 @dataclass(frozen=True)
@@ -199,23 +201,30 @@ def edge_offsets(phi: np.ndarray, points: np.ndarray, normals: np.ndarray, reach
     NaN where the scan leaves the crack's reach, or the image, without crossing it (beyond
     the border the crack's width is unknown)."""
     steps = np.arange(0.0, reach + SCAN_STEP_PX, SCAN_STEP_PX)
-    rows_max, cols_max = phi.shape[0] - 0.5, phi.shape[1] - 0.5
-    out = []
-    for sign in (1.0, -1.0):
-        x = points[:, :1] + sign * normals[:, :1] * steps
-        y = points[:, 1:] + sign * normals[:, 1:] * steps
-        values = sample(phi, x, y)
-        in_image = (x >= -0.5) & (x <= cols_max) & (y >= -0.5) & (y <= rows_max)
-        outside = values <= 0
-        first = np.argmax(outside, axis=1)
-        leaves = np.where(in_image.all(axis=1), steps.size, np.argmin(in_image, axis=1))
-        found = outside.any(axis=1) & (first > 0) & (first < leaves)
-        i = np.maximum(first, 1)
-        rows = np.arange(len(points))
-        v0, v1 = values[rows, i - 1], values[rows, i]
-        frac = np.clip(v0 / np.maximum(v0 - v1, 1e-9), 0.0, 1.0)
-        out.append(np.where(found, steps[i - 1] + frac * SCAN_STEP_PX, np.nan))
+    chunk = max(1, SCAN_SAMPLES // steps.size)  # bounds the memory of one batch of scans
+    out = np.full((2, len(points)), np.nan)
+    for start in range(0, len(points), chunk):
+        part = slice(start, start + chunk)
+        for side, sign in enumerate((1.0, -1.0)):
+            out[side, part] = _first_zero(phi, points[part], sign * normals[part], steps)
     return out[0], out[1]
+
+
+def _first_zero(phi: np.ndarray, points: np.ndarray, directions: np.ndarray,
+                steps: np.ndarray) -> np.ndarray:
+    x = points[:, :1] + directions[:, :1] * steps
+    y = points[:, 1:] + directions[:, 1:] * steps
+    values = sample(phi, x, y)
+    in_image = (x >= -0.5) & (x <= phi.shape[1] - 0.5) & (y >= -0.5) & (y <= phi.shape[0] - 0.5)
+    outside = values <= 0
+    first = np.argmax(outside, axis=1)
+    leaves = np.where(in_image.all(axis=1), steps.size, np.argmin(in_image, axis=1))
+    found = outside.any(axis=1) & (first > 0) & (first < leaves)
+    i = np.maximum(first, 1)
+    rows = np.arange(len(points))
+    v0, v1 = values[rows, i - 1], values[rows, i]
+    frac = np.clip(v0 / np.maximum(v0 - v1, 1e-9), 0.0, 1.0)
+    return np.where(found, steps[i - 1] + frac * SCAN_STEP_PX, np.nan)
 
 
 def back_project(x: np.ndarray, y: np.ndarray, inverse_depth: np.ndarray,
