@@ -73,7 +73,8 @@ class CrackMeasure:
     cracks: list[dict]
     """Per crack: id, pixels, length_m, mean_width_mm (weighted by length), max_width_mm
     (the widest skeleton pixel), mean_width_px; the widths are None where no pixel could be
-    measured (no valid depth, or cut lengthwise by the image border)."""
+    measured (no valid depth, or cut lengthwise by the image border); attribute_components
+    adds each crack's component."""
     spalling_regions: int
     """Concrete-damage regions left out as spalling (too wide for their length)."""
 
