@@ -171,6 +171,12 @@ def test_oracle_cli_on_generated_data(tiny_dataset, tmp_path):
         # decoded 640x360 depth can differ only on the 1.5 px/cm boundary.
         assert kept <= on_bridge and kept >= 0.98 * on_bridge
         assert Image.open(out / f"{stem}_assessment.png").size == (1920, 1080)
+        assert report["cracks"]["measured"] and "crackwidth does not exist" in \
+            report["cracks"]["truth"]
+        assert Image.open(out / f"{stem}_cracks.png").size == (1920, 1080)
+    # This dataset has no crack geometry: the summary says so instead of failing.
+    (note,) = summary["cracks"]["truth"]
+    assert note.startswith("no ground-truth crack widths")
 
 
 # --- with trained networks -------------------------------------------------------------------
@@ -197,6 +203,7 @@ def test_assess_cli_with_networks(tiny_dataset, runs, tmp_path, capsys):
     assert summary["assessed"] == [image.stem] and summary["failed"][0]["image"] == "corrupt"
     report = json.loads((out / f"{image.stem}.json").read_text())
     assert report["maps_size"] == [64, 36] and report["focal_px"] == pytest.approx(24 / 36 * 1920)
+    assert report["cracks"]["measured"] and report["cracks"]["truth"] is None
     capsys.readouterr()
     out = tmp_path / "eval"
     assert main(["assess", "--runs", runs, "--data", str(tiny_dataset), "--out", str(out)]) == 0

@@ -6,7 +6,8 @@ dataset's ground truth; all three are at one resolution. Damage is kept only ins
 and on bridge components (everything but Nonbridge and unlabelled), attributed to the component
 under it, and quantified per component as a pixel fraction and, when the focal length is known,
 as an area in m^2: each pixel at depth z covers (z / f_px)^2 on a fronto-parallel surface, so
-oblique surfaces are under-counted by the cosine of their tilt.
+oblique surfaces are under-counted by the cosine of their tilt. Cracks kept there are measured
+in millimetres when the focal length is known (glsynth.assess.cracks).
 """
 
 from collections.abc import Callable, Iterable
@@ -15,6 +16,19 @@ from pathlib import Path
 
 import numpy as np
 
+from glsynth.assess.cracks import (
+    CrackMeasure,
+    Intrinsics,
+    attribute_components,
+    check_grades,
+    component_cracks,
+    crack_picture,
+    error_summary,
+    grade,
+    grade_range,
+    measure_cracks,
+    width_errors,
+)
 from glsynth.core.errors import UserError
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Component, Damage
@@ -34,6 +48,15 @@ def parse_range(text: str) -> tuple[float, float]:
     return near, far
 
 
+def parse_widths(text: str) -> tuple[float, ...]:
+    """'0.2,0.3,0.5,1.0' in millimetres -> (0.2, 0.3, 0.5, 1.0)."""
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"{text!r}: write widths in mm separated by commas, e.g. "
+                        "0.2,0.3,0.5,1.0") from None
+
+
 @dataclass(frozen=True)
 class AssessSettings:
     min_px_per_cm: float = RRDR_PX_PER_CM
@@ -41,6 +64,13 @@ class AssessSettings:
     depth_range_m: tuple[float, float] = field(default=RRDR_DEPTH_RANGE_M, metadata={
         "flag": "--depth-range", "parse": parse_range, "metavar": "NEAR,FAR", "show": "0.5,20"})
     """RRDR when it is not: predicted depth within this range [m]."""
+    crack_grades_mm: tuple[float, ...] = field(default=(0.2, 0.3, 0.5, 1.0), metadata={
+        "parse": parse_widths, "metavar": "W1,W2,...", "show": "0.2,0.3,0.5,1.0"})
+    """Crack-width grade boundaries [mm]: grade k holds widths from the k-th boundary up to
+    the next (docs/design.md gives the source of the defaults)."""
+    crack_elongation: float = 5.0
+    """A concrete-damage region is a crack when its skeleton is at least this many times as
+    long as its widest width, and spalling otherwise."""
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.min_px_per_cm) and self.min_px_per_cm > 0):
@@ -50,6 +80,12 @@ class AssessSettings:
         if not 0 <= near < far < np.inf:
             raise UserError(f"--depth-range {near},{far}: give 0 <= NEAR < FAR (the paper uses "
                             "0.5,20)")
+        grades = ",".join(f"{v:g}" for v in self.crack_grades_mm)
+        if (why := check_grades(self.crack_grades_mm)) is not None:
+            raise UserError(f"--crack-grades-mm {grades}: {why}")
+        if not (np.isfinite(self.crack_elongation) and self.crack_elongation > 0):
+            raise UserError(f"--crack-elongation {self.crack_elongation}: give a positive "
+                            "ratio of length to width (default 5)")
 
 
 ASSESS_DEFAULTS = AssessSettings()
@@ -68,6 +104,10 @@ class Maps:
     None when unknown."""
     stride: float = 1.0
     """Photo pixels per map pixel (3 for Tokaido maps of 1920x1080 images)."""
+    crack_truth_mm: np.ndarray | None = None
+    """Ground-truth crack widths (H, W) [mm], 0 off cracks (oracle mode), or None."""
+    crack_truth_note: str | None = None
+    """Why there is no crack_truth_mm where one was looked for (oracle mode), or None."""
 
     def __post_init__(self) -> None:
         shapes = {a.shape for a in (self.component, self.damage, self.depth_m)}
@@ -88,6 +128,8 @@ class Assessment:
     """Per bridge component present: pixels, pixels in the RRDR, damaged pixels and fractions,
     areas in m^2 (None without a focal length)."""
     totals: dict = field(default_factory=dict)
+    cracks: CrackMeasure | None = None
+    """Cracks kept (inside ``considered``) measured in mm; None without a focal length."""
 
 
 def pixel_area_m2(depth_m: np.ndarray, focal_px: float, stride: float = 1.0) -> np.ndarray:
@@ -133,7 +175,13 @@ def assess(maps: Maps, settings: AssessSettings = ASSESS_DEFAULTS) -> Assessment
               "damage_outside_rrdr_or_bridge_pixels": int(
                   (np.isin(maps.damage, DAMAGE_CLASSES) & ~considered).sum()),
               "focal_known": maps.focal_px is not None}
-    return Assessment(reliable, considered, damage, components, totals)
+    cracks = None
+    if maps.focal_px is not None:
+        cracks = measure_cracks(damage, maps.depth_m,
+                                Intrinsics.centred(maps.focal_px, damage.shape, maps.stride),
+                                settings.crack_elongation)
+        attribute_components(cracks, maps.component)
+    return Assessment(reliable, considered, damage, components, totals, cracks)
 
 
 def assessment_picture(rgb: np.ndarray, component: np.ndarray,
@@ -163,51 +211,122 @@ class Photo:
 
 def assess_photos(photos: Iterable[Photo], out: Path,
                   settings: AssessSettings = ASSESS_DEFAULTS) -> dict:
-    """Assess each photo: <name>_assessment.png (Fig. 17) and <name>.json per photo, and
-    summary.json across them. A photo that fails is reported and the others go on."""
+    """Assess each photo: <name>_assessment.png (Fig. 17), <name>_cracks.png (cracks coloured
+    by width, when measured) and <name>.json per photo, and summary.json across them. A photo
+    that fails is reported and the others go on."""
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 
     per_component: dict[str, dict] = {}
+    crack_totals: dict[str, dict] = {}
+    errors: list[dict] = []
+    notes: set[str] = set()
     done, failed = [], []
     for photo in photos:
         try:
             rgb, maps = photo.load()
             result = assess(maps, settings)
             picture = assessment_picture(rgb, maps.component, result)
+            cracks, crack_png, error = _crack_report(rgb, maps, result, settings)
         except (ValueError, OSError) as err:
             failed.append({"image": photo.name, "error": str(err)})
             continue
         report = {"image": photo.name, "maps_size": list(result.damage.shape[::-1]),
                   "focal_px": maps.focal_px, "settings": _settings_json(settings),
-                  "totals": result.totals, "components": result.components}
+                  "totals": result.totals, "components": result.components, "cracks": cracks}
         atomic_write_json(out / f"{photo.name}.json", report)
         atomic_write_bytes(out / f"{photo.name}_assessment.png", png_bytes(picture))
+        if crack_png is not None:
+            atomic_write_bytes(out / f"{photo.name}_cracks.png", png_bytes(crack_png))
         done.append(photo.name)
-        for name, entry in result.components.items():
-            agg = per_component.setdefault(name, {"images": 0, "pixels_in_rrdr": 0,
-                                                  "damaged_pixels": dict.fromkeys(
-                                                      ("concrete", "rebar"), 0),
-                                                  "damaged_area_m2": None})
-            agg["images"] += 1
-            agg["pixels_in_rrdr"] += entry["pixels_in_rrdr"]
-            for cls, n in entry["damaged_pixels"].items():
-                agg["damaged_pixels"][cls] += n
-            if entry["damaged_area_m2"] is not None:
-                area = agg["damaged_area_m2"] or dict.fromkeys(("concrete", "rebar"), 0.0)
-                agg["damaged_area_m2"] = {k: area[k] + v
-                                          for k, v in entry["damaged_area_m2"].items()}
+        _add_damage(per_component, result.components)
+        _add_cracks(crack_totals, cracks.get("components", {}))
+        errors += [error] if error is not None else []
+        notes |= {maps.crack_truth_note} if maps.crack_truth_note else set()
     for agg in per_component.values():
         agg["damaged_fraction"] = {k: (v / agg["pixels_in_rrdr"] if agg["pixels_in_rrdr"]
                                        else None) for k, v in agg["damaged_pixels"].items()}
     summary = {"assessed": done, "failed": failed, "settings": _settings_json(settings),
-               "components": per_component}
+               "components": per_component,
+               "cracks": {"components": _crack_summary(crack_totals, settings.crack_grades_mm),
+                          "truth": error_summary(errors) if errors else
+                          (sorted(notes) or None)}}
     atomic_write_json(out / "summary.json", summary)
     return summary
 
 
+def _add_damage(per_component: dict[str, dict], components: dict[str, dict]) -> None:
+    """Add one photo's damage per component to the batch's sums."""
+    for name, entry in components.items():
+        agg = per_component.setdefault(name, {"images": 0, "pixels_in_rrdr": 0,
+                                              "damaged_pixels": dict.fromkeys(
+                                                  ("concrete", "rebar"), 0),
+                                              "damaged_area_m2": None})
+        agg["images"] += 1
+        agg["pixels_in_rrdr"] += entry["pixels_in_rrdr"]
+        for cls, n in entry["damaged_pixels"].items():
+            agg["damaged_pixels"][cls] += n
+        if entry["damaged_area_m2"] is not None:
+            area = agg["damaged_area_m2"] or dict.fromkeys(("concrete", "rebar"), 0.0)
+            agg["damaged_area_m2"] = {k: area[k] + v
+                                      for k, v in entry["damaged_area_m2"].items()}
+
+
+def _crack_report(rgb: np.ndarray, maps: Maps, result: Assessment, settings: AssessSettings
+                  ) -> tuple[dict, np.ndarray | None, dict | None]:
+    """One photo's cracks for its JSON, its crack picture and, with ground truth, its width
+    errors (None, None without a focal length)."""
+    if result.cracks is None:
+        return {"measured": False, "reason": "focal length unknown: crack widths in mm need "
+                                             "it (--focal-mm)"}, None, None
+    measure, grades = result.cracks, settings.crack_grades_mm
+    cracks = [dict(c, grade=None if c["max_width_mm"] is None else
+                   grade(c["max_width_mm"], grades)) for c in measure.cracks]
+    report = {"measured": True, "count": len(cracks),
+              "spalling_regions": measure.spalling_regions,
+              "components": component_cracks(measure.cracks, grades), "cracks": cracks,
+              "truth": maps.crack_truth_note}
+    errors = None
+    if maps.crack_truth_mm is not None:
+        errors = width_errors(measure, maps.crack_truth_mm)
+        report["truth"] = error_summary([errors])
+    return report, crack_picture(rgb, measure, grades), errors
+
+
+def _add_cracks(totals: dict[str, dict], components: dict[str, dict]) -> None:
+    """Add one photo's cracks per component to the batch's sums."""
+    for name, entry in components.items():
+        agg = totals.setdefault(name, {"images": 0, "cracks": 0, "length_m": 0.0,
+                                       "width_x_length": 0.0, "measured_length_m": 0.0,
+                                       "max_width_mm": None})
+        agg["images"] += 1
+        agg["cracks"] += entry["cracks"]
+        agg["length_m"] += entry["length_m"]
+        if entry["mean_width_mm"] is not None:
+            agg["width_x_length"] += entry["mean_width_mm"] * entry["length_m"]
+            agg["measured_length_m"] += entry["length_m"]
+        if entry["max_width_mm"] is not None:
+            agg["max_width_mm"] = max(agg["max_width_mm"] or 0.0, entry["max_width_mm"])
+
+
+def _crack_summary(totals: dict[str, dict], grades: tuple[float, ...]) -> dict[str, dict]:
+    out = {}
+    for name, agg in totals.items():
+        widest = agg["max_width_mm"]
+        k = None if widest is None else grade(widest, grades)
+        out[name] = {"images": agg["images"], "cracks": agg["cracks"],
+                     "length_m": agg["length_m"],
+                     "mean_width_mm": agg["width_x_length"] / agg["measured_length_m"]
+                     if agg["measured_length_m"] > 0 else None,
+                     "max_width_mm": widest, "grade": k,
+                     "grade_range": None if k is None else grade_range(k, grades)}
+    return out
+
+
 def _settings_json(settings: AssessSettings) -> dict:
     return {"min_px_per_cm": settings.min_px_per_cm,
-            "depth_range_m": list(settings.depth_range_m)}
+            "depth_range_m": list(settings.depth_range_m),
+            "crack_grades_mm": list(settings.crack_grades_mm),
+            "crack_elongation": settings.crack_elongation}
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -228,7 +347,8 @@ def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
                   limit: int | None = None) -> list[Photo]:
     """Ground-truth maps of a Tokaido-layout split in place of the networks, to check the
     post-processing on its own. The focal length comes from the manifest (mm, on a sensor
-    ``sensor_mm`` wide; glsynth's cameras use 36 mm)."""
+    ``sensor_mm`` wide; glsynth's cameras use 36 mm). Ground-truth crack widths come from
+    ``synthetic/{split}/crackwidth/`` where the dataset has it."""
     from PIL import Image
 
     from glsynth.data.tokaido import decode_depth, read_manifest
@@ -244,8 +364,31 @@ def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
             component, damage = ids(row.component), ids(row.damage)
             depth = decode_depth(ids(row.depth))
             rgb = read_rgb(root / row.image)
-            focal_px = row.focal_mm / sensor_mm * rgb.shape[1]
-            return rgb, Maps(component, damage, depth, focal_px, rgb.shape[1] / component.shape[1])
+            focal_px = None if row.focal_mm is None else row.focal_mm / sensor_mm * rgb.shape[1]
+            truth, note = crack_truth(root, row.damage)
+            return rgb, Maps(component, damage, depth, focal_px, rgb.shape[1] / component.shape[1],
+                             truth, note)
         return load
 
     return [Photo(Path(r.image).stem.removesuffix("_Scene"), loader(r)) for r in rows]
+
+
+def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | None]:
+    """The ground-truth crack widths beside a damage label, ``synthetic/{split}/crackwidth/
+    <stem>.png`` (uint16, 0.01 mm steps) in mm, or None and why it is missing."""
+    from PIL import Image
+
+    damage = Path(damage_rel.replace("\\", "/"))
+    folder = root / damage.parent.parent / "crackwidth"
+    path = folder / f"{damage.stem}.png"
+    if not folder.is_dir():
+        return None, (f"no ground-truth crack widths: {folder} does not exist (a dataset "
+                      "generated without crack geometry has none)")
+    if not path.is_file():
+        return None, f"no ground-truth crack widths: {path} is missing"
+    with Image.open(path) as im:
+        code = np.asarray(im)
+    if code.dtype != np.uint16:
+        raise ValueError(f"{path}: crack widths must be uint16 in 0.01 mm steps, not "
+                         f"{code.dtype}")
+    return code.astype(np.float32) / 100, None

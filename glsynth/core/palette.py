@@ -40,3 +40,12 @@ def depth_rgb(depth: np.ndarray, near: float = 0.5, far: float = 30.0) -> np.nda
     rgb = (colormaps["turbo"](t)[..., :3] * 255).round().astype(np.uint8)
     rgb[depth >= far] = 0
     return rgb
+
+
+def grade_rgb(count: int) -> np.ndarray:
+    """``count`` colours from narrow to wide (matplotlib's plasma, dark blue to yellow) for
+    crack-width grades; (count, 3) uint8."""
+    from matplotlib import colormaps
+
+    t = np.linspace(0.0, 0.92, count)  # plasma's last tenth is too pale over concrete
+    return (colormaps["plasma"](t)[:, :3] * 255).round().astype(np.uint8)
