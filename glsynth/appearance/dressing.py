@@ -8,6 +8,11 @@ never depends on which other parts are built. Damage textures are built only for
 sampled damage record but is drawn with plain concrete, which no image can show. Damage
 materials are deferred (glsynth.appearance.materials.Materials): built when asked for, so that
 the renderer holds one column's maps at a time, not the environment's.
+
+Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network instead
+(glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index) and
+no damage texture: spalling and exposed bars placed by mechanics are not built yet. Its
+severity is drawn as under "paper", so both models damage the same columns.
 """
 
 import functools
@@ -15,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from glsynth.appearance.cracks import column_cracks, column_demand, crack_records
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_factors
 from glsynth.appearance.materials import (
@@ -25,9 +31,9 @@ from glsynth.appearance.materials import (
     sample_assignment,
 )
 from glsynth.appearance.repository import TextureRepository, builtin_repository
-from glsynth.core.config import Config
+from glsynth.core.config import Config, DamageConfig
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.world.environment import Environment
+from glsynth.world.environment import Environment, Part
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
 _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
@@ -63,6 +69,37 @@ def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> di
             "bank_index": int(rng.integers(d.bank_size)), "scale": float(rng.uniform(*d.scale))}
 
 
+def clear_spans(env: Environment, part: Part) -> list[tuple[float, float]]:
+    """A column's clear spans, (z0, z1) in its mesh frame: from the ground to the underside of
+    the cross beam, split by the tie beams where Table 3 has them."""
+    viaduct = next(v for v in env.viaducts if v.index == part.viaduct)
+    info = next(c for c in viaduct.columns if c.name == part.name)
+    centre = (info.top_z + info.bottom_z) / 2
+    z0, z1 = info.bottom_z - centre, info.top_z - env.config.design.embed_m - centre
+    tie = next((p for p in env.parts if p.viaduct == part.viaduct
+                and p.name.startswith("beam_") and "_tie_" in p.name), None)
+    if tie is None:
+        return [(z0, z1)]
+    middle, half = float(tie.pose[2, 3]) - centre, float(tie.mesh.extents[2]) / 2
+    return [(z0, middle - half), (middle + half, z1)]
+
+
+def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
+                      damage: dict, material: Material) -> tuple[dict, Material]:
+    """A damaged column's record and material under model = "mechanics": its drift and, if
+    a camera sees it, its cracks on the concrete material (the record lists them)."""
+    record = {"damaged": True, "severity": damage["severity"], "built": damage["built"]}
+    if not damage["built"]:
+        return record, material
+    rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
+    demand = column_demand(cfg, damage["severity"], rng)
+    section = tuple(float(e) for e in part.mesh.extents[:2])
+    cracks = column_cracks(cfg, section, clear_spans(env, part), demand, rng)
+    record.update(drift_pct=round(demand.drift * 100, 4), drift_axis="xy"[demand.axis],
+                  cracks=[{"member": part.name, **r} for r in crack_records(cracks)])
+    return record, replace(material, cracks=cracks)
+
+
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
           visible: set[str]) -> Dressing:
     cfg = config.materials
@@ -90,7 +127,10 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             damage = _column_damage(config, root, index, ordinal)
             if damage["damaged"]:
                 damage["built"] = part.name in visible
-                if damage["built"]:
+                if config.damage.model == "mechanics":
+                    damage, material = _mechanics_damage(env, config.damage, part, ordinal,
+                                                         damage, material)
+                elif damage["built"]:
                     key = (damage["severity"], damage["bank_index"])
                     params, images = bank.record(*key, repository)
                     damage.update(params=params, images=list(images))

@@ -287,12 +287,14 @@ class DamageConfig:
     crack_width_mm: tuple[float, float] = (0.05, 5.0)
     """Range of crack widths: a crack tapers to the lower bound at its tips, and no crack is
     wider than the upper bound."""
-    slight_drift_pct: tuple[float, float] = (0.25, 1.0)
-    """Lateral drift ratio of a slightly damaged column, in %: first cracking to about yield."""
-    medium_drift_pct: tuple[float, float] = (1.0, 2.5)
-    """Of a medium one: past yield, up to about cover spalling (Berry and Eberhard 2003)."""
-    severe_drift_pct: tuple[float, float] = (2.5, 5.0)
-    """Of a severe one: spalling to bar buckling (Berry and Eberhard 2003)."""
+    slight_drift_pct: tuple[float, float] = (0.2, 0.5)
+    """Lateral drift ratio of a slightly damaged column, in %: first cracking to about yield
+    (a Table 3 column yields at about 0.3-0.5 %)."""
+    medium_drift_pct: tuple[float, float] = (0.5, 2.0)
+    """Of a medium one: past yield, up to cover spalling (about 2 %, Berry and Eberhard
+    2003)."""
+    severe_drift_pct: tuple[float, float] = (2.0, 5.0)
+    """Of a severe one: spalling, up to bar buckling (about 5-6 %, Berry and Eberhard 2003)."""
     fy_mpa: float = 345.0
     """Yield strength of the longitudinal bars (SD345, JIS G 3112)."""
     bar_diameter_mm: float = 25.0
