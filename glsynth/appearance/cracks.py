@@ -352,7 +352,10 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
                 cracks.append(("shear", _shear(cfg, sec, face, float(z), min(width, w_hi), rng)))
     out = []
     for kind, line in cracks:
-        line = _clip_z(line, span.z0, span.z1)
+        if kind == "flexural":  # one near an end runs along the joint with the beam or footing
+            line = (line[0], np.clip(line[1], span.z0, span.z1), line[2])
+        else:  # a diagonal crack ends at the joint
+            line = _clip_z(line, span.z0, span.z1)
         if line is None:
             continue
         lines = [line]
