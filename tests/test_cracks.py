@@ -8,18 +8,21 @@ import pytest
 
 from glsynth.appearance.cracks import (
     FLEXURAL_BAND_DEG,
+    NEUTRAL_AXIS_RATIO,
     SHEAR_BAND_DEG,
-    ColumnDemand,
     CrackNetwork,
+    DriftDemand,
+    beam_cracks,
     column_cracks,
     column_demand,
     crack_records,
     empty_network,
     hinge_length_m,
+    soffit_width_m,
     span_mechanics,
 )
 from glsynth.appearance.damage_bank import DamageBank
-from glsynth.appearance.dressing import clear_spans, dress, open_repository
+from glsynth.appearance.dressing import beam_span, clear_spans, dress, open_repository
 from glsynth.core import design
 from glsynth.core.config import Config, DamageConfig, MaterialsConfig, config_from_dict
 from glsynth.core.errors import UserError
@@ -70,7 +73,7 @@ def in_band(net: CrackNetwork) -> np.ndarray:
 
 
 def network(seed: int, severity: str = "severe", section=(0.7, 0.8), spans=((-2.5, 2.5),),
-            cfg: DamageConfig = CFG) -> tuple[CrackNetwork, ColumnDemand]:
+            cfg: DamageConfig = CFG) -> tuple[CrackNetwork, DriftDemand]:
     rng = make_rng(seed, 0, Stream.CRACKS)
     demand = column_demand(cfg, severity, rng)
     return column_cracks(cfg, section, list(spans), demand, rng), demand
@@ -197,19 +200,19 @@ def test_shear_cracks_where_shear_governs_on_the_faces_along_the_drift():
 
 def test_extremes_no_demand_and_width_bounds():
     for spans in (((-2.0, 2.0),), ()):
-        net = column_cracks(CFG, (0.7, 0.7), list(spans), ColumnDemand(0.0, 0),
+        net = column_cracks(CFG, (0.7, 0.7), list(spans), DriftDemand(0.0, 0),
                             make_rng(0, 0, Stream.CRACKS))
         assert net.points.shape == (0, 2, 3) and net.kinds == () and crack_records(net) == []
     widths = np.concatenate([network(s, "severe")[0].widths_m.ravel() for s in range(5)])
     assert widths.min() == pytest.approx(0.05e-3) and widths.max() == pytest.approx(5e-3)
     for bound in (0.05, 5.0):
         cfg = dataclasses.replace(CFG, crack_width_mm=(bound, bound))
-        net = column_cracks(cfg, (0.7, 0.8), [(-2.5, 2.5)], ColumnDemand(0.05, 0),
+        net = column_cracks(cfg, (0.7, 0.8), [(-2.5, 2.5)], DriftDemand(0.05, 0),
                             make_rng(1, 0, Stream.CRACKS))
         assert len(net.kinds) > 0 and np.allclose(net.widths_m, bound / 1e3)
     # Below first cracking (M < M_cr everywhere) there are no cracks.
     rng = make_rng(0, 0, Stream.CRACKS)
-    assert column_cracks(CFG, (0.7, 0.7), [(-3.0, 3.0)], ColumnDemand(5e-4, 1), rng).kinds == ()
+    assert column_cracks(CFG, (0.7, 0.7), [(-3.0, 3.0)], DriftDemand(5e-4, 1), rng).kinds == ()
 
 
 @pytest.mark.parametrize("key, value, words", [
@@ -283,3 +286,69 @@ def test_clear_spans_run_from_the_ground_to_the_beams():
         if len(spans) == 2:
             assert spans[1][0] - spans[0][1] == pytest.approx(
                 viaduct.sections.intermediate_beam_cm[0] / 100)
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_beam_cracks_near_the_supports_and_in_the_soffit_at_midspan(axis):
+    """A beam 0.9 wide, 0.95 deep, clear over +-2.6 m along mesh axis ``axis``: sway cracks
+    across the top and the soffit within the cracked length of both supports, gravity cracks
+    across the soffit around midspan, all within 10 degrees of the section's plane."""
+    extents = [0.9, 0.9, 0.95]
+    extents[axis] = 7.0
+    other = 1 - axis
+    for seed in range(12):
+        rng = make_rng(seed, 0, Stream.CRACKS)
+        drift = column_demand(CFG, SEVERITIES[seed % 3], rng).drift
+        net = beam_cracks(CFG, tuple(extents), axis, (-2.6, 2.6), drift, rng)
+        span = span_mechanics(CFG, -2.6, 2.6, 0.95, drift)
+        p = net.points
+        assert set(net.kinds) == {"flexural"}
+        on_side = np.abs(np.abs(p[..., other]) - 0.45) < TOL
+        on_top_bottom = np.abs(np.abs(p[..., 2]) - 0.475) < TOL
+        assert (on_side | on_top_bottom).all() and (np.abs(p[..., axis]) <= 2.6 + TOL).all()
+        d = p[:, 1] - p[:, 0]
+        along = np.degrees(np.arctan2(np.abs(d[:, axis]), np.hypot(d[:, other], d[:, 2])))
+        assert (along[net.lengths_m > 0.01] <= FLEXURAL_BAND_DEG).mean() >= 0.9
+        u = np.abs(p[..., axis]).mean(axis=1)
+        top = (np.abs(p[..., 2] - 0.475) < TOL).all(axis=1)
+        assert (u[top] >= 2.6 - span.cracked_m - 0.2).all()  # hogging near the supports only
+        soffit = (np.abs(p[..., 2] + 0.475) < TOL).all(axis=1)
+        assert (soffit & (u < 0.3)).any()
+
+
+def test_soffit_cracks_follow_the_gravity_moment():
+    """Fixed-end beam under uniform load: sagging moment 0.5 M_y at midspan (the service
+    ratio), cracks where it exceeds 0.4 M_y: |xi - 1/2| <= 0.129."""
+    span = span_mechanics(CFG, 0.0, 6.0, 0.9, 0.0)
+    x = np.array([3.0, 3.0 + 0.129 * 6 - 0.01, 3.0 + 0.129 * 6 + 0.01, 0.5])
+    width = soffit_width_m(CFG, span, x, 0.2)
+    assert width[0] == pytest.approx(0.2 * span.yield_curvature(CFG) * 0.5
+                                     * (1 - NEUTRAL_AXIS_RATIO) * 0.9)
+    assert width[1] > 0 and width[2] == 0 and width[3] == 0
+
+
+def test_dressing_under_mechanics_cracks_cross_and_tie_beams_not_girders(tmp_path):
+    mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
+    env = build_environment(mech, 5, 0)
+    beams = [p for p in env.parts if p.name.startswith("beam_")]
+    d = dress(env, mech, open_repository(mech), DamageBank(mech.damage, 5, cache_dir=tmp_path),
+              {p.name for p in beams})
+    cracked = 0
+    for part in beams:
+        record, material = d.assignments[part.name].damage, d.materials[part.name]
+        if "_girder_" in part.name:
+            assert record is None and material.cracks is None and beam_span(env, part) is None
+            continue
+        axis, (u0, u1) = beam_span(env, part)
+        assert part.mesh.extents[axis] == part.mesh.extents[:2].max() and u1 == -u0 > 0
+        if record["damaged"]:
+            cracked += 1
+            assert [{"member": part.name, **r} for r in crack_records(material.cracks)] \
+                == record["cracks"]
+            assert np.abs(material.cracks.points[..., axis]).max() <= u1 + TOL
+        else:
+            assert material.cracks is None
+    assert cracked > 5
+    paper = dress(env, SMALL, open_repository(SMALL), DamageBank(SMALL.damage, 5,
+                                                                 cache_dir=tmp_path), set())
+    assert all(paper.assignments[p.name].damage is None for p in beams)

@@ -99,21 +99,23 @@ def crack_records(net: CrackNetwork) -> list[dict]:
 
 
 @dataclass(frozen=True)
-class ColumnDemand:
-    """The lateral drift a damaged column went through."""
+class DriftDemand:
+    """The drift a damaged member went through."""
 
     drift: float
-    """Drift ratio: lateral displacement of one clear span over its height."""
+    """Drift ratio: the sideways displacement of one end of a clear span against the other,
+    over the span (a column's storey drift; a beam's chord rotation)."""
     axis: int
-    """The drift's direction in the mesh frame: 0 along x (the track), 1 along y."""
+    """Its direction in the section: 0 along x (a column: the track), 1 along y (a column:
+    across the track; a beam: vertical)."""
 
 
 def column_demand(cfg: DamageConfig, severity: str, rng: np.random.Generator
-                  ) -> ColumnDemand:
+                  ) -> DriftDemand:
     """A drift drawn uniformly from the severity's range, in a direction along the track or
     across it with equal chance."""
     drift = float(rng.uniform(*cfg.drift_range(severity)))
-    return ColumnDemand(drift, int(rng.integers(2)))
+    return DriftDemand(drift, int(rng.integers(2)))
 
 
 def hinge_length_m(cfg: DamageConfig, shear_span_m: float) -> float:
@@ -179,6 +181,19 @@ def flexural_width_m(cfg: DamageConfig, span: SpanMechanics, drift: float, x: np
     plastic = max(drift - span.yield_drift, 0.0) / span.hinge_m if span.hinge_m > 0 else 0.0
     phi = phi + np.where(x <= span.hinge_m, plastic, 0.0)
     return spacing_m * phi * (1.0 - NEUTRAL_AXIS_RATIO) * span.depth_m
+
+
+def soffit_width_m(cfg: DamageConfig, span: SpanMechanics, x: np.ndarray, spacing_m: float
+                   ) -> np.ndarray:
+    """Width of a gravity crack in a beam's soffit ``x`` from the span's start, 0 where the
+    sagging moment stays below M_cr. A beam fixed at both ends under a uniform load carries
+    M = wL^2/12 (6 xi - 6 xi^2 - 1) (xi = x / L): wL^2/24 sagging at midspan, where the
+    section works at [damage] beam_service_moment_ratio of its M_y."""
+    xi = x / (span.z1 - span.z0)
+    moment = cfg.beam_service_moment_ratio * (6 * xi - 6 * xi * xi - 1) / 0.5  # M / M_y
+    width = spacing_m * span.yield_curvature(cfg) * moment * (1.0 - NEUTRAL_AXIS_RATIO) \
+        * span.depth_m
+    return np.where(moment >= cfg.cracking_moment_ratio, width, 0.0)
 
 
 def shear_width_m(drift: float, spacing_m: float) -> float:
@@ -329,15 +344,18 @@ def _positions(extent_m: float, spacing_m: float, rng: np.random.Generator) -> n
     return x[x <= extent_m]
 
 
-def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: ColumnDemand,
-                 spacing_m: float, rng: np.random.Generator
-                 ) -> list[tuple[str, list[_Polyline]]]:
+_Raw = list[tuple[str, _Polyline]]
+"""Cracks of one span before clipping and forking: (kind, polyline)."""
+
+
+def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: DriftDemand,
+                 spacing_m: float, rng: np.random.Generator) -> _Raw:
     """Flexural cracks from both ends of a span, on both faces across the drift (the load
     reverses), and shear cracks on both faces along it where shear governs."""
     w_lo, w_hi = (w / 1e3 for w in cfg.crack_width_mm)
     across = (0, 2) if demand.axis == 0 else (1, 3)  # faces whose normal is the drift's
     along = (1, 3) if demand.axis == 0 else (0, 2)
-    cracks: list[tuple[str, _Polyline]] = []
+    cracks: _Raw = []
     for end, sense in ((span.z0, 1.0), (span.z1, -1.0)):
         x = _positions(min(span.cracked_m, span.shear_span_m), spacing_m, rng)
         widths = flexural_width_m(cfg, span, demand.drift, x, spacing_m)
@@ -350,6 +368,12 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
         for face in along:
             for z in span.z0 + _positions(span.z1 - span.z0, spacing_m, rng):
                 cracks.append(("shear", _shear(cfg, sec, face, float(z), min(width, w_hi), rng)))
+    return cracks
+
+
+def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
+            rng: np.random.Generator) -> list[tuple[str, list[_Polyline]]]:
+    """Keep each crack within its span and fork some: (kind, [trunk, fork?])."""
     out = []
     for kind, line in cracks:
         if kind == "flexural":  # one near an end runs along the joint with the beam or footing
@@ -360,17 +384,38 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
             continue
         lines = [line]
         if rng.random() < cfg.branch_probability:
-            face = int(sec.face(line[0][len(line[0]) // 2 : len(line[0]) // 2 + 1])[0])
+            face = int(sec.face(line[0][len(line[0]) // 2:][:1])[0])
             start = float(sec.face_start(np.array([face]))[0])
-            fork = _branch(line, (start, start + sec.face_width(face)), w_lo, rng)
+            fork = _branch(line, (start, start + sec.face_width(face)),
+                           cfg.crack_width_mm[0] / 1e3, rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
                 lines.append(fork)
         out.append((kind, lines))
     return out
 
 
+def _network(sec: _Section, cracks: list[tuple[str, list[_Polyline]]],
+             axes: tuple[int, int, int] = (0, 1, 2)) -> CrackNetwork:
+    """The network of ``cracks`` on ``sec``; the generators' x, y, z (z the member's axis) are
+    the mesh frame's axes ``axes``."""
+    if not cracks:
+        return empty_network()
+    points, widths, ids = [], [], []
+    for k, (_, lines) in enumerate(cracks):
+        for line in lines:
+            p, w = sec.segments(*line)
+            points.append(p)
+            widths.append(w)
+            ids.append(np.full(len(p), k, np.int32))
+    canonical = np.concatenate(points)
+    mesh = np.empty_like(canonical)
+    mesh[..., list(axes)] = canonical
+    return CrackNetwork(mesh, np.concatenate(widths), np.concatenate(ids),
+                        tuple(kind for kind, _ in cracks))
+
+
 def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
-                  spans: Sequence[tuple[float, float]], demand: ColumnDemand,
+                  spans: Sequence[tuple[float, float]], demand: DriftDemand,
                   rng: np.random.Generator) -> CrackNetwork:
     """The crack network of a column of section (a, b) (along x, along y) whose clear spans
     run from z0 to z1 in its mesh frame, under ``demand``. Cracks are spaced at the column's
@@ -378,18 +423,36 @@ def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
     gives the source)."""
     sec = _Section(*section_m)
     spacing = float(rng.uniform(*cfg.stirrup_spacing_m))
-    depth = section_m[demand.axis]
-    points, widths, ids, kinds = [], [], [], []
+    cracks = []
     for z0, z1 in spans:
-        span = span_mechanics(cfg, z0, z1, depth, demand.drift)
-        for kind, lines in _span_cracks(cfg, sec, span, demand, spacing, rng):
-            for line in lines:
-                p, w = sec.segments(*line)
-                points.append(p)
-                widths.append(w)
-                ids.append(np.full(len(p), len(kinds), np.int32))
-            kinds.append(kind)
-    if not kinds:
-        return empty_network()
-    return CrackNetwork(np.concatenate(points), np.concatenate(widths), np.concatenate(ids),
-                        tuple(kinds))
+        span = span_mechanics(cfg, z0, z1, section_m[demand.axis], demand.drift)
+        cracks += _finish(cfg, sec, span, _span_cracks(cfg, sec, span, demand, spacing, rng),
+                          rng)
+    return _network(sec, cracks)
+
+
+def _soffit_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, spacing_m: float,
+                   rng: np.random.Generator) -> _Raw:
+    """Gravity cracks across the soffit (face 3) around midspan, turning up the sides."""
+    w_lo, w_hi = (w / 1e3 for w in cfg.crack_width_mm)
+    x = _positions(span.z1 - span.z0, spacing_m, rng)
+    widths = soffit_width_m(cfg, span, x, spacing_m)
+    return [("flexural", _flexural(cfg, sec, 3, span.z0 + xi, min(wi, w_hi), rng))
+            for xi, wi in zip(x[widths >= w_lo], widths[widths >= w_lo])]
+
+
+def beam_cracks(cfg: DamageConfig, extents_m: tuple[float, float, float], axis: int,
+                span_m: tuple[float, float], drift: float, rng: np.random.Generator
+                ) -> CrackNetwork:
+    """The crack network of a box beam of ``extents_m`` (x, y, z; centred) running along mesh
+    axis ``axis`` (0: x, 1: y), clear between its supports at ``span_m`` on that axis. Its ends
+    rotate with the joints by the drift of its columns: flexural cracks near both supports on
+    the top and the soffit (and shear cracks where a / d governs), as a column's; gravity
+    cracks in the soffit at midspan. Cracks are spaced at the stirrup spacing."""
+    other = 1 - axis
+    sec = _Section(extents_m[other], extents_m[2])  # generators' y is the mesh's z
+    spacing = float(rng.uniform(*cfg.stirrup_spacing_m))
+    span = span_mechanics(cfg, *span_m, extents_m[2], drift)
+    raw = (_span_cracks(cfg, sec, span, DriftDemand(drift, 1), spacing, rng)
+           + _soffit_cracks(cfg, sec, span, spacing, rng))
+    return _network(sec, _finish(cfg, sec, span, raw, rng), (other, 2, axis))

@@ -12,7 +12,9 @@ the renderer holds one column's maps at a time, not the environment's.
 Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network instead
 (glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index) and
 no damage texture: spalling and exposed bars placed by mechanics are not built yet. Its
-severity is drawn as under "paper", so both models damage the same columns.
+severity is drawn as under "paper", so both models damage the same columns. Cross and tie
+beams draw their severity, drift and cracks from the CRACKS stream (item = their index); the
+girders, swept along the track, get none yet.
 """
 
 import functools
@@ -20,7 +22,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from glsynth.appearance.cracks import column_cracks, column_demand, crack_records
+import numpy as np
+
+from glsynth.appearance.cracks import (
+    CrackNetwork,
+    beam_cracks,
+    column_cracks,
+    column_demand,
+    crack_records,
+)
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_factors
 from glsynth.appearance.materials import (
@@ -60,12 +70,20 @@ def _repository(root: str, size: int) -> TextureRepository:
     return TextureRepository(root, size)
 
 
+def _severity(cfg: DamageConfig, rng: np.random.Generator) -> str | None:
+    """Section 3.3's draw: undamaged with [damage] undamaged_probability, else a severity."""
+    if rng.random() < cfg.undamaged_probability:
+        return None
+    return SEVERITIES[int(rng.integers(len(SEVERITIES)))]
+
+
 def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> dict:
     d = config.damage
     rng = make_rng(root_seed, env, Stream.DAMAGE, ordinal)
-    if rng.random() < d.undamaged_probability:
+    severity = _severity(d, rng)
+    if severity is None:
         return {"damaged": False}
-    return {"damaged": True, "severity": SEVERITIES[int(rng.integers(len(SEVERITIES)))],
+    return {"damaged": True, "severity": severity,
             "bank_index": int(rng.integers(d.bank_size)), "scale": float(rng.uniform(*d.scale))}
 
 
@@ -84,6 +102,48 @@ def clear_spans(env: Environment, part: Part) -> list[tuple[float, float]]:
     return [(z0, middle - half), (middle + half, z1)]
 
 
+def beam_span(env: Environment, part: Part) -> tuple[int, tuple[float, float]] | None:
+    """A cross or tie beam's long axis in its mesh frame (0: x, 1: y) and its clear span on
+    that axis, between the faces of the columns that carry it; None for the girders (swept
+    along the track, not boxes) and any other beam."""
+    if "_cross_" not in part.name and "_tie_" not in part.name:
+        return None
+    viaduct = next(v for v in env.viaducts if v.index == part.viaduct)
+    along, across = viaduct.columns[0].section_m
+    axis = int(np.argmax(part.mesh.extents[:2]))
+    if axis == 1:  # across the track: carried by the two columns of a row
+        half = (env.config.design.column_spacing_m - across) / 2
+    else:  # along the track: between neighbouring rows, centre to centre
+        half = (float(part.mesh.extents[0]) - along) / 2
+    return axis, (-half, half)
+
+
+def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
+                 material: Material, seen: bool) -> tuple[dict | None, Material]:
+    """A cross or tie beam's record and material under model = "mechanics"."""
+    span = beam_span(env, part)
+    if span is None:
+        return None, material
+    rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
+    severity = _severity(cfg, rng)
+    if severity is None:
+        return {"damaged": False}, material
+    record = {"damaged": True, "severity": severity, "built": seen}
+    if not seen:
+        return record, material
+    demand = column_demand(cfg, severity, rng)
+    extents = tuple(float(e) for e in part.mesh.extents)
+    cracks = beam_cracks(cfg, extents, span[0], span[1], demand.drift, rng)
+    record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4))
+    return record, replace(material, cracks=cracks)
+
+
+def _with_cracks(record: dict, part: Part, cracks: CrackNetwork, **demand: object) -> dict:
+    """``record`` with the demand's fields and the crack list of ``part``."""
+    return {**record, **demand,
+            "cracks": [{"member": part.name, **r} for r in crack_records(cracks)]}
+
+
 def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
                       damage: dict, material: Material) -> tuple[dict, Material]:
     """A damaged column's record and material under model = "mechanics": its drift and, if
@@ -95,8 +155,8 @@ def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: 
     demand = column_demand(cfg, damage["severity"], rng)
     section = tuple(float(e) for e in part.mesh.extents[:2])
     cracks = column_cracks(cfg, section, clear_spans(env, part), demand, rng)
-    record.update(drift_pct=round(demand.drift * 100, 4), drift_axis="xy"[demand.axis],
-                  cracks=[{"member": part.name, **r} for r in crack_records(cracks)])
+    record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4),
+                          drift_axis="xy"[demand.axis])
     return record, replace(material, cracks=cracks)
 
 
@@ -137,6 +197,10 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                     deferred[part.name] = (damage_factors(config.damage, damage["scale"]),
                                            functools.partial(bank.material, *key,
                                                              repository, damage["scale"]))
+            a = replace(a, damage=damage)
+        elif kind == "beam" and config.damage.model == "mechanics":
+            damage, material = _beam_damage(env, config.damage, part, ordinal, material,
+                                            part.name in visible)
             a = replace(a, damage=damage)
         if part.name not in deferred:
             materials[part.name] = material

@@ -314,6 +314,9 @@ class DamageConfig:
     (Kani's valley: about 2.5)."""
     branch_probability: float = 0.5
     """Chance that a crack forks once."""
+    beam_service_moment_ratio: float = 0.5
+    """M / M_y of a beam's midspan section under the service load (gravity): allowable-stress
+    design keeps the bars' service stress near half their yield strength."""
 
     def __post_init__(self) -> None:
         s = "damage"
@@ -359,6 +362,7 @@ class DamageConfig:
                      lo_open=True)
         check_number(s, "shear_span_ratio", self.shear_span_ratio, 0.0, 100.0)
         check_number(s, "branch_probability", self.branch_probability, 0.0, 1.0)
+        check_number(s, "beam_service_moment_ratio", self.beam_service_moment_ratio, 0.0, 1.0)
 
     def area_range(self, severity: str) -> tuple[float, float]:
         """Damaged-area fraction range of a severity, under the documented reading."""
