@@ -118,26 +118,36 @@ def column_demand(cfg: DamageConfig, severity: str, rng: np.random.Generator
     return DriftDemand(drift, int(rng.integers(2)))
 
 
+def strain_penetration_m(cfg: DamageConfig) -> float:
+    """L_sp = 0.022 fy d_b: how far the bars' yielding reaches into the footing or joint."""
+    return cfg.hinge_bar_factor * cfg.fy_mpa * cfg.bar_diameter_mm / 1e3
+
+
 def hinge_length_m(cfg: DamageConfig, shear_span_m: float) -> float:
     """Priestley and Park (1987): Lp = 0.08 L + 0.022 fy d_b (L, d_b in m; fy in MPa)."""
     if shear_span_m < 0:
         raise ValueError(f"shear_span_m = {shear_span_m!r}: must be >= 0")
-    return (cfg.hinge_span_factor * shear_span_m
-            + cfg.hinge_bar_factor * cfg.fy_mpa * cfg.bar_diameter_mm / 1e3)
+    return cfg.hinge_span_factor * shear_span_m + strain_penetration_m(cfg)
+
+
+def yield_curvature(cfg: DamageConfig, depth_m: float) -> float:
+    """phi_y = 2.10 eps_y / h of a rectangular section (Priestley, Calvi and Kowalsky 2007)."""
+    return YIELD_CURVATURE_FACTOR * cfg.fy_mpa / STEEL_MODULUS_MPA / depth_m
 
 
 @dataclass(frozen=True)
 class SpanMechanics:
-    """One clear span of a column (between the ground, tie beams and the cross beam) in
-    double curvature: moment linear, zero at mid-height, largest at both ends; shear constant.
-    Lengths in metres, z in the mesh frame."""
+    """One clear span of a member in double curvature (a column between the ground, tie beams
+    and the cross beam; a beam between the columns): moment linear, zero at mid-span, largest
+    at both ends; shear constant. Lengths in metres; z0, z1 along the member's axis in its
+    mesh frame."""
 
     z0: float
     z1: float
     depth_m: float
     """h, the section's depth in the drift's direction."""
     shear_span_m: float
-    """Half the clear height: the distance from an end to the point of zero moment."""
+    """Half the clear span: the distance from an end to the point of zero moment."""
     hinge_m: float
     """Plastic-hinge length Lp at each end (at most the shear span)."""
     yield_drift: float
@@ -148,9 +158,6 @@ class SpanMechanics:
     shear_governs: bool
     """a / d below [damage] shear_span_ratio."""
 
-    def yield_curvature(self, cfg: DamageConfig) -> float:
-        return YIELD_CURVATURE_FACTOR * cfg.fy_mpa / STEEL_MODULUS_MPA / self.depth_m
-
 
 def span_mechanics(cfg: DamageConfig, z0: float, z1: float, depth_m: float, drift: float
                    ) -> SpanMechanics:
@@ -159,9 +166,7 @@ def span_mechanics(cfg: DamageConfig, z0: float, z1: float, depth_m: float, drif
                          "depth > 0, drift >= 0")
     shear_span = (z1 - z0) / 2
     hinge = min(hinge_length_m(cfg, shear_span), shear_span)
-    strain_penetration = cfg.hinge_bar_factor * cfg.fy_mpa * cfg.bar_diameter_mm / 1e3
-    phi_y = YIELD_CURVATURE_FACTOR * cfg.fy_mpa / STEEL_MODULUS_MPA / depth_m
-    yield_drift = phi_y * (shear_span + strain_penetration) / 3
+    yield_drift = yield_curvature(cfg, depth_m) * (shear_span + strain_penetration_m(cfg)) / 3
     moment = min(drift / yield_drift, 1.0)  # M_end / M_y: elastic, then perfectly plastic
     cracked = shear_span * max(0.0, 1.0 - cfg.cracking_moment_ratio / moment) if moment else 0.0
     if drift > yield_drift:
@@ -176,8 +181,8 @@ def flexural_width_m(cfg: DamageConfig, span: SpanMechanics, drift: float, x: np
     the strain of the tension face, curvature times (h - c). Curvature: elastic, linear in
     the moment, plus the plastic rotation theta - theta_y spread over Lp (Priestley and Park's
     hinge model)."""
-    phi_y = span.yield_curvature(cfg)
-    phi = phi_y * min(drift / span.yield_drift, 1.0) * (1.0 - x / span.shear_span_m)
+    elastic = yield_curvature(cfg, span.depth_m) * min(drift / span.yield_drift, 1.0)
+    phi = elastic * (1.0 - x / span.shear_span_m)  # the moment falls to zero at mid-span
     plastic = max(drift - span.yield_drift, 0.0) / span.hinge_m if span.hinge_m > 0 else 0.0
     phi = phi + np.where(x <= span.hinge_m, plastic, 0.0)
     return spacing_m * phi * (1.0 - NEUTRAL_AXIS_RATIO) * span.depth_m
@@ -191,7 +196,7 @@ def soffit_width_m(cfg: DamageConfig, span: SpanMechanics, x: np.ndarray, spacin
     section works at [damage] beam_service_moment_ratio of its M_y."""
     xi = x / (span.z1 - span.z0)
     moment = cfg.beam_service_moment_ratio * (6 * xi - 6 * xi * xi - 1) / 0.5  # M / M_y
-    width = spacing_m * span.yield_curvature(cfg) * moment * (1.0 - NEUTRAL_AXIS_RATIO) \
+    width = spacing_m * yield_curvature(cfg, span.depth_m) * moment * (1.0 - NEUTRAL_AXIS_RATIO) \
         * span.depth_m
     return np.where(moment >= cfg.cracking_moment_ratio, width, 0.0)
 
