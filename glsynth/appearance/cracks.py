@@ -37,6 +37,8 @@ SHEAR_BAND_DEG = (30.0, 60.0)
 """Shear cracks run at these angles to the axis."""
 STEP_M = 0.05
 """Length of a crack polyline's steps: the scale of its wiggle."""
+MIN_FORK_M = 0.02
+"""A fork with less room than this on its face is not made."""
 
 
 @dataclass(frozen=True)
@@ -229,8 +231,14 @@ class _Section:
     def face_width(self, face: int) -> float:
         return self.b if face % 2 == 0 else self.a
 
+    def face_bounds(self, s: float) -> tuple[float, float]:
+        """The s range of the face that holds ``s``."""
+        face = self.face(np.array([s]))
+        start = float(self.face_start(face)[0])
+        return start, start + self.face_width(int(face[0]))
+
     def points(self, s: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """(n, 3) mesh-frame points of unrolled (s, z)."""
+        """(n, 3) points (x, y, z) of unrolled (s, z)."""
         face = self.face(s)
         t = s - self.face_start(face)  # distance along the face, counter-clockwise
         ha, hb = self.a / 2, self.b / 2
@@ -286,7 +294,7 @@ def _branch(line: _Polyline, face: tuple[float, float], w_lo: float, rng: np.ran
     angle = float(np.clip(local + rng.choice([-1.0, 1.0]) * rng.uniform(15, 35), -70, 70))
     reach = rng.uniform(0.05, 0.2) * float(np.hypot(np.diff(s), np.diff(z)).sum())
     end = float(np.clip(s[k] + sense * reach * np.cos(np.radians(angle)), *face))
-    if abs(end - s[k]) < 2 * STEP_M / 5:
+    if abs(end - s[k]) < MIN_FORK_M:
         return None
     n = _steps(abs(end - s[k]))
     angles = np.clip(angle + rng.normal(0, 3, n), -75, 75) * sense
@@ -389,10 +397,8 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
             continue
         lines = [line]
         if rng.random() < cfg.branch_probability:
-            face = int(sec.face(line[0][len(line[0]) // 2:][:1])[0])
-            start = float(sec.face_start(np.array([face]))[0])
-            fork = _branch(line, (start, start + sec.face_width(face)),
-                           cfg.crack_width_mm[0] / 1e3, rng)
+            middle = float(line[0][len(line[0]) // 2])
+            fork = _branch(line, sec.face_bounds(middle), cfg.crack_width_mm[0] / 1e3, rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
                 lines.append(fork)
         out.append((kind, lines))
