@@ -246,21 +246,24 @@ class _Section:
         y = np.choose(face % 4, [t - hb, np.full_like(t, hb), hb - t, np.full_like(t, -hb)])
         return np.stack([x, y, z], axis=1)
 
-    def segments(self, s: np.ndarray, z: np.ndarray, w: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-        """A polyline's segments (M, 2, 3) and end widths (M, 2), split where it crosses an
-        edge so that every segment lies on one face. Steps are shorter than a face."""
+    def segments(self, s: np.ndarray, z: np.ndarray, w: np.ndarray, line: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Polylines' segments (M, 2, 3), end widths (M, 2) and polyline ids (M,), split
+        where one crosses an edge so that every segment lies on one face. The polylines'
+        vertices are concatenated, ``line`` naming each vertex's polyline; steps are shorter
+        than a face."""
         face = self.face(s)
-        cross = np.flatnonzero(face[1:] != face[:-1])
+        cross = np.flatnonzero((face[1:] != face[:-1]) & (line[1:] == line[:-1]))
         edge = self.face_start(np.maximum(face[cross], face[cross + 1]))
         f = (edge - s[cross]) / (s[cross + 1] - s[cross])
         s = np.insert(s, cross + 1, edge)
         z = np.insert(z, cross + 1, z[cross] + f * (z[cross + 1] - z[cross]))
         w = np.insert(w, cross + 1, w[cross] + f * (w[cross + 1] - w[cross]))
+        line = np.insert(line, cross + 1, line[cross])
         p = self.points(s, z)
         seg, width = np.stack([p[:-1], p[1:]], axis=1), np.stack([w[:-1], w[1:]], axis=1)
-        keep = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > 1e-9
-        return seg[keep], width[keep]
+        keep = (line[1:] == line[:-1]) & (np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > 1e-9)
+        return seg[keep], width[keep], line[:-1][keep]
 
 
 _Polyline = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -411,18 +414,14 @@ def _network(sec: _Section, cracks: list[tuple[str, list[_Polyline]]],
     the mesh frame's axes ``axes``."""
     if not cracks:
         return empty_network()
-    points, widths, ids = [], [], []
-    for k, (_, lines) in enumerate(cracks):
-        for line in lines:
-            p, w = sec.segments(*line)
-            points.append(p)
-            widths.append(w)
-            ids.append(np.full(len(p), k, np.int32))
-    canonical = np.concatenate(points)
+    lines = [(k, line) for k, (_, group) in enumerate(cracks) for line in group]
+    s, z, w = (np.concatenate([line[i] for _, line in lines]) for i in range(3))
+    index = np.repeat(np.arange(len(lines)), [len(line[0]) for _, line in lines])
+    canonical, widths, which = sec.segments(s, z, w, index)
     mesh = np.empty_like(canonical)
     mesh[..., list(axes)] = canonical
-    return CrackNetwork(mesh, np.concatenate(widths), np.concatenate(ids),
-                        tuple(kind for kind, _ in cracks))
+    owner = np.array([k for k, _ in lines], np.int32)
+    return CrackNetwork(mesh, widths, owner[which], tuple(kind for kind, _ in cracks))
 
 
 def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
