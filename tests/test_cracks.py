@@ -99,6 +99,15 @@ def test_network_validation():
             CrackNetwork(**{**good, **change})
 
 
+def test_material_holds_a_network_or_none():
+    from glsynth.appearance.materials import Material
+    assert Material().cracks is None
+    net = empty_network()
+    assert Material(cracks=net).cracks is net
+    with pytest.raises(ValueError, match="material.cracks: dict"):
+        Material(cracks={"points": []})
+
+
 def test_records_measure_length_and_widths():
     points = np.array([[[0.35, 0, 0], [0.35, 0.3, 0]], [[0.35, 0.3, 0], [0.35, 0.4, 0]],
                        [[-0.35, 0, 1], [-0.35, 0.1, 1.1]]])
