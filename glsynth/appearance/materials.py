@@ -5,8 +5,8 @@ Maps are numpy arrays: base colour and emissive (H, W, 3) uint8 sRGB; metallic (
 multiplying ``metallic`` (255: the factor); normal (H, W, 3) uint8 tangent space; damage mask
 (H, W) uint8 damage ids. Cracks are a CrackNetwork in the part's mesh frame. No material varies
 its roughness over the surface, so there is no roughness map (the glTF export writes the
-metallic map in glTF's packing). ``uv_scale``
-multiplies the mesh UVs (metres), so a map repeats every 1 / uv_scale metres.
+metallic map in glTF's packing). ``uv_scale`` multiplies the mesh UVs (metres), so a map
+repeats every 1 / uv_scale metres.
 """
 
 from collections.abc import Callable, Iterator, Mapping, Sequence

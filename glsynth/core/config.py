@@ -281,15 +281,15 @@ class DamageConfig:
     """Damage textures per severity (made lazily, on first use, and cached)."""
     model: Literal["paper", "mechanics"] = "paper"
     """Where damage goes (docs/design.md, "Damage by mechanics"): "paper", Section 3.3's noise
-    textures spread uniformly over a column; "mechanics", crack networks with a width in mm,
-    placed by the moment and shear of a column in double curvature under a lateral drift. The
-    fields below apply to "mechanics" only."""
+    textures spread uniformly over a column; "mechanics", crack networks with a width in mm on
+    the columns and the cross and tie beams, placed by their moment and shear in double
+    curvature under a drift. The fields below apply to "mechanics" only."""
     crack_width_mm: tuple[float, float] = (0.05, 5.0)
     """Range of crack widths: a crack tapers to the lower bound at its tips, and no crack is
     wider than the upper bound."""
     slight_drift_pct: tuple[float, float] = (0.2, 0.5)
     """Lateral drift ratio of a slightly damaged column, in %: first cracking to about yield
-    (a Table 3 column yields at about 0.3-0.5 %)."""
+    (a Table 3 column yields at about 0.3-0.7 %)."""
     medium_drift_pct: tuple[float, float] = (0.5, 2.0)
     """Of a medium one: past yield, up to cover spalling (about 2 %, Berry and Eberhard
     2003)."""
