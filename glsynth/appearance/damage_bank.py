@@ -50,7 +50,7 @@ class DamageBank:
                  ) -> None:
         self.cfg = cfg
         self.root_seed = root_seed
-        key = json.dumps([BANK_VERSION, root_seed, dataclasses.asdict(cfg)], sort_keys=True)
+        key = json.dumps([BANK_VERSION, root_seed, cfg.texture_settings()], sort_keys=True)
         digest = hashlib.sha256(key.encode()).hexdigest()[:16]
         self.dir = (cache_dir or cache_root()) / f"damage-{digest}"
         self.generated = 0

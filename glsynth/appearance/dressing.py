@@ -8,6 +8,13 @@ never depends on which other parts are built. Damage textures are built only for
 sampled damage record but is drawn with plain concrete, which no image can show. Damage
 materials are deferred (glsynth.appearance.materials.Materials): built when asked for, so that
 the renderer holds one column's maps at a time, not the environment's.
+
+Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network instead
+(glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index) and
+no damage texture: spalling and exposed bars placed by mechanics are not built yet. Its
+severity is drawn as under "paper", so both models damage the same columns. Cross and tie
+beams draw their severity, drift and cracks from the CRACKS stream (item = their index); the
+girders, swept along the track, get none yet.
 """
 
 import functools
@@ -15,6 +22,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
+from glsynth.appearance.cracks import (
+    CrackNetwork,
+    beam_cracks,
+    column_cracks,
+    column_demand,
+    crack_records,
+)
 from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_factors
 from glsynth.appearance.materials import (
@@ -25,9 +41,9 @@ from glsynth.appearance.materials import (
     sample_assignment,
 )
 from glsynth.appearance.repository import TextureRepository, builtin_repository
-from glsynth.core.config import Config
+from glsynth.core.config import Config, DamageConfig
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.world.environment import Environment
+from glsynth.world.environment import Environment, Part
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
 _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
@@ -54,13 +70,94 @@ def _repository(root: str, size: int) -> TextureRepository:
     return TextureRepository(root, size)
 
 
+def _severity(cfg: DamageConfig, rng: np.random.Generator) -> str | None:
+    """Section 3.3's draw: undamaged with [damage] undamaged_probability, else a severity."""
+    if rng.random() < cfg.undamaged_probability:
+        return None
+    return SEVERITIES[int(rng.integers(len(SEVERITIES)))]
+
+
 def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> dict:
     d = config.damage
     rng = make_rng(root_seed, env, Stream.DAMAGE, ordinal)
-    if rng.random() < d.undamaged_probability:
+    severity = _severity(d, rng)
+    if severity is None:
         return {"damaged": False}
-    return {"damaged": True, "severity": SEVERITIES[int(rng.integers(len(SEVERITIES)))],
+    return {"damaged": True, "severity": severity,
             "bank_index": int(rng.integers(d.bank_size)), "scale": float(rng.uniform(*d.scale))}
+
+
+def clear_spans(env: Environment, part: Part) -> list[tuple[float, float]]:
+    """A column's clear spans, (z0, z1) in its mesh frame: from the ground to the underside of
+    the cross beam, split by the tie beams where Table 3 has them."""
+    viaduct = next(v for v in env.viaducts if v.index == part.viaduct)
+    info = next(c for c in viaduct.columns if c.name == part.name)
+    centre = (info.top_z + info.bottom_z) / 2
+    z0, z1 = info.bottom_z - centre, info.top_z - env.config.design.embed_m - centre
+    tie = next((p for p in env.parts if p.viaduct == part.viaduct
+                and p.name.startswith("beam_") and "_tie_" in p.name), None)
+    if tie is None:
+        return [(z0, z1)]
+    middle, half = float(tie.pose[2, 3]) - centre, float(tie.mesh.extents[2]) / 2
+    return [(z0, middle - half), (middle + half, z1)]
+
+
+def beam_span(env: Environment, part: Part) -> tuple[int, tuple[float, float]] | None:
+    """A cross or tie beam's long axis in its mesh frame (0: x, 1: y) and its clear span on
+    that axis, between the faces of the columns that carry it; None for the girders (swept
+    along the track, not boxes) and any other beam."""
+    if "_cross_" not in part.name and "_tie_" not in part.name:
+        return None
+    viaduct = next(v for v in env.viaducts if v.index == part.viaduct)
+    along, across = viaduct.columns[0].section_m
+    axis = int(np.argmax(part.mesh.extents[:2]))
+    if axis == 1:  # across the track: carried by the two columns of a row
+        half = (env.config.design.column_spacing_m - across) / 2
+    else:  # along the track: between neighbouring rows, centre to centre
+        half = (float(part.mesh.extents[0]) - along) / 2
+    return axis, (-half, half)
+
+
+def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
+                 material: Material, seen: bool) -> tuple[dict | None, Material]:
+    """A cross or tie beam's record and material under model = "mechanics"."""
+    span = beam_span(env, part)
+    if span is None:
+        return None, material
+    rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
+    severity = _severity(cfg, rng)
+    if severity is None:
+        return {"damaged": False}, material
+    record = {"damaged": True, "severity": severity, "built": seen}
+    if not seen:
+        return record, material
+    demand = column_demand(cfg, severity, rng)
+    extents = tuple(float(e) for e in part.mesh.extents)
+    cracks = beam_cracks(cfg, extents, span[0], span[1], demand.drift, rng)
+    record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4))
+    return record, replace(material, cracks=cracks)
+
+
+def _with_cracks(record: dict, part: Part, cracks: CrackNetwork, **demand: object) -> dict:
+    """``record`` with the demand's fields and the crack list of ``part``."""
+    return {**record, **demand,
+            "cracks": [{"member": part.name, **r} for r in crack_records(cracks)]}
+
+
+def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
+                      damage: dict, material: Material) -> tuple[dict, Material]:
+    """A damaged column's record and material under model = "mechanics": its drift and, if
+    a camera sees it, its cracks on the concrete material (the record lists them)."""
+    record = {"damaged": True, "severity": damage["severity"], "built": damage["built"]}
+    if not damage["built"]:
+        return record, material
+    rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
+    demand = column_demand(cfg, damage["severity"], rng)
+    section = tuple(float(e) for e in part.mesh.extents[:2])
+    cracks = column_cracks(cfg, section, clear_spans(env, part), demand, rng)
+    record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4),
+                          drift_axis="xy"[demand.axis])
+    return record, replace(material, cracks=cracks)
 
 
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
@@ -90,13 +187,20 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             damage = _column_damage(config, root, index, ordinal)
             if damage["damaged"]:
                 damage["built"] = part.name in visible
-                if damage["built"]:
+                if config.damage.model == "mechanics":
+                    damage, material = _mechanics_damage(env, config.damage, part, ordinal,
+                                                         damage, material)
+                elif damage["built"]:
                     key = (damage["severity"], damage["bank_index"])
                     params, images = bank.record(*key, repository)
                     damage.update(params=params, images=list(images))
                     deferred[part.name] = (damage_factors(config.damage, damage["scale"]),
                                            functools.partial(bank.material, *key,
                                                              repository, damage["scale"]))
+            a = replace(a, damage=damage)
+        elif kind == "beam" and config.damage.model == "mechanics":
+            damage, material = _beam_damage(env, config.damage, part, ordinal, material,
+                                            part.name in visible)
             a = replace(a, damage=damage)
         if part.name not in deferred:
             materials[part.name] = material

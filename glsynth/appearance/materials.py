@@ -1,10 +1,12 @@
-"""Materials: metallic-roughness PBR parameters and maps, plus an optional damage-id mask.
+"""Materials: metallic-roughness PBR parameters and maps, plus an optional damage-id mask and
+crack network.
 
 Maps are numpy arrays: base colour and emissive (H, W, 3) uint8 sRGB; metallic (H, W) uint8,
 multiplying ``metallic`` (255: the factor); normal (H, W, 3) uint8 tangent space; damage mask
-(H, W) uint8 damage ids. No material varies its roughness over the surface, so there is no
-roughness map (the glTF export writes the metallic map in glTF's packing). ``uv_scale``
-multiplies the mesh UVs (metres), so a map repeats every 1 / uv_scale metres.
+(H, W) uint8 damage ids. Cracks are a CrackNetwork in the part's mesh frame. No material varies
+its roughness over the surface, so there is no roughness map (the glTF export writes the
+metallic map in glTF's packing). ``uv_scale`` multiplies the mesh UVs (metres), so a map
+repeats every 1 / uv_scale metres.
 """
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -13,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.world.environment import Part
@@ -31,8 +34,13 @@ class Material:
     emissive_map: np.ndarray | None = None
     normal_map: np.ndarray | None = None
     damage_mask: np.ndarray | None = None
+    cracks: CrackNetwork | None = None
+    """Cracks on the part's surface, in its mesh frame (glsynth.appearance.cracks)."""
 
     def __post_init__(self) -> None:
+        if self.cracks is not None and not isinstance(self.cracks, CrackNetwork):
+            raise ValueError(f"material.cracks: {type(self.cracks).__name__}; must be a "
+                             "CrackNetwork or None")
         for name, channels in (("base_color_map", 3), ("metallic_map", 0),
                                ("emissive_map", 3), ("normal_map", 3), ("damage_mask", 0)):
             value = getattr(self, name)
@@ -153,7 +161,9 @@ class Assignment:
     roughness: float
     scale: float
     damage: dict | None = None
-    """For columns: {"damaged": bool, and if damaged severity, bank index, params}."""
+    """For columns: {"damaged": bool, and if damaged severity, bank index, params}; under
+    [damage] model = "mechanics", severity, drift and the crack list (id, member, type, length
+    in m, mean and maximum width in mm) instead of the bank's entry."""
 
 
 def part_kind(name: str) -> str:

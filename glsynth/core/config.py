@@ -279,6 +279,44 @@ class DamageConfig:
     """Texture scale of a damaged column (the texture repeats every 1/scale * tile_m metres)."""
     bank_size: int = 1000
     """Damage textures per severity (made lazily, on first use, and cached)."""
+    model: Literal["paper", "mechanics"] = "paper"
+    """Where damage goes (docs/design.md, "Damage by mechanics"): "paper", Section 3.3's noise
+    textures spread uniformly over a column; "mechanics", crack networks with a width in mm on
+    the columns and the cross and tie beams, placed by their moment and shear in double
+    curvature under a drift. The fields below apply to "mechanics" only."""
+    crack_width_mm: tuple[float, float] = (0.05, 5.0)
+    """Range of crack widths: a crack tapers to the lower bound at its tips, and no crack is
+    wider than the upper bound."""
+    slight_drift_pct: tuple[float, float] = (0.2, 0.5)
+    """Lateral drift ratio of a slightly damaged column, in %: first cracking to about yield
+    (a Table 3 column yields at about 0.3-0.7 %)."""
+    medium_drift_pct: tuple[float, float] = (0.5, 2.0)
+    """Of a medium one: past yield, up to cover spalling (about 2 %, Berry and Eberhard
+    2003)."""
+    severe_drift_pct: tuple[float, float] = (2.0, 5.0)
+    """Of a severe one: spalling, up to bar buckling (about 5-6 %, Berry and Eberhard 2003)."""
+    fy_mpa: float = 345.0
+    """Yield strength of the longitudinal bars (SD345, JIS G 3112)."""
+    bar_diameter_mm: float = 25.0
+    """Diameter d_b of the longitudinal bars (D25), for the hinge length's strain penetration."""
+    stirrup_spacing_m: tuple[float, float] = (0.10, 0.30)
+    """Range of the hoop spacing of a column, which sets the crack spacing: hoops at about
+    300 mm in the 1960s Tokaido designs, 100-150 mm in later ones."""
+    hinge_span_factor: float = 0.08
+    """Plastic-hinge length Lp = hinge_span_factor L + hinge_bar_factor fy d_b (Priestley and
+    Park 1987), L the shear span."""
+    hinge_bar_factor: float = 0.022
+    """Strain-penetration term of Lp, per MPa of fy (d_b in m)."""
+    cracking_moment_ratio: float = 0.4
+    """M_cr / M_y of a column section: flexural cracks form where the moment exceeds it."""
+    shear_span_ratio: float = 2.5
+    """Shear governs a column whose shear span over effective depth, a / d, is below this
+    (Kani's valley: about 2.5)."""
+    branch_probability: float = 0.5
+    """Chance that a crack forks once."""
+    beam_service_moment_ratio: float = 0.5
+    """M / M_y of a beam's midspan section under the service load (gravity): allowable-stress
+    design keeps the bars' service stress near half their yield strength."""
 
     def __post_init__(self) -> None:
         s = "damage"
@@ -303,6 +341,28 @@ class DamageConfig:
         if self.scale[0] <= 0:
             fail(s, "scale", self.scale, "an interval of positive scales")
         check_number(s, "bank_size", self.bank_size, 1, 10**6, integer=True)
+        check_literal(s, DamageConfig, "model", self.model)
+        try:
+            check_interval(s, "crack_width_mm", self.crack_width_mm, 0.0, 10.0)
+            positive = self.crack_width_mm[0] > 0
+        except UserError:
+            positive = False
+        if not positive:  # one message for every way out of (0, 10]
+            fail(s, "crack_width_mm", self.crack_width_mm,
+                 "an interval [a, b] of mm with 0 < a <= b <= 10")
+        for severity in ("slight", "medium", "severe"):
+            check_interval(s, f"{severity}_drift_pct", getattr(self, f"{severity}_drift_pct"),
+                           0.0, 20.0)
+        check_number(s, "fy_mpa", self.fy_mpa, 100.0, 2000.0)
+        check_number(s, "bar_diameter_mm", self.bar_diameter_mm, 1.0, 100.0)
+        check_interval(s, "stirrup_spacing_m", self.stirrup_spacing_m, 0.01, 2.0)
+        check_number(s, "hinge_span_factor", self.hinge_span_factor, 0.0, 1.0)
+        check_number(s, "hinge_bar_factor", self.hinge_bar_factor, 0.0, 1.0)
+        check_number(s, "cracking_moment_ratio", self.cracking_moment_ratio, 0.0, 1.0,
+                     lo_open=True)
+        check_number(s, "shear_span_ratio", self.shear_span_ratio, 0.0, 100.0)
+        check_number(s, "branch_probability", self.branch_probability, 0.0, 1.0)
+        check_number(s, "beam_service_moment_ratio", self.beam_service_moment_ratio, 0.0, 1.0)
 
     def area_range(self, severity: str) -> tuple[float, float]:
         """Damaged-area fraction range of a severity, under the documented reading."""
@@ -317,6 +377,23 @@ class DamageConfig:
         self.area_range(severity)  # validates the name
         lo, hi = getattr(self, f"{severity}_depth_cm")
         return (lo / 100.0, hi / 100.0)
+
+    def drift_range(self, severity: str) -> tuple[float, float]:
+        """Lateral drift ratio range (not %) of a severity under ``model = "mechanics"``."""
+        self.area_range(severity)  # validates the name
+        lo, hi = getattr(self, f"{severity}_drift_pct")
+        return (lo / 100.0, hi / 100.0)
+
+    def texture_settings(self) -> dict[str, Any]:
+        """The fields the damage textures depend on (the damage bank's cache key): the crack
+        settings are left out, so changing them keeps the cached textures."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                if f.name not in _CRACK_FIELDS}
+
+
+_DAMAGE_FIELDS = [f.name for f in dataclasses.fields(DamageConfig)]
+_CRACK_FIELDS = frozenset(_DAMAGE_FIELDS[_DAMAGE_FIELDS.index("model"):])
+"""DamageConfig's fields from ``model`` on: the crack model's, not the textures'."""
 
 
 @dataclass(frozen=True)

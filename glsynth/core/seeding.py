@@ -24,6 +24,9 @@ class Stream(IntEnum):
     """The sun and the sky of an environment."""
     CYCLES = 8
     """Cycles' sampling seed of one view (item = camera index; plates: 1,000,000 + N)."""
+    CRACKS = 9
+    """A damaged column's drift and crack network under [damage] model = "mechanics" (item =
+    the part's index in the environment's part list)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

@@ -1,0 +1,468 @@
+"""Cracks as curves with a width on a column's surface, placed by mechanics (issue 29).
+
+A crack network holds straight segments in the member's mesh frame (metres) with a width at
+each end. Columns are ``meshes.box((a, b, height))`` centred at their origin: x along the
+track (a), y across (b), z up. The generators work on the unrolled lateral surface, a
+coordinate ``s`` running counter-clockwise round the section (seen from +z) and ``z``, and
+split every polyline where it turns a corner, so each segment lies on one face and a crack
+turning a corner is two segments meeting on the shared edge.
+
+Placement follows a column in double curvature under a lateral drift (docs/design.md, "Damage
+by mechanics", gives every rule and its source): flexural cracks across the axis where the
+moment exceeds the cracking moment, widest in the plastic-hinge zones at both ends; shear
+cracks at 30-60 degrees to the axis on the faces parallel to the drift, where the shear-span
+ratio makes shear govern.
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from glsynth.core.config import DamageConfig
+
+KINDS = ("flexural", "shear")
+MAX_WIDTH_M = 0.01
+"""No crack is wider than [damage] crack_width_mm allows at most (10 mm)."""
+STEEL_MODULUS_MPA = 200_000.0
+YIELD_CURVATURE_FACTOR = 2.10
+"""phi_y = 2.10 eps_y / h for rectangular columns (Priestley, Calvi and Kowalsky 2007)."""
+NEUTRAL_AXIS_RATIO = 0.25
+"""c / h, the compression zone's share of the section depth at the column's axial load."""
+EFFECTIVE_DEPTH_RATIO = 0.9
+"""d / h: the tension bars' depth below the compression face."""
+FLEXURAL_BAND_DEG = 10.0
+"""Flexural cracks run within this angle of the horizontal (across the column's axis)."""
+SHEAR_BAND_DEG = (30.0, 60.0)
+"""Shear cracks run at these angles to the axis."""
+STEP_M = 0.05
+"""Length of a crack polyline's steps: the scale of its wiggle."""
+MIN_FORK_M = 0.02
+"""A fork with less room than this on its face is not made."""
+
+
+@dataclass(frozen=True)
+class CrackNetwork:
+    """Cracks on one member's surface, in the member's mesh frame (metres)."""
+
+    points: np.ndarray
+    """(N, 2, 3) float64: the end points of N straight segments, on the member's surface."""
+    widths_m: np.ndarray
+    """(N, 2) float64: the crack's width at each end point, in metres, measured across the
+    crack on the surface; linear in between. 0.05 mm .. 5 mm."""
+    crack: np.ndarray
+    """(N,) int32: the crack (0 .. K-1) each segment belongs to."""
+    kinds: tuple[str, ...]
+    """(K,) per crack: "flexural" or "shear"."""
+
+    def __post_init__(self) -> None:
+        n = len(self.points) if isinstance(self.points, np.ndarray) else -1
+        for name, value, shape, dtype in (("points", self.points, (n, 2, 3), np.float64),
+                                          ("widths_m", self.widths_m, (n, 2), np.float64),
+                                          ("crack", self.crack, (n,), np.int32)):
+            if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
+                got = (value.dtype, value.shape) if isinstance(value, np.ndarray) else value
+                raise ValueError(f"CrackNetwork.{name}: {got}; must be {np.dtype(dtype)} "
+                                 f"of shape {shape}")
+        if not (np.all(np.isfinite(self.points)) and np.all(np.isfinite(self.widths_m))):
+            raise ValueError("CrackNetwork: points and widths must be finite")
+        if n and not (self.widths_m.min() > 0 and self.widths_m.max() <= MAX_WIDTH_M):
+            raise ValueError(f"CrackNetwork.widths_m: {self.widths_m.min()} .. "
+                             f"{self.widths_m.max()} m; must lie in (0, {MAX_WIDTH_M}] m")
+        if not isinstance(self.kinds, tuple) or any(k not in KINDS for k in self.kinds):
+            raise ValueError(f"CrackNetwork.kinds = {self.kinds!r}: a tuple of {KINDS}")
+        used = np.unique(self.crack)
+        if not np.array_equal(used, np.arange(len(self.kinds))):
+            raise ValueError(f"CrackNetwork.crack: ids {used.tolist()}; every crack "
+                             f"0 .. {len(self.kinds) - 1} must have segments, and no other")
+
+    @property
+    def lengths_m(self) -> np.ndarray:
+        """(N,) segment lengths."""
+        return np.linalg.norm(self.points[:, 1] - self.points[:, 0], axis=1)
+
+
+def empty_network() -> CrackNetwork:
+    return CrackNetwork(np.zeros((0, 2, 3)), np.zeros((0, 2)), np.zeros(0, np.int32), ())
+
+
+def crack_records(net: CrackNetwork) -> list[dict]:
+    """Per crack: id, type, length in m, mean (over its length) and maximum width in mm."""
+    lengths = net.lengths_m
+    records = []
+    for k, kind in enumerate(net.kinds):
+        mine = net.crack == k
+        length = float(lengths[mine].sum())
+        mean = float((lengths[mine] * net.widths_m[mine].mean(axis=1)).sum() / length)
+        records.append({"id": k, "type": kind, "length_m": round(length, 4),
+                        "mean_width_mm": round(mean * 1e3, 4),
+                        "max_width_mm": round(float(net.widths_m[mine].max()) * 1e3, 4)})
+    return records
+
+
+@dataclass(frozen=True)
+class DriftDemand:
+    """The drift a damaged member went through."""
+
+    drift: float
+    """Drift ratio: the sideways displacement of one end of a clear span against the other,
+    over the span (a column's storey drift; a beam's chord rotation)."""
+    axis: int
+    """Its direction in the section: 0 along x (a column: the track), 1 along y (a column:
+    across the track; a beam: vertical)."""
+
+
+def column_demand(cfg: DamageConfig, severity: str, rng: np.random.Generator
+                  ) -> DriftDemand:
+    """A drift drawn uniformly from the severity's range, in a direction along the track or
+    across it with equal chance."""
+    drift = float(rng.uniform(*cfg.drift_range(severity)))
+    return DriftDemand(drift, int(rng.integers(2)))
+
+
+def strain_penetration_m(cfg: DamageConfig) -> float:
+    """L_sp = 0.022 fy d_b: how far the bars' yielding reaches into the footing or joint."""
+    return cfg.hinge_bar_factor * cfg.fy_mpa * cfg.bar_diameter_mm / 1e3
+
+
+def hinge_length_m(cfg: DamageConfig, shear_span_m: float) -> float:
+    """Priestley and Park (1987): Lp = 0.08 L + 0.022 fy d_b (L, d_b in m; fy in MPa)."""
+    if shear_span_m < 0:
+        raise ValueError(f"shear_span_m = {shear_span_m!r}: must be >= 0")
+    return cfg.hinge_span_factor * shear_span_m + strain_penetration_m(cfg)
+
+
+def yield_curvature(cfg: DamageConfig, depth_m: float) -> float:
+    """phi_y = 2.10 eps_y / h of a rectangular section (Priestley, Calvi and Kowalsky 2007)."""
+    return YIELD_CURVATURE_FACTOR * cfg.fy_mpa / STEEL_MODULUS_MPA / depth_m
+
+
+@dataclass(frozen=True)
+class SpanMechanics:
+    """One clear span of a member in double curvature (a column between the ground, tie beams
+    and the cross beam; a beam between the columns): moment linear, zero at mid-span, largest
+    at both ends; shear constant. Lengths in metres; z0, z1 along the member's axis in its
+    mesh frame."""
+
+    z0: float
+    z1: float
+    depth_m: float
+    """h, the section's depth in the drift's direction."""
+    shear_span_m: float
+    """Half the clear span: the distance from an end to the point of zero moment."""
+    hinge_m: float
+    """Plastic-hinge length Lp at each end (at most the shear span)."""
+    yield_drift: float
+    """theta_y = phi_y (L + L_sp) / 3 of the half span as a cantilever."""
+    cracked_m: float
+    """Flexural cracks reach this far from each end: where M > M_cr, and the hinge past
+    yield."""
+    shear_governs: bool
+    """a / d below [damage] shear_span_ratio."""
+
+
+def span_mechanics(cfg: DamageConfig, z0: float, z1: float, depth_m: float, drift: float
+                   ) -> SpanMechanics:
+    if not (z1 > z0 and depth_m > 0 and drift >= 0):
+        raise ValueError(f"span ({z0}, {z1}), depth {depth_m}, drift {drift}: need z1 > z0, "
+                         "depth > 0, drift >= 0")
+    shear_span = (z1 - z0) / 2
+    hinge = min(hinge_length_m(cfg, shear_span), shear_span)
+    yield_drift = yield_curvature(cfg, depth_m) * (shear_span + strain_penetration_m(cfg)) / 3
+    moment = min(drift / yield_drift, 1.0)  # M_end / M_y: elastic, then perfectly plastic
+    cracked = shear_span * max(0.0, 1.0 - cfg.cracking_moment_ratio / moment) if moment else 0.0
+    if drift > yield_drift:
+        cracked = max(cracked, hinge)
+    governs = shear_span / (EFFECTIVE_DEPTH_RATIO * depth_m) < cfg.shear_span_ratio
+    return SpanMechanics(z0, z1, depth_m, shear_span, hinge, yield_drift, cracked, governs)
+
+
+def flexural_width_m(cfg: DamageConfig, span: SpanMechanics, drift: float, x: np.ndarray,
+                     spacing_m: float) -> np.ndarray:
+    """Surface width of a flexural crack ``x`` from the nearest end: the crack spacing times
+    the strain of the tension face, curvature times (h - c). Curvature: elastic, linear in
+    the moment, plus the plastic rotation theta - theta_y spread over Lp (Priestley and Park's
+    hinge model)."""
+    elastic = yield_curvature(cfg, span.depth_m) * min(drift / span.yield_drift, 1.0)
+    phi = elastic * (1.0 - x / span.shear_span_m)  # the moment falls to zero at mid-span
+    plastic = max(drift - span.yield_drift, 0.0) / span.hinge_m if span.hinge_m > 0 else 0.0
+    phi = phi + np.where(x <= span.hinge_m, plastic, 0.0)
+    return spacing_m * phi * (1.0 - NEUTRAL_AXIS_RATIO) * span.depth_m
+
+
+def soffit_width_m(cfg: DamageConfig, span: SpanMechanics, x: np.ndarray, spacing_m: float
+                   ) -> np.ndarray:
+    """Width of a gravity crack in a beam's soffit ``x`` from the span's start, 0 where the
+    sagging moment stays below M_cr. A beam fixed at both ends under a uniform load carries
+    M = wL^2/12 (6 xi - 6 xi^2 - 1) (xi = x / L): wL^2/24 sagging at midspan, where the
+    section works at [damage] beam_service_moment_ratio of its M_y."""
+    xi = x / (span.z1 - span.z0)
+    moment = cfg.beam_service_moment_ratio * (6 * xi - 6 * xi * xi - 1) / 0.5  # M / M_y
+    width = spacing_m * yield_curvature(cfg, span.depth_m) * moment * (1.0 - NEUTRAL_AXIS_RATIO) \
+        * span.depth_m
+    return np.where(moment >= cfg.cracking_moment_ratio, width, 0.0)
+
+
+def shear_width_m(drift: float, spacing_m: float) -> float:
+    """Width of a diagonal crack in a shear-governed span: the crack spacing times the
+    principal tensile strain, which is half the shear strain at 45 degrees (Vecchio and
+    Collins 1986); a squat span's drift is taken to be all shear strain."""
+    return spacing_m * drift / 2
+
+
+class _Section:
+    """The unrolled lateral surface of an a x b box section: faces 0..3 are x = +a/2, y = +b/2,
+    x = -a/2, y = -b/2, met in that order as s grows (counter-clockwise seen from +z)."""
+
+    def __init__(self, a: float, b: float) -> None:
+        self.a, self.b = a, b
+        self.starts = np.array([0.0, b, b + a, 2 * b + a])
+        self.perimeter = 2 * (a + b)
+
+    def face(self, s: np.ndarray) -> np.ndarray:
+        """Face index of unrolled s, counting on past the perimeter (face 5 is face 1)."""
+        turns = np.floor(s / self.perimeter)
+        within = s - turns * self.perimeter
+        return (4 * turns + np.searchsorted(self.starts, within, side="right") - 1).astype(int)
+
+    def face_start(self, face: np.ndarray) -> np.ndarray:
+        return np.floor_divide(face, 4) * self.perimeter + self.starts[np.mod(face, 4)]
+
+    def face_width(self, face: int) -> float:
+        return self.b if face % 2 == 0 else self.a
+
+    def face_bounds(self, s: float) -> tuple[float, float]:
+        """The s range of the face that holds ``s``."""
+        face = self.face(np.array([s]))
+        start = float(self.face_start(face)[0])
+        return start, start + self.face_width(int(face[0]))
+
+    def points(self, s: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(n, 3) points (x, y, z) of unrolled (s, z)."""
+        face = self.face(s)
+        t = s - self.face_start(face)  # distance along the face, counter-clockwise
+        ha, hb = self.a / 2, self.b / 2
+        x = np.choose(face % 4, [np.full_like(t, ha), ha - t, np.full_like(t, -ha), t - ha])
+        y = np.choose(face % 4, [t - hb, np.full_like(t, hb), hb - t, np.full_like(t, -hb)])
+        return np.stack([x, y, z], axis=1)
+
+    def segments(self, s: np.ndarray, z: np.ndarray, w: np.ndarray, line: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Polylines' segments (M, 2, 3), end widths (M, 2) and polyline ids (M,), split
+        where one crosses an edge so that every segment lies on one face. The polylines'
+        vertices are concatenated, ``line`` naming each vertex's polyline; steps are shorter
+        than a face."""
+        face = self.face(s)
+        cross = np.flatnonzero((face[1:] != face[:-1]) & (line[1:] == line[:-1]))
+        edge = self.face_start(np.maximum(face[cross], face[cross + 1]))
+        f = (edge - s[cross]) / (s[cross + 1] - s[cross])
+        s = np.insert(s, cross + 1, edge)
+        z = np.insert(z, cross + 1, z[cross] + f * (z[cross + 1] - z[cross]))
+        w = np.insert(w, cross + 1, w[cross] + f * (w[cross + 1] - w[cross]))
+        line = np.insert(line, cross + 1, line[cross])
+        p = self.points(s, z)
+        seg, width = np.stack([p[:-1], p[1:]], axis=1), np.stack([w[:-1], w[1:]], axis=1)
+        keep = (line[1:] == line[:-1]) & (np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > 1e-9)
+        return seg[keep], width[keep], line[:-1][keep]
+
+
+_Polyline = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""(s, z, width) of a crack's vertices on the unrolled surface."""
+
+
+def _trace(s_lo: float, s_hi: float, z_at: float, angles_deg: np.ndarray) -> np.ndarray:
+    """z of a polyline from s_lo to s_hi in len(angles_deg) equal steps, each rising at its
+    angle from the horizontal; shifted so that its middle vertex sits at z_at."""
+    s = np.linspace(s_lo, s_hi, len(angles_deg) + 1)
+    z = np.concatenate([[0.0], np.cumsum(np.diff(s) * np.tan(np.radians(angles_deg)))])
+    return z + z_at - z[len(z) // 2]
+
+
+def _steps(length_m: float) -> int:
+    return max(2, int(np.ceil(length_m / STEP_M)))
+
+
+def _branch(line: _Polyline, face: tuple[float, float], w_lo: float, rng: np.random.Generator
+            ) -> _Polyline | None:
+    """A fork from an inner vertex of ``line``, 15-35 degrees off the crack's direction there,
+    5-20 % of its length, half its width at the fork, tapering to w_lo; kept on the face
+    ``face`` (its s range), or None where there is no room."""
+    s, z, w = line
+    inner = np.flatnonzero((s[1:-1] > face[0]) & (s[1:-1] < face[1])) + 1
+    if len(inner) == 0:
+        return None
+    k = int(rng.choice(inner))
+    sense = 1.0 if s[-1] > s[0] else -1.0
+    local = np.degrees(np.arctan2(z[k + 1] - z[k], abs(s[k + 1] - s[k])))
+    angle = float(np.clip(local + rng.choice([-1.0, 1.0]) * rng.uniform(15, 35), -70, 70))
+    reach = rng.uniform(0.05, 0.2) * float(np.hypot(np.diff(s), np.diff(z)).sum())
+    end = float(np.clip(s[k] + sense * reach * np.cos(np.radians(angle)), *face))
+    if abs(end - s[k]) < MIN_FORK_M:
+        return None
+    n = _steps(abs(end - s[k]))
+    angles = np.clip(angle + rng.normal(0, 3, n), -75, 75) * sense
+    zb = _trace(s[k], end, 0.0, angles)
+    return (np.linspace(s[k], end, n + 1), zb - zb[0] + z[k],
+            np.linspace(max(w[k] / 2, w_lo), w_lo, n + 1))
+
+
+def _clip_z(line: _Polyline, z0: float, z1: float) -> _Polyline | None:
+    """The run of vertices around the middle one that stays within [z0, z1]."""
+    s, z, w = line
+    inside = (z >= z0) & (z <= z1)
+    mid = len(z) // 2
+    if not inside[mid]:
+        return None
+    lo = mid - int(np.argmin(inside[mid::-1])) + 1 if not inside[:mid].all() else 0
+    hi = mid + int(np.argmin(inside[mid:])) if not inside[mid:].all() else len(z)
+    return (s[lo:hi], z[lo:hi], w[lo:hi]) if hi - lo >= 2 else None
+
+
+def _flexural(cfg: DamageConfig, sec: _Section, face: int, z_at: float, width_m: float,
+              rng: np.random.Generator) -> _Polyline:
+    """A crack across tension face ``face`` at width_m, turning both corners onto the side
+    faces for 15-45 % of their width and tapering there to the smallest width: the strain
+    falls towards the neutral axis. Within FLEXURAL_BAND_DEG of horizontal at every step."""
+    w_lo = cfg.crack_width_mm[0] / 1e3
+    start = float(sec.starts[face])
+    end = start + sec.face_width(face)
+    side = sec.face_width(face + 1)
+    lo, hi = start - rng.uniform(0.15, 0.45) * side, end + rng.uniform(0.15, 0.45) * side
+    n = _steps(hi - lo)
+    angles = np.clip(rng.normal(0.0, 3.0, n), -0.8 * FLEXURAL_BAND_DEG,
+                     0.8 * FLEXURAL_BAND_DEG)
+    s = np.linspace(lo, hi, n + 1)
+    past = np.maximum(start - s, 0.0) / (start - lo) + np.maximum(s - end, 0.0) / (hi - end)
+    return s, _trace(lo, hi, z_at, angles), width_m + (w_lo - width_m) * past
+
+
+def _shear(cfg: DamageConfig, sec: _Section, face: int, z_at: float, width_m: float,
+           rng: np.random.Generator) -> _Polyline:
+    """A diagonal crack across face ``face`` (parallel to the drift), at 35-55 degrees to the
+    axis with either sense (the load reverses), widest mid-face, tapering to both tips."""
+    w_lo = cfg.crack_width_mm[0] / 1e3
+    start, wide = float(sec.starts[face]), sec.face_width(face)
+    lo, hi = start + rng.uniform(0.02, 0.1) * wide, start + wide - rng.uniform(0.02, 0.1) * wide
+    n = _steps((hi - lo) * 1.5)
+    inclination = rng.uniform(35.0, 55.0)
+    angles = rng.choice([-1.0, 1.0]) * np.clip(inclination + rng.normal(0.0, 3.0, n),
+                                               SHEAR_BAND_DEG[0] + 1, SHEAR_BAND_DEG[1] - 1)
+    taper = 1.0 - np.abs(np.linspace(-1.0, 1.0, n + 1))
+    return (np.linspace(lo, hi, n + 1), _trace(lo, hi, z_at, angles),
+            w_lo + (width_m - w_lo) * taper)
+
+
+def _positions(extent_m: float, spacing_m: float, rng: np.random.Generator) -> np.ndarray:
+    """Distances from an end of cracks about ``spacing_m`` apart (each gap 0.8-1.2 times it),
+    the first within half a spacing of the end, none past ``extent_m``."""
+    gaps = spacing_m * rng.uniform(0.8, 1.2, int(extent_m / (0.8 * spacing_m)) + 2)
+    x = rng.uniform(0.02, 0.5) * spacing_m + np.concatenate([[0.0], np.cumsum(gaps)])
+    return x[x <= extent_m]
+
+
+_Raw = list[tuple[str, _Polyline]]
+"""Cracks of one span before clipping and forking: (kind, polyline)."""
+
+
+def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: DriftDemand,
+                 spacing_m: float, rng: np.random.Generator) -> _Raw:
+    """Flexural cracks from both ends of a span, on both faces across the drift (the load
+    reverses), and shear cracks on both faces along it where shear governs."""
+    w_lo, w_hi = (w / 1e3 for w in cfg.crack_width_mm)
+    across = (0, 2) if demand.axis == 0 else (1, 3)  # faces whose normal is the drift's
+    along = (1, 3) if demand.axis == 0 else (0, 2)
+    cracks: _Raw = []
+    for end, sense in ((span.z0, 1.0), (span.z1, -1.0)):
+        x = _positions(min(span.cracked_m, span.shear_span_m), spacing_m, rng)
+        widths = flexural_width_m(cfg, span, demand.drift, x, spacing_m)
+        for xi, wi in zip(x[widths >= w_lo], widths[widths >= w_lo]):
+            for face in across:
+                cracks.append(("flexural", _flexural(cfg, sec, face, end + sense * xi,
+                                                     min(wi, w_hi), rng)))
+    width = shear_width_m(demand.drift, spacing_m)
+    if span.shear_governs and width >= w_lo:
+        for face in along:
+            for z in span.z0 + _positions(span.z1 - span.z0, spacing_m, rng):
+                cracks.append(("shear", _shear(cfg, sec, face, float(z), min(width, w_hi), rng)))
+    return cracks
+
+
+def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
+            rng: np.random.Generator) -> list[tuple[str, list[_Polyline]]]:
+    """Keep each crack within its span and fork some: (kind, [trunk, fork?])."""
+    out = []
+    for kind, line in cracks:
+        if kind == "flexural":  # one near an end runs along the joint with the beam or footing
+            line = (line[0], np.clip(line[1], span.z0, span.z1), line[2])
+        else:  # a diagonal crack ends at the joint
+            line = _clip_z(line, span.z0, span.z1)
+        if line is None:
+            continue
+        lines = [line]
+        if rng.random() < cfg.branch_probability:
+            middle = float(line[0][len(line[0]) // 2])
+            fork = _branch(line, sec.face_bounds(middle), cfg.crack_width_mm[0] / 1e3, rng)
+            if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
+                lines.append(fork)
+        out.append((kind, lines))
+    return out
+
+
+def _network(sec: _Section, cracks: list[tuple[str, list[_Polyline]]],
+             axes: tuple[int, int, int] = (0, 1, 2)) -> CrackNetwork:
+    """The network of ``cracks`` on ``sec``; the generators' x, y, z (z the member's axis) are
+    the mesh frame's axes ``axes``."""
+    if not cracks:
+        return empty_network()
+    lines = [(k, line) for k, (_, group) in enumerate(cracks) for line in group]
+    s, z, w = (np.concatenate([line[i] for _, line in lines]) for i in range(3))
+    index = np.repeat(np.arange(len(lines)), [len(line[0]) for _, line in lines])
+    canonical, widths, which = sec.segments(s, z, w, index)
+    mesh = np.empty_like(canonical)
+    mesh[..., list(axes)] = canonical
+    owner = np.array([k for k, _ in lines], np.int32)
+    return CrackNetwork(mesh, widths, owner[which], tuple(kind for kind, _ in cracks))
+
+
+def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
+                  spans: Sequence[tuple[float, float]], demand: DriftDemand,
+                  rng: np.random.Generator) -> CrackNetwork:
+    """The crack network of a column of section (a, b) (along x, along y) whose clear spans
+    run from z0 to z1 in its mesh frame, under ``demand``. Cracks are spaced at the column's
+    hoop spacing, drawn from [damage] stirrup_spacing_m: hoops start the cracks (docs/design.md
+    gives the source)."""
+    sec = _Section(*section_m)
+    spacing = float(rng.uniform(*cfg.stirrup_spacing_m))
+    cracks = []
+    for z0, z1 in spans:
+        span = span_mechanics(cfg, z0, z1, section_m[demand.axis], demand.drift)
+        cracks += _finish(cfg, sec, span, _span_cracks(cfg, sec, span, demand, spacing, rng),
+                          rng)
+    return _network(sec, cracks)
+
+
+def _soffit_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, spacing_m: float,
+                   rng: np.random.Generator) -> _Raw:
+    """Gravity cracks across the soffit (face 3) around midspan, turning up the sides."""
+    w_lo, w_hi = (w / 1e3 for w in cfg.crack_width_mm)
+    x = _positions(span.z1 - span.z0, spacing_m, rng)
+    widths = soffit_width_m(cfg, span, x, spacing_m)
+    return [("flexural", _flexural(cfg, sec, 3, span.z0 + xi, min(wi, w_hi), rng))
+            for xi, wi in zip(x[widths >= w_lo], widths[widths >= w_lo])]
+
+
+def beam_cracks(cfg: DamageConfig, extents_m: tuple[float, float, float], axis: int,
+                span_m: tuple[float, float], drift: float, rng: np.random.Generator
+                ) -> CrackNetwork:
+    """The crack network of a box beam of ``extents_m`` (x, y, z; centred) running along mesh
+    axis ``axis`` (0: x, 1: y), clear between its supports at ``span_m`` on that axis. Its ends
+    rotate with the joints by the drift of its columns: flexural cracks near both supports on
+    the top and the soffit (and shear cracks where a / d governs), as a column's; gravity
+    cracks in the soffit at midspan. Cracks are spaced at the stirrup spacing."""
+    other = 1 - axis
+    sec = _Section(extents_m[other], extents_m[2])  # generators' y is the mesh's z
+    spacing = float(rng.uniform(*cfg.stirrup_spacing_m))
+    span = span_mechanics(cfg, *span_m, extents_m[2], drift)
+    raw = (_span_cracks(cfg, sec, span, DriftDemand(drift, 1), spacing, rng)
+           + _soffit_cracks(cfg, sec, span, spacing, rng))
+    return _network(sec, _finish(cfg, sec, span, raw, rng), (other, 2, axis))
