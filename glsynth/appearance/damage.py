@@ -21,10 +21,9 @@ import cv2
 import numpy as np
 
 from glsynth.appearance.noise import perlin
+from glsynth.core.config import SEVERITIES as SEVERITIES  # re-exported for the bank and plates
 from glsynth.core.config import DamageConfig
 from glsynth.core.labels import Damage
-
-SEVERITIES = ("slight", "medium", "severe")
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,6 @@ from glsynth.appearance.cracks import (
     column_demand,
     crack_records,
 )
-from glsynth.appearance.damage import SEVERITIES
 from glsynth.appearance.damage_bank import DamageBank, damage_factors
 from glsynth.appearance.materials import (
     Assignment,
@@ -71,10 +70,11 @@ def _repository(root: str, size: int) -> TextureRepository:
 
 
 def _severity(cfg: DamageConfig, rng: np.random.Generator) -> str | None:
-    """Section 3.3's draw: undamaged with [damage] undamaged_probability, else a severity."""
+    """Section 3.3's draw: undamaged with [damage] undamaged_probability, else one of
+    [damage] severities (all three under "paper")."""
     if rng.random() < cfg.undamaged_probability:
         return None
-    return SEVERITIES[int(rng.integers(len(SEVERITIES)))]
+    return cfg.severities[int(rng.integers(len(cfg.severities)))]
 
 
 def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> dict:

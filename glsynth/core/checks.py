@@ -33,6 +33,17 @@ def check_interval(section: str, name: str, value: Any, lo: float, hi: float) ->
         fail(section, name, value, f"an interval [a, b] with {lo} <= a <= b <= {hi}")
 
 
+def check_positive_interval(section: str, name: str, value: Any, hi: float, unit: str) -> None:
+    """An interval [a, b] of ``unit`` with 0 < a <= b <= hi, one message for every way out."""
+    try:
+        check_interval(section, name, value, 0.0, hi)
+        positive = value[0] > 0
+    except UserError:
+        positive = False
+    if not positive:
+        fail(section, name, value, f"an interval [a, b] of {unit} with 0 < a <= b <= {hi:g}")
+
+
 def check_vector(section: str, name: str, value: Any, size: int, lo: float, hi: float) -> None:
     ok = (isinstance(value, tuple) and len(value) == size
           and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))

@@ -18,6 +18,7 @@ from glsynth.core.checks import (
     check_interval,
     check_literal,
     check_number,
+    check_positive_interval,
     check_vector,
     fail,
 )
@@ -87,10 +88,12 @@ class CameraConfig:
     focal_mm: tuple[float, float] = (15.0, 55.0)
     sensor_mm: float = 36.0
     """Sensor width; it spans the image width."""
-    placement: Literal["within", "at"] = "within"
+    placement: Literal["within", "at", "faces"] = "within"
     """How D is read (docs/design.md): 'within', a camera anywhere within D of the centre line
     (lateral offset uniform in [-D, D]: under the deck, among the columns, above the track);
-    'at', exactly D to one side."""
+    'at', exactly D to one side. 'faces' is not the paper's: every camera is a close-up
+    aimed at a point on a column's or a cross or tie beam's face (the inspection preset;
+    glsynth.world.face_cameras), by the face_* fields below, and n_regular must be 0."""
     regular_distance_m: float = 10.0
     """D of the regular cameras."""
     height_from: Literal["origin", "ground"] = "origin"
@@ -106,6 +109,14 @@ class CameraConfig:
     rot_y_deg: tuple[float, float] = (-15.0, 15.0)
     rot_z_deg: tuple[float, float] = (-90.0, 90.0)
     """Relative to the direction that points to the viaduct centre line."""
+    face_distance_m: tuple[float, float] = (0.3, 3.0)
+    """placement = "faces": range of the distance from the camera to the aimed point on the
+    face, along the optical axis."""
+    face_angle_deg: float = 30.0
+    """placement = "faces": largest angle between the optical axis and the face's normal."""
+    face_roll_deg: float = 5.0
+    """placement = "faces": largest roll of the image's horizontal edge out of the horizontal
+    (the camera is held upright)."""
 
     def __post_init__(self) -> None:
         s = "cameras"
@@ -122,6 +133,13 @@ class CameraConfig:
         check_interval(s, "rot_x_deg", self.rot_x_deg, 0.0, 180.0)
         check_interval(s, "rot_y_deg", self.rot_y_deg, -180.0, 180.0)
         check_interval(s, "rot_z_deg", self.rot_z_deg, -180.0, 180.0)
+        check_positive_interval(s, "face_distance_m", self.face_distance_m, 1000.0, "metres")
+        # Beyond 85 degrees the face is seen edge-on: no image of it is left to inspect.
+        check_number(s, "face_angle_deg", self.face_angle_deg, 0.0, 85.0)
+        check_number(s, "face_roll_deg", self.face_roll_deg, 0.0, 45.0)
+        if self.placement == "faces" and self.n_regular:
+            fail(s, "n_regular", self.n_regular, '0 under placement = "faces" (every camera '
+                 "is a close-up at a member face; set n_closeup instead)")
 
     @property
     def total(self) -> int:
@@ -242,6 +260,10 @@ class CyclesConfig:
         check_number("cycles", "samples", self.samples, 1, 1 << 16, integer=True)
 
 
+SEVERITIES = ("slight", "medium", "severe")
+"""Section 3.3's damage severities, in this order (seeded draws index into it)."""
+
+
 @dataclass(frozen=True)
 class DamageConfig:
     """Procedural concrete damage and exposed rebar of the columns (paper Section 3.3).
@@ -317,6 +339,9 @@ class DamageConfig:
     beam_service_moment_ratio: float = 0.5
     """M / M_y of a beam's midspan section under the service load (gravity): allowable-stress
     design keeps the bars' service stress near half their yield strength."""
+    severities: tuple[str, ...] = SEVERITIES
+    """The severities a damaged member draws from, with equal chance: all three, as Section 3.3
+    draws them, or a subset (the inspection preset: "slight" only)."""
 
     def __post_init__(self) -> None:
         s = "damage"
@@ -342,14 +367,7 @@ class DamageConfig:
             fail(s, "scale", self.scale, "an interval of positive scales")
         check_number(s, "bank_size", self.bank_size, 1, 10**6, integer=True)
         check_literal(s, DamageConfig, "model", self.model)
-        try:
-            check_interval(s, "crack_width_mm", self.crack_width_mm, 0.0, 10.0)
-            positive = self.crack_width_mm[0] > 0
-        except UserError:
-            positive = False
-        if not positive:  # one message for every way out of (0, 10]
-            fail(s, "crack_width_mm", self.crack_width_mm,
-                 "an interval [a, b] of mm with 0 < a <= b <= 10")
+        check_positive_interval(s, "crack_width_mm", self.crack_width_mm, 10.0, "mm")
         for severity in ("slight", "medium", "severe"):
             check_interval(s, f"{severity}_drift_pct", getattr(self, f"{severity}_drift_pct"),
                            0.0, 20.0)
@@ -363,6 +381,14 @@ class DamageConfig:
         check_number(s, "shear_span_ratio", self.shear_span_ratio, 0.0, 100.0)
         check_number(s, "branch_probability", self.branch_probability, 0.0, 1.0)
         check_number(s, "beam_service_moment_ratio", self.beam_service_moment_ratio, 0.0, 1.0)
+        if (not isinstance(self.severities, tuple) or not self.severities
+                or len(set(self.severities)) != len(self.severities)
+                or not set(self.severities) <= set(SEVERITIES)):
+            fail(s, "severities", self.severities,
+                 f"a list of distinct names from {list(SEVERITIES)}")
+        if self.model == "paper" and self.severities != SEVERITIES:
+            fail(s, "severities", self.severities,
+                 f'{list(SEVERITIES)} under model = "paper" (Section 3.3 draws all three)')
 
     def area_range(self, severity: str) -> tuple[float, float]:
         """Damaged-area fraction range of a severity, under the documented reading."""
@@ -465,6 +491,40 @@ class DatasetConfig:
 
 
 @dataclass(frozen=True)
+class FiltersConfig:
+    """Which rendered views ``generate`` keeps (Section 3.4) and where their damage labels count:
+    the region of reliable damage recognition, RRDR (Section 4.2; docs/design.md)."""
+
+    min_intensity: float = 30.0
+    """A view whose mean intensity (0-255) is below this is removed (paper: 30)."""
+    min_components: int = 2
+    """A view showing fewer component labels is removed (paper: 2, i.e. views of a single
+    label go); 1 keeps a close-up that one member fills."""
+    min_depth_m: float = 0.5
+    """A view whose nearest pixel is this near or nearer is removed (paper: 0.5 m)."""
+    rrdr_px_per_cm: float = 1.5
+    """The paper's RRDR: a pixel is reliable where the image resolves at least this many
+    pixels per cm on a fronto-parallel surface, f_px / (100 depth)."""
+    rrdr_crack_mm: float = 0.0
+    """0: the paper's RRDR. Above 0, the RRDR for cracks replaces it: a pixel is reliable
+    where its footprint, depth / f_px, is at most rrdr_footprint_factor times this crack
+    width, the narrowest crack of interest."""
+    rrdr_footprint_factor: float = 2.0
+    """k of the RRDR for cracks: a crack of width w is resolved by pixels of footprint up to
+    k w, i.e. where it covers at least 1/k of a pixel's width (docs/design.md)."""
+
+    def __post_init__(self) -> None:
+        s = "filters"
+        check_number(s, "min_intensity", self.min_intensity, 0.0, 255.0)
+        check_number(s, "min_components", self.min_components, 1, 9, integer=True)
+        check_number(s, "min_depth_m", self.min_depth_m, 0.0, 100.0)
+        check_number(s, "rrdr_px_per_cm", self.rrdr_px_per_cm, 0.0, 1000.0, lo_open=True)
+        check_number(s, "rrdr_crack_mm", self.rrdr_crack_mm, 0.0, 10.0)
+        check_number(s, "rrdr_footprint_factor", self.rrdr_footprint_factor, 0.0, 100.0,
+                     lo_open=True)
+
+
+@dataclass(frozen=True)
 class Config:
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     design: StandardDesign = field(default_factory=StandardDesign)
@@ -475,6 +535,7 @@ class Config:
     cycles: CyclesConfig = field(default_factory=CyclesConfig)
     damage: DamageConfig = field(default_factory=DamageConfig)
     materials: MaterialsConfig = field(default_factory=MaterialsConfig)
+    filters: FiltersConfig = field(default_factory=FiltersConfig)
 
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
@@ -491,11 +552,26 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
              "damage": {"resolution": 512}},
+    # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
+    # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
+    # slight cracks of 0.05-1 mm by mechanics, the RRDR for cracks of 0.2 mm and more. No
+    # plates: they show Section 3.3's noise damage of every severity, not cracks.
+    "inspection": {
+        "dataset": {"n_environments": 4, "n_test_environments": 1, "n_plates": 0,
+                    "n_test_plates": 0},
+        "cameras": {"placement": "faces", "n_regular": 0, "n_closeup": 24,
+                    "focal_mm": (24.0, 105.0), "face_distance_m": (0.3, 3.0),
+                    "face_angle_deg": 30.0, "face_roll_deg": 5.0},
+        "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
+                   "undamaged_probability": 0.2, "crack_width_mm": (0.05, 1.0)},
+        "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
+                    "rrdr_footprint_factor": 2.0}},
 }
 
 _SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
              "cameras": CameraConfig, "render": RenderConfig, "lighting": LightingConfig,
-             "cycles": CyclesConfig, "damage": DamageConfig, "materials": MaterialsConfig}
+             "cycles": CyclesConfig, "damage": DamageConfig, "materials": MaterialsConfig,
+             "filters": FiltersConfig}
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:

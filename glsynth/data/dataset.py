@@ -32,7 +32,7 @@ from glsynth.core.fileio import (
 )
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
-from glsynth.data.filters import mask_damage, removal_reason, rrdr
+from glsynth.data.filters import mask_damage, removal_reason, view_rrdr
 from glsynth.data.statistics import (
     ImageCounts,
     dataset_statistics,
@@ -113,12 +113,13 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
         for index in range(config.cameras.total):
             placement, output = view.render(index)
             clock.lap("render and read back")
-            reason = removal_reason(output.color, output.component, output.depth)
+            reason = removal_reason(output.color, output.component, output.depth,
+                                    config.filters)
             if reason is not None:
                 removed[placement.kind][reason] += 1
                 clock.lap("filters, RRDR and labels")
                 continue
-            maps, in_rrdr = _label_maps(output, placement.camera)
+            maps, in_rrdr = _label_maps(output, placement.camera, config.filters)
             clock.lap("filters, RRDR and labels")
             paths = frame_paths(split, env, index)
             images = {paths["component"]: (maps["component"], "BMP"),
@@ -148,10 +149,10 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
             "removed": removed, "timings": clock.totals}
 
 
-def _label_maps(output, camera) -> tuple[dict[str, np.ndarray], bool]:
+def _label_maps(output, camera, filters) -> tuple[dict[str, np.ndarray], bool]:
     """The maps a kept view writes, at a LABEL_STRIDE-th of its size: component ids, damage
     ids inside the RRDR, encoded depth; and whether the damage map shows damage."""
-    masked = mask_damage(output.damage, rrdr(output.depth, camera.fx))
+    masked = mask_damage(output.damage, view_rrdr(filters, output.depth, camera.fx))
     maps = {"component": downsample_labels(output.component),
             "damage": downsample_labels(masked),
             "depth": downsample_labels(encode_depth(output.depth))}
@@ -172,7 +173,8 @@ def _view_meta(view, placement, root_seed: int, env: int, split: str, in_rrdr: b
             "placement": {"s_m": placement.s_m, "side": placement.side,
                           "distance_m": placement.distance_m,
                           "height_m": placement.height_m,
-                          "euler_xyz_rad": list(placement.euler_xyz_rad)},
+                          "euler_xyz_rad": list(placement.euler_xyz_rad),
+                          **({"face": placement.face.to_json()} if placement.face else {})},
             "damage_in_rrdr": in_rrdr,
             "columns_in_view": {n: jsonable(view.dressing.assignments[n].damage)
                                 for n in sorted(seen)}}

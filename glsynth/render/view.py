@@ -18,8 +18,9 @@ from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
-from glsynth.world.cameras import CameraPlacement, environment_camera
+from glsynth.world.cameras import CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
+from glsynth.world.face_cameras import place_camera
 from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
@@ -49,8 +50,8 @@ class EnvironmentView:
             renderer.release_scene()
         env = build_environment(config, root_seed, env_index)
         n_cameras = config.cameras.total
-        cameras = [environment_camera(env.trajectory, config.cameras, config.render,
-                                      root_seed, env_index, i).camera for i in range(n_cameras)]
+        cameras = [place_camera(env, config.cameras, config.render, i).camera
+                   for i in range(n_cameras)]
         visible = visible_parts(env.parts, cameras)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
@@ -66,8 +67,7 @@ class EnvironmentView:
 
     def camera(self, index: int) -> CameraPlacement:
         cfg = self.config
-        return environment_camera(self.environment.trajectory, cfg.cameras, cfg.render,
-                                  self.environment.root_seed, self.environment.env_index, index)
+        return place_camera(self.environment, cfg.cameras, cfg.render, index)
 
     def render(self, index: int, passes: frozenset[str] = PASSES
                ) -> tuple[CameraPlacement, RenderOutput]:
@@ -88,6 +88,8 @@ def write_render(out_dir: str | Path, placement: CameraPlacement, output: Render
                 side=placement.side, distance_m=placement.distance_m,
                 height_m=placement.height_m,
                 euler_xyz_rad=list(placement.euler_xyz_rad), **meta)
+    if placement.face is not None:
+        info["face"] = placement.face.to_json()
     atomic_write_json(out / "camera.json", info)
 
 

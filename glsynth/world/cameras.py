@@ -84,6 +84,38 @@ def euler_xyz(x: float, y: float, z: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
+def euler_from_matrix(r: np.ndarray) -> tuple[float, float, float]:
+    """Blender XYZ Euler angles (x, y, z) of a rotation, the inverse of ``euler_xyz`` for
+    |y| < pi/2."""
+    return (math.atan2(r[2, 1], r[2, 2]), math.asin(-max(-1.0, min(1.0, r[2, 0]))),
+            math.atan2(r[1, 0], r[0, 0]))
+
+
+@dataclass(frozen=True)
+class FaceAim:
+    """What a camera under [cameras] placement = "faces" aims at (glsynth.world.face_cameras)."""
+
+    member: str
+    """The part's name: a column, or a cross or tie beam."""
+    face: str
+    """The face in the member's mesh frame: "+x", "-x", "+y", "-y" or "-z" (a beam's soffit)."""
+    point: tuple[float, float, float]
+    """The aimed point on the face, world metres: the optical axis passes through it."""
+    distance_m: float
+    """From the camera to the point, along the optical axis."""
+    angle_deg: float
+    """Between the optical axis and the face's normal."""
+    roll_deg: float
+    """Of the image's horizontal edge out of the horizontal."""
+    tries: int
+    """Draws it took to find a clear view (1: the first)."""
+
+    def to_json(self) -> dict:
+        return {"member": self.member, "face": self.face, "point": list(self.point),
+                "distance_m": self.distance_m, "angle_deg": self.angle_deg,
+                "roll_deg": self.roll_deg, "tries": self.tries}
+
+
 @dataclass(frozen=True)
 class CameraPlacement:
     """The sampled values behind one camera (recorded in per-image metadata)."""
@@ -101,6 +133,8 @@ class CameraPlacement:
     euler_xyz_rad: tuple[float, float, float]
     """Z relative to the direction that points to the centre line."""
     camera: Camera
+    face: FaceAim | None = None
+    """Under placement = "faces", what the camera aims at; else None."""
 
 
 def sample_camera(traj: Trajectory, cameras: CameraConfig, render: RenderConfig,
@@ -110,6 +144,9 @@ def sample_camera(traj: Trajectory, cameras: CameraConfig, render: RenderConfig,
     if not 0 <= index < total:
         raise ValueError(f"camera index = {index}: must be in [0, {total - 1}] "
                          f"({cameras.n_regular} regular + {cameras.n_closeup} close-up)")
+    if cameras.placement == "faces":
+        raise ValueError('placement = "faces" needs the environment\'s parts: use '
+                         "glsynth.world.face_cameras.place_camera")
     regular = index < cameras.n_regular
     distance = cameras.regular_distance_m if regular else cameras.closeup_distance_m
     h_range = cameras.regular_height_m if regular else cameras.closeup_height_m

@@ -4,6 +4,9 @@ A part is seen when its oriented bounding box is not entirely outside one of the
 frustum planes (near plane and the four image edges). Occlusion is ignored, so the answer may
 include hidden parts but never misses a part that is in view. With shadows, the parts that
 may shadow a view are needed as well (glsynth.world.sunlight).
+
+Exact sight lines (the cameras at member faces, glsynth.world.face_cameras) are ray casts in
+numpy: boxes first, then the triangles of the parts whose box a ray meets.
 """
 
 import numpy as np
@@ -88,3 +91,38 @@ def occlusion_extent(parts: tuple[Part, ...] | list[Part]) -> np.ndarray:
     """Corners (8 P, 3) of every part's box: what the sky-visibility maps are fitted to, so
     that they are the same whichever parts are uploaded."""
     return np.concatenate([part_corners(p) for p in parts])
+
+
+def part_boxes(parts: tuple[Part, ...] | list[Part]) -> tuple[np.ndarray, np.ndarray]:
+    """World axis-aligned bounds (P, 3) and (P, 3) of every part's box."""
+    corners = np.stack([part_corners(p) for p in parts])
+    return corners.min(axis=1), corners.max(axis=1)
+
+
+def ray_meets_boxes(lo: np.ndarray, hi: np.ndarray, origin: np.ndarray,
+                    direction: np.ndarray, t_max: float = np.inf) -> np.ndarray:
+    """For boxes (P, 3) and (P, 3), whether the ray origin + t direction, 0 <= t <= t_max,
+    meets each (P,): the slab test."""
+    d = np.where(direction == 0, 1e-300, direction)  # a parallel ray: +-inf slab bounds
+    t1, t2 = (lo - origin) / d, (hi - origin) / d
+    t_in = np.minimum(t1, t2).max(axis=1)
+    t_out = np.maximum(t1, t2).min(axis=1)
+    return (t_out >= np.maximum(t_in, 0.0)) & (t_in <= t_max)
+
+
+def ray_hits(part: Part, origin: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Ray parameters t > 0, sorted, of every crossing of the ray origin + t direction with
+    the part's triangles (Moller-Trumbore; both sides of a triangle count)."""
+    tri = part.world_vertices()[part.mesh.faces]
+    v0, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    p = np.cross(direction, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-15
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+    s = origin - v0
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = (q @ direction) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    return np.sort(t[hit])
