@@ -115,8 +115,8 @@ class CameraConfig:
     face_angle_deg: float = 30.0
     """placement = "faces": largest angle between the optical axis and the face's normal."""
     face_roll_deg: float = 5.0
-    """placement = "faces": largest roll of the image's horizontal edge out of the horizontal
-    (the camera is held upright)."""
+    """placement = "faces": largest roll about the optical axis from level (the image's x axis
+    horizontal): the camera is held upright."""
 
     def __post_init__(self) -> None:
         s = "cameras"

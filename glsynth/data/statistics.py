@@ -211,8 +211,9 @@ def statistics_table(stats: dict) -> str:
         rows.append(("depth: pixels nearer than 10.5 m / sky", "0.5-30 m range",
                      f"{_pct(near)} / {_pct(depth['sky_pixels'] / total if total else 0)}"))
     f = stats["focal_histogram"]
+    outside = f" ({f['outside']} outside 15-55)" if f["outside"] else ""
     rows.append(("focal lengths [mm], per 5 mm from 15", "U[15, 55]",
-                 " ".join(str(v) for v in f["images"])))
+                 " ".join(str(v) for v in f["images"]) + outside))
     return "\n".join(f"| {a} | {b} | {c} |" for a, b, c in rows) + "\n"
 
 
@@ -233,7 +234,8 @@ def statistics_figure(stats: dict, path: Path) -> None:
     ax.bar(x - 0.2, [PAPER["keep_rate"][k] for k in ("regular", "closeup")], 0.4,
            hatch="//", fill=False, label="paper")
     if stats.get("keep_rate"):
-        ax.bar(x + 0.2, [stats["keep_rate"][k] for k in ("regular", "closeup")], 0.4,
+        # A kind with no cameras (the inspection preset's regular) has no keep rate.
+        ax.bar(x + 0.2, [stats["keep_rate"][k] or 0 for k in ("regular", "closeup")], 0.4,
                label="dataset")
     ax.set_xticks(x, ["regular", "closeup"]), ax.set_ylim(0, 1), ax.legend()
     ax.set_title("keep rate after the Section 3.4 filters")

@@ -106,7 +106,7 @@ class FaceAim:
     angle_deg: float
     """Between the optical axis and the face's normal."""
     roll_deg: float
-    """Of the image's horizontal edge out of the horizontal."""
+    """About the optical axis, from level (the image's x axis horizontal)."""
     tries: int
     """Draws it took to find a clear view (1: the first)."""
 

@@ -1,0 +1,259 @@
+"""The close-range inspection preset: cameras at member faces ([cameras] placement = "faces"),
+slight damage only, the RRDR for cracks, and the paper preset left as it was."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from glhelpers import LIGHT, plain_materials, render_config
+
+from glsynth.core.config import (
+    SEVERITIES,
+    CameraConfig,
+    Config,
+    DamageConfig,
+    FiltersConfig,
+    config_from_dict,
+    load_config,
+)
+from glsynth.core.errors import UserError
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.data.filters import crack_rrdr, pixels_per_cm, removal_reason, rrdr, view_rrdr
+from glsynth.render.gl.renderer import Renderer
+from glsynth.render.raycast import ray_cast
+from glsynth.render.scene import build_scene
+from glsynth.world.cameras import sample_camera
+from glsynth.world.face_cameras import (
+    GROUND_CLEARANCE_M,
+    OPEN_SURFACES,
+    member_faces,
+    place_camera,
+)
+
+INSPECTION = load_config("inspection")
+SMALL = render_config(97, 55)
+"""Odd sizes: the centre pixel lies on the optical axis."""
+N = 40
+
+
+def faces_config(**fields) -> CameraConfig:
+    return dataclasses.replace(INSPECTION.cameras, n_closeup=N, **fields)
+
+
+def placements(env, cameras: CameraConfig, render=SMALL, n: int = N) -> list:
+    return [place_camera(env, cameras, render, i) for i in range(n)]
+
+
+def check_geometry(env, p, cameras: CameraConfig) -> None:
+    """The camera looks at its point on the member's face from the configured ranges."""
+    parts = {q.name: q for q in env.parts}
+    member, aim, cam = parts[p.face.member], p.face, p.camera
+    point, position = np.array(aim.point), cam.pose[:3, 3]
+    forward = -cam.pose[:3, 2]
+    along = float((point - position) @ forward)  # distance along the optical axis
+    assert np.isclose(along, aim.distance_m, rtol=0, atol=1e-9)
+    assert np.linalg.norm(np.cross(point - position, forward)) < 1e-9  # the axis meets it
+    lo, hi = cameras.face_distance_m
+    assert lo - 1e-12 <= along <= hi + 1e-12
+    local = np.linalg.inv(member.pose) @ np.append(point, 1.0)
+    axis, sign = "xyz".index(aim.face[1]), 1 if aim.face[0] == "+" else -1
+    half = member.mesh.extents / 2
+    assert np.isclose(local[axis], sign * half[axis], atol=1e-9)  # on that face
+    assert np.all(np.abs(local[:3]) <= half + 1e-9)
+    normal = sign * member.pose[:3, axis]
+    angle = math.degrees(math.acos(min(1.0, float(-forward @ normal))))
+    assert np.isclose(angle, aim.angle_deg, atol=1e-6)
+    assert angle <= cameras.face_angle_deg + 1e-5  # acos near 1 is good to about 1e-6 deg
+    level = np.cross(forward, [0.0, 0.0, 1.0])  # image x when level (not looking straight up)
+    level /= np.linalg.norm(level)
+    roll = math.degrees(math.atan2(cam.pose[:3, 0] @ np.cross(-forward, level),
+                                   cam.pose[:3, 0] @ level))
+    assert abs(roll) <= cameras.face_roll_deg + 1e-9 and np.isclose(roll, aim.roll_deg)
+    assert cameras.focal_mm[0] <= cam.focal_mm <= cameras.focal_mm[1]
+    assert p.kind == "closeup"
+    for q in env.parts:  # inside no box part: the members and the portal beams
+        if q.name.startswith("column_") or "_cross_" in q.name or "_tie_" in q.name \
+                or q.name.endswith("_portal"):
+            inner = np.linalg.inv(q.pose) @ np.append(position, 1.0)
+            assert np.any(np.abs(inner[:3]) > q.mesh.extents / 2)
+    assert position[2] >= env.trajectory.ground_at(np.array([p.s_m]))[0] + \
+        GROUND_CLEARANCE_M - 0.02  # the ground between its 1 m sweep samples is linear in s
+
+
+def test_cameras_stand_at_member_faces_within_the_ranges(env0):
+    cameras = faces_config()
+    found = placements(env0, cameras)
+    for p in found:
+        check_geometry(env0, p, cameras)
+    kinds = {p.face.member.split("_")[0] for p in found}
+    assert kinds == {"column", "beam"}
+    assert {p.face.face for p in found} >= {"+x", "-x", "+y", "-y"}
+    distances = [p.face.distance_m for p in found]
+    assert min(distances) < 1.0 and max(distances) > 2.3  # spread over the range
+
+
+def test_the_centre_pixel_shows_the_member_at_the_aimed_point(env0):
+    """An independent ray cast (Embree) and the GL labels agree with the placement."""
+    cameras = faces_config()
+    found = placements(env0, cameras, n=12)
+    parts = {q.name: q for q in env0.parts}
+    with Renderer(SMALL) as renderer:
+        renderer.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
+        for p in found:
+            truth = ray_cast(env0.parts, plain_materials(env0), p.camera)
+            row, col = (SMALL.height - 1) // 2, (SMALL.width - 1) // 2
+            component = int(parts[p.face.member].component)
+            assert truth.component[row, col] == component
+            assert np.isclose(truth.depth[row, col], p.face.distance_m, rtol=1e-5)
+            gl = renderer.render(p.camera, frozenset({"component", "depth"}))
+            assert gl.component[row, col] == component
+            assert np.isclose(gl.depth[row, col], p.face.distance_m, rtol=1e-3)
+
+
+def test_placement_is_deterministic_and_per_camera(env0):
+    cameras = faces_config()
+    first = placements(env0, cameras, n=6)
+    again = [place_camera(env0, cameras, SMALL, i) for i in (5, 3, 0, 1, 2, 4)]
+    again = sorted(again, key=lambda p: p.index)
+    for a, b in zip(first, again):
+        assert a.camera.pose.tobytes() == b.camera.pose.tobytes()
+        assert a.face == b.face and a.camera.focal_mm == b.camera.focal_mm
+    assert len({p.camera.pose.tobytes() for p in first}) == 6
+
+
+@pytest.mark.parametrize("fields", [
+    {"face_distance_m": (0.3, 0.3)}, {"face_distance_m": (3.0, 3.0)},
+    {"focal_mm": (24.0, 24.0)}, {"focal_mm": (105.0, 105.0)},
+    {"face_angle_deg": 0.0}, {"face_angle_deg": 30.0, "face_roll_deg": 0.0}])
+def test_extremes_of_the_ranges(env0, fields):
+    cameras = faces_config(**fields)
+    found = placements(env0, cameras, n=10)
+    for p in found:
+        check_geometry(env0, p, cameras)
+    if "face_distance_m" in fields:
+        assert all(p.face.distance_m == fields["face_distance_m"][0] for p in found)
+    if "focal_mm" in fields:
+        assert all(p.camera.focal_mm == fields["focal_mm"][0] for p in found)
+    if fields.get("face_angle_deg") == 0.0:
+        assert all(p.face.angle_deg < 1e-6 for p in found)
+    if fields.get("face_roll_deg") == 0.0:
+        assert all(abs(p.camera.pose[2, 0]) < 1e-12 for p in found)
+
+
+@pytest.mark.parametrize("section, values, field", [
+    ("cameras", {"face_angle_deg": 91.0}, "face_angle_deg"),
+    ("cameras", {"face_angle_deg": -1.0}, "face_angle_deg"),
+    ("cameras", {"face_distance_m": [3.0, 0.3]}, "face_distance_m"),
+    ("cameras", {"face_distance_m": [0.0, 3.0]}, "face_distance_m"),
+    ("cameras", {"face_distance_m": [-1.0, 3.0]}, "face_distance_m"),
+    ("cameras", {"face_roll_deg": 60.0}, "face_roll_deg"),
+    ("cameras", {"n_regular": 2}, "n_regular"),
+    ("damage", {"severities": ["slight", "slight"]}, "severities"),
+    ("damage", {"severities": ["light"]}, "severities"),
+    ("damage", {"severities": []}, "severities"),
+    ("filters", {"rrdr_crack_mm": -0.1}, "rrdr_crack_mm"),
+    ("filters", {"rrdr_footprint_factor": 0.0}, "rrdr_footprint_factor"),
+    ("filters", {"min_components": 0}, "min_components"),
+])
+def test_bad_inspection_settings_give_one_clear_line(section, values, field):
+    with pytest.raises(UserError) as err:
+        config_from_dict({section: values}, INSPECTION)
+    message = str(err.value)
+    assert "\n" not in message and f"{section}.{field}" in message
+
+
+def test_severities_subset_only_under_mechanics():
+    with pytest.raises(UserError, match="severities"):
+        DamageConfig(severities=("slight",))  # model = "paper" draws all three
+    assert DamageConfig(model="mechanics", severities=("slight",)).severities == ("slight",)
+
+
+def test_trajectory_placements_refuse_faces(env0):
+    with pytest.raises(ValueError, match="place_camera"):
+        sample_camera(env0.trajectory, faces_config(), SMALL, 0,
+                      make_rng(0, 0, Stream.CAMERAS, 0))
+
+
+def test_the_preset_asks_for_what_the_issue_does():
+    c = INSPECTION
+    assert c.cameras.placement == "faces" and c.cameras.n_regular == 0
+    assert c.cameras.face_distance_m == (0.3, 3.0) and c.cameras.face_angle_deg == 30.0
+    assert c.cameras.focal_mm == (24.0, 105.0) and c.cameras.sensor_mm == 36.0
+    assert (c.render.width, c.render.height) == (1920, 1080)
+    assert c.damage.model == "mechanics" and c.damage.severities == ("slight",)
+    assert c.damage.crack_width_mm == (0.05, 1.0)
+    assert c.filters.rrdr_crack_mm == 0.2 and c.filters.rrdr_footprint_factor == 2.0
+
+
+def test_solid_parts_are_closed(env0):
+    """The inside test counts crossings of closed surfaces: every part but the open ground
+    and scene panels must be closed."""
+    for part in env0.parts:
+        merged = trimesh.Trimesh(part.mesh.vertices, part.mesh.faces)  # merges seam vertices
+        assert merged.is_watertight == (not part.name.startswith(OPEN_SURFACES)), part.name
+
+
+def test_member_faces_are_the_inspected_faces_of_each_member(env0):
+    """Four lateral faces per column; two sides and the soffit per cross or tie beam; no
+    girder; outward normals and the faces' true areas (the weights of the draw)."""
+    faces = member_faces(env0.parts)
+    parts = {q.name: q for q in env0.parts}
+    by_member: dict[str, set] = {}
+    for f in faces:
+        by_member.setdefault(f.member, set()).add(f.label)
+        part = parts[f.member]
+        axis = "xyz".index(f.label[1])
+        others = [e for a, e in enumerate(part.mesh.extents) if a != axis]
+        assert np.isclose(f.area, others[0] * others[1])
+        for step, outside in ((1e-3, True), (-1e-3, False)):
+            local = np.linalg.inv(part.pose) @ np.append(f.centre + step * f.normal, 1.0)
+            assert bool(np.any(np.abs(local[:3]) > part.mesh.extents / 2)) == outside
+    columns = {n for n in parts if n.startswith("column_")}
+    beams = {n for n in parts if "_cross_" in n or "_tie_" in n}
+    assert set(by_member) == columns | beams
+    assert all(by_member[n] == {"+x", "-x", "+y", "-y"} for n in columns)
+    for name in beams:
+        across = "yx"[int(np.argmax(parts[name].mesh.extents[:2]))]
+        assert by_member[name] == {f"+{across}", f"-{across}", "-z"}
+
+
+def test_rrdr_for_cracks_at_its_boundary():
+    """Footprint depth / f_px exactly k w is inside; a hair more is outside."""
+    f_px, width_mm, k = 1000.0, 0.25, 2.0
+    boundary = 0.5  # m: 0.5 / 1000 = 2 x 0.25 mm
+    depth = np.array([boundary, boundary * (1 + 1e-12), 0.1, 0.0, -1.0, np.inf, np.nan])
+    assert crack_rrdr(depth, f_px, width_mm, k).tolist() == [True, False, True, False, False,
+                                                             False, False]
+    filters = FiltersConfig(rrdr_crack_mm=width_mm, rrdr_footprint_factor=k)
+    assert view_rrdr(filters, depth, f_px).tolist() == crack_rrdr(depth, f_px, width_mm, k
+                                                                  ).tolist()
+    # The same rule in px/cm: at least 10 / (k w[mm]) = 20 px/cm, away from the boundary.
+    far = np.linspace(0.01, 3.0, 997)
+    far = far[np.abs(far - boundary) > 1e-6]
+    assert np.array_equal(crack_rrdr(far, f_px, width_mm, k),
+                          pixels_per_cm(far, f_px) >= 10 / (k * width_mm))
+    with pytest.raises(ValueError, match="focal_px"):
+        crack_rrdr(depth, 0.0, width_mm, k)
+
+
+def test_paper_and_demo_keep_their_filters_and_rrdr():
+    for preset in ("paper", "demo"):
+        c = load_config(preset)
+        assert c.filters == FiltersConfig() and c.cameras.placement == "within"
+        assert c.damage.model == "paper" and c.damage.severities == SEVERITIES
+    assert Config().filters == FiltersConfig(min_intensity=30.0, min_components=2,
+                                             min_depth_m=0.5, rrdr_px_per_cm=1.5,
+                                             rrdr_crack_mm=0.0)
+    depth = np.linspace(0.0, 40.0, 1200).reshape(30, 40)
+    assert np.array_equal(view_rrdr(FiltersConfig(), depth, 2933.0), rrdr(depth, 2933.0))
+    image = np.full((4, 4, 3), 100, np.uint8)
+    one = np.full((4, 4), 4, np.uint8)
+    far = np.full((4, 4), 2.0)
+    assert removal_reason(image, one, far) == "single_component"
+    assert removal_reason(image, one, far, INSPECTION.filters) is None
+    near = far.copy()
+    near[0, 0] = 0.3
+    assert removal_reason(image, np.arange(16).reshape(4, 4) % 2, near) == "too_close"
+    assert removal_reason(image, one, near, INSPECTION.filters) is None
