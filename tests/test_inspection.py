@@ -30,6 +30,7 @@ from glsynth.world.face_cameras import (
     OPEN_SURFACES,
     member_faces,
     place_camera,
+    place_cameras,
 )
 
 INSPECTION = load_config("inspection")
@@ -43,7 +44,7 @@ def faces_config(**fields) -> CameraConfig:
 
 
 def placements(env, cameras: CameraConfig, render=SMALL, n: int = N) -> list:
-    return [place_camera(env, cameras, render, i) for i in range(n)]
+    return place_cameras(env, cameras, render, range(n))
 
 
 def check_geometry(env, p, cameras: CameraConfig) -> None:
@@ -115,12 +116,14 @@ def test_the_centre_pixel_shows_the_member_at_the_aimed_point(env0):
 def test_placement_is_deterministic_and_per_camera(env0):
     cameras = faces_config()
     first = placements(env0, cameras, n=6)
-    again = [place_camera(env0, cameras, SMALL, i) for i in (5, 3, 0, 1, 2, 4)]
-    again = sorted(again, key=lambda p: p.index)
-    for a, b in zip(first, again):
+    alone = sorted((place_camera(env0, cameras, SMALL, i) for i in (5, 3, 0, 1, 2, 4)),
+                   key=lambda p: p.index)
+    for a, b in zip(first, alone):
         assert a.camera.pose.tobytes() == b.camera.pose.tobytes()
         assert a.face == b.face and a.camera.focal_mm == b.camera.focal_mm
     assert len({p.camera.pose.tobytes() for p in first}) == 6
+    with pytest.raises(ValueError, match="camera index"):
+        place_camera(env0, cameras, SMALL, N)
 
 
 @pytest.mark.parametrize("fields", [

@@ -20,7 +20,7 @@ from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
-from glsynth.world.face_cameras import place_camera
+from glsynth.world.face_cameras import place_camera, place_cameras
 from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
@@ -50,8 +50,8 @@ class EnvironmentView:
             renderer.release_scene()
         env = build_environment(config, root_seed, env_index)
         n_cameras = config.cameras.total
-        cameras = [place_camera(env, config.cameras, config.render, i).camera
-                   for i in range(n_cameras)]
+        cameras = [p.camera for p in place_cameras(env, config.cameras, config.render,
+                                                     range(n_cameras))]
         visible = visible_parts(env.parts, cameras)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)

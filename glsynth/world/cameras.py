@@ -9,7 +9,8 @@ Placement: at a uniform arc length along the trajectory, a uniform lateral offse
 the viaduct centre line ([cameras] placement = "within", the default; "at" puts it exactly D to
 a random side) and a uniform height h above the ground there. Rotations are Blender XYZ Euler
 angles: X in [pi/4, 3pi/4] (pi/2 looks horizontally), Y in [-pi/12, pi/12], and Z in
-[-pi/2, pi/2] measured from the direction that points to the centre line.
+[-pi/2, pi/2] measured from the direction that points to the centre line. Cameras at member
+faces ("faces", the inspection preset) need the environment's parts: glsynth.world.face_cameras.
 """
 
 import math

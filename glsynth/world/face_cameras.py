@@ -20,6 +20,7 @@ its centre pixel shows the member.
 """
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -215,41 +216,65 @@ def _placement(traj: Trajectory, cameras: CameraConfig, index: int, camera: Came
                            (rx, ry, rz), camera, aim)
 
 
-def face_camera(env: Environment, cameras: CameraConfig, render: RenderConfig, index: int,
+@dataclass(frozen=True)
+class FaceTargets:
+    """An environment's member faces and what the sight-line tests need, made once for all
+    its cameras."""
+
+    env: Environment
+    faces: list[MemberFace]
+    weights: np.ndarray
+    """Each face's probability: its share of the faces' area."""
+    scene: _Scene
+
+    @classmethod
+    def of(cls, env: Environment) -> "FaceTargets":
+        faces = member_faces(env.parts)
+        if not faces:
+            raise UserError('[cameras] placement = "faces": the environment has no column or '
+                            "cross or tie beam to aim at")
+        area = np.array([f.area for f in faces])
+        return cls(env, faces, area / area.sum(), _Scene.of(env.parts))
+
+
+def face_camera(targets: FaceTargets, cameras: CameraConfig, render: RenderConfig, index: int,
                 rng: np.random.Generator) -> CameraPlacement:
     """Camera ``index`` aimed at a member face, drawn from ``rng`` (the module's steps)."""
-    faces = member_faces(env.parts)
-    if not faces:
-        raise UserError('[cameras] placement = "faces": the environment has no column or '
-                        "cross or tie beam to aim at")
-    weights = np.array([f.area for f in faces])
-    scene = _Scene.of(env.parts)
     focal = float(rng.uniform(*cameras.focal_mm))
     for tries in range(1, MAX_TRIES + 1):
-        face = faces[int(rng.choice(len(faces), p=weights / weights.sum()))]
+        face = targets.faces[int(rng.choice(len(targets.faces), p=targets.weights))]
         point, out, distance, angle, roll = _draw(face, cameras, rng)
         position = point + distance * out
-        if scene.above_ground(position) and scene.clear_view(face.part, position, point,
-                                                             distance):
+        if targets.scene.above_ground(position) and targets.scene.clear_view(
+                face.part, position, point, distance):
             pose = aim_pose(position, point, roll, face.long_axis)
             camera = Camera(render.width, render.height, focal, cameras.sensor_mm, pose,
                             render.znear_m, render.zfar_m)
             aim = FaceAim(face.member, face.label, tuple(float(v) for v in point), distance,
                           angle, roll, tries)
-            return _placement(env.trajectory, cameras, index, camera, aim)
-    raise UserError(f"camera {index} of environment {env.env_index}: no clear view of a member "
-                    f"face in {MAX_TRIES} draws; widen [cameras] face_distance_m or "
+            return _placement(targets.env.trajectory, cameras, index, camera, aim)
+    raise UserError(f"camera {index} of environment {targets.env.env_index}: no clear view of a "
+                    f"member face in {MAX_TRIES} draws; widen [cameras] face_distance_m or "
                     "face_angle_deg")
+
+
+def place_cameras(env: Environment, cameras: CameraConfig, render: RenderConfig,
+                  indices: Sequence[int]) -> list[CameraPlacement]:
+    """Cameras ``indices`` of environment ``env`` by [cameras] placement, each from its own
+    generator (so each is reproducible alone)."""
+    for index in indices:
+        if not 0 <= index < cameras.total:
+            raise ValueError(f"camera index = {index}: must be in [0, {cameras.total - 1}]")
+    if cameras.placement != "faces":
+        return [environment_camera(env.trajectory, cameras, render, env.root_seed,
+                                   env.env_index, i) for i in indices]
+    targets = FaceTargets.of(env)
+    return [face_camera(targets, cameras, render, i,
+                        make_rng(env.root_seed, env.env_index, Stream.CAMERAS, i))
+            for i in indices]
 
 
 def place_camera(env: Environment, cameras: CameraConfig, render: RenderConfig,
                  index: int) -> CameraPlacement:
-    """Camera ``index`` of environment ``env`` by [cameras] placement, from its own generator
-    (so it is reproducible alone)."""
-    if cameras.placement != "faces":
-        return environment_camera(env.trajectory, cameras, render, env.root_seed,
-                                  env.env_index, index)
-    if not 0 <= index < cameras.total:
-        raise ValueError(f"camera index = {index}: must be in [0, {cameras.total - 1}]")
-    return face_camera(env, cameras, render, index,
-                       make_rng(env.root_seed, env.env_index, Stream.CAMERAS, index))
+    """Camera ``index`` of environment ``env`` (``place_cameras`` for one)."""
+    return place_cameras(env, cameras, render, [index])[0]
