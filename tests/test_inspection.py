@@ -260,3 +260,62 @@ def test_paper_and_demo_keep_their_filters_and_rrdr():
     near[0, 0] = 0.3
     assert removal_reason(image, np.arange(16).reshape(4, 4) % 2, near) == "too_close"
     assert removal_reason(image, one, near, INSPECTION.filters) is None
+
+
+TINY = """
+[dataset]
+n_environments = 1
+n_test_environments = 0
+[cameras]
+n_closeup = 3
+[materials]
+texture_size = 32
+builtin_size = 64
+images_per_category = 3
+"""
+
+
+def test_slight_damage_only_with_cracks_of_005_to_1_mm(tmp_path):
+    from glsynth.appearance.damage_bank import DamageBank
+    from glsynth.appearance.dressing import dress, open_repository
+    from glsynth.world.environment import build_environment
+
+    (tmp_path / "tiny.toml").write_text(TINY)
+    config = load_config("inspection", tmp_path / "tiny.toml")
+    env = build_environment(config, 0, 0)
+    dressing = dress(env, config, open_repository(config), DamageBank(config.damage, 0),
+                     {p.name for p in env.parts})
+    damaged = [a.damage for a in dressing.assignments.values()
+               if a.damage and a.damage.get("damaged")]
+    assert damaged and {d["severity"] for d in damaged} == {"slight"}
+    cracks = [c for d in damaged for c in d.get("cracks", [])]
+    assert cracks
+    assert all(0.05 - 1e-9 <= c["mean_width_mm"] <= c["max_width_mm"] <= 1.0 + 1e-9
+               for c in cracks)
+    intact = sum(1 for a in dressing.assignments.values()
+                 if a.damage and not a.damage.get("damaged"))
+    assert intact  # undamaged_probability = 0.2
+
+
+def test_generate_and_stats_on_the_inspection_preset(tmp_path):
+    """The Tokaido layout at the preset's 1920x1080 with face cameras, and glsynth stats."""
+    import json
+
+    from glsynth.cli import main
+    from glsynth.data.tokaido import read_manifest
+
+    (tmp_path / "tiny.toml").write_text(TINY)
+    out = tmp_path / "ds"
+    assert main(["generate", "--preset", "inspection", "--config", str(tmp_path / "tiny.toml"),
+                 "--seed", "0", "--out", str(out)]) == 0
+    rows = read_manifest(out, "files_train.csv")
+    assert rows and not read_manifest(out, "files_puretex_train.csv")
+    for r in rows:
+        assert 24.0 <= r.focal_mm <= 105.0 and not r.regular
+        meta = json.loads((out / "meta" / "train" / r.image.split("/")[-1].replace(
+            "_Scene.png", ".json")).read_text())
+        face = meta["placement"]["face"]
+        assert 0.3 <= face["distance_m"] <= 3.0 and face["angle_deg"] <= 30.0
+    assert main(["stats", str(out), "--out", str(tmp_path / "stats")]) == 0
+    stats = json.loads((tmp_path / "stats" / "stats.json").read_text())
+    assert stats["images"]["closeup"] == len(rows) and stats["images"]["regular"] == 0
