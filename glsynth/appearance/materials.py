@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.world.environment import Part
@@ -31,6 +32,8 @@ class Material:
     emissive_map: np.ndarray | None = None
     normal_map: np.ndarray | None = None
     damage_mask: np.ndarray | None = None
+    cracks: CrackNetwork | None = None
+    """Cracks on the part's surface, in its mesh frame (glsynth.appearance.cracks)."""
 
     def __post_init__(self) -> None:
         for name, channels in (("base_color_map", 3), ("metallic_map", 0),
