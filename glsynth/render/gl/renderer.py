@@ -97,7 +97,7 @@ class RenderOutput:
 
 
 @dataclass(frozen=True, eq=False)
-class _CrackTextures:
+class CrackTextures:
     """A part's crack network on the GPU (glsynth.render.cracks_index.CrackIndex)."""
     textures: tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture]
     """Segments, cells, entries: shaders/cracks.glsl's three samplers, in this order."""
@@ -132,7 +132,7 @@ class _Draw:
     """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
     corners: np.ndarray
     """(8, 3) world-space corners of the box, for the frustum tests."""
-    cracks: _CrackTextures | None = None
+    cracks: CrackTextures | None = None
 
 
 @dataclass(frozen=True)
@@ -217,6 +217,17 @@ def _emitted(material: Material) -> np.ndarray:
     if material.emissive_map is None or not emissive.any():
         return emissive
     return emissive * srgb_decode(material.emissive_map).mean((0, 1))
+
+
+def upload_cracks(ctx: moderngl.Context, index: CrackIndex) -> CrackTextures:
+    """A packed crack network's textures, read texel by texel (the caller releases them)."""
+    textures = []
+    for data, channels, dtype in ((index.segments, 4, "f4"), (index.cells, 2, "i4"),
+                                  (index.entries, 1, "i4")):
+        texture = ctx.texture(data.shape[1::-1], channels, data.tobytes(), dtype=dtype)
+        texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        textures.append(texture)
+    return CrackTextures(tuple(textures), index)
 
 
 class Renderer:
@@ -454,7 +465,7 @@ class Renderer:
         vaos = self._vertex_arrays(vbo, ibo, reversed_ibo)
         cracks = None
         if material.cracks is not None:
-            cracks = self._upload_cracks(pack_cracks(material.cracks))
+            cracks = upload_cracks(self.ctx, pack_cracks(material.cracks))
             vaos["color_cracks"] = self._vertex_array("color_cracks", vbo, reversed_ibo)
         textures = {slot: self._upload_texture(array) for slot, array in (
             ("emissive", material.emissive_map), ("normal", material.normal_map))
@@ -472,15 +483,6 @@ class Renderer:
                      radiance=_emitted(material), corners=box_corners(box, pose),
                      cracks=cracks)
 
-    def _upload_cracks(self, index: CrackIndex) -> _CrackTextures:
-        """A crack network's textures, read texel by texel (released with the scene)."""
-        textures = []
-        for data, channels, dtype in ((index.segments, 4, "f4"), (index.cells, 2, "i4"),
-                                      (index.entries, 1, "i4")):
-            texture = self.ctx.texture(data.shape[1::-1], channels, data.tobytes(), dtype=dtype)
-            texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            textures.append(texture)
-        return _CrackTextures(tuple(textures), index)
 
     def _vertex_array(self, program: str, vbo: moderngl.Buffer,
                       indices: moderngl.Buffer) -> moderngl.VertexArray:
