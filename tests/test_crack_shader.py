@@ -184,3 +184,27 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     # of the thinnest crack.
     assert np.abs(out[agree, 1] - width[agree]).max() <= 1e-3  # mm
     assert labelled.mean() > 0.3 and (coverage > 0).mean() > 0.3
+
+
+def test_each_cell_lists_every_segment_within_reach_of_its_points():
+    """pack_cracks: from any point of a cell, every segment whose crack edge lies within one
+    cell edge is in the cell's list; ``longest`` is the longest list."""
+    rng = make_rng(5, 0, Stream.DAMAGE)
+    network = _column_network(rng)
+    index = pack_cracks(network)
+    cells = index.cells.reshape(-1, 2)
+    entries = index.entries.ravel()
+    assert index.longest == cells[:, 1].max() > 0
+    seg = rng.integers(0, len(network.points), 20000)
+    a, b = network.points[seg, 0], network.points[seg, 1]
+    p = a + rng.uniform(0, 1, (20000, 1)) * (b - a) + rng.normal(0, 0.06, (20000, 3))
+    ijk = np.floor((p - index.origin) / index.cell_m).astype(int)
+    inside = np.all((ijk >= 0) & (ijk < index.dims), 1)
+    d, _ = segment_distance(p[:, None], network.points[None, :, 0], network.points[None, :, 1])
+    near = d <= network.widths_m.max(1) / 2 + index.cell_m
+    assert np.all(inside | ~near.any(1))  # no point outside the grid is near a crack
+    cell_id = ijk[:, 0] + index.dims[0] * (ijk[:, 1] + index.dims[1] * ijk[:, 2])
+    for k in np.nonzero(inside & near.any(1))[0]:
+        start, count = cells[cell_id[k]]
+        assert set(np.nonzero(near[k])[0]) <= set(entries[start:start + count])
+    assert (inside & near.any(1)).sum() > 5000 and (~near.any(1)).sum() > 1000
