@@ -8,7 +8,8 @@
 // (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the label pass's
 // depth, so each visible pixel is shaded once; under MSAA the shading normal goes to a second
 // target, for msaa.frag. The crack variant (#define CRACKS) darkens the reflected light by the
-// share of the pixel that the part's cracks cover, times u_crack_contrast (cracks.glsl).
+// share of the pixel that the part's cracks cover (from the label pass, which drew this very
+// surface at this pixel), times u_crack_contrast.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -47,9 +48,8 @@ layout(location = 0) out vec4 f_color;
 layout(location = 1) out vec4 f_normal;  // the shading normal, for msaa.frag
 
 #ifdef CRACKS
-in vec3 v_mesh_pos;
+uniform sampler2D u_crack;       // the label pass's (crack width mm, coverage) per pixel
 uniform float u_crack_contrast;  // the share of the reflected light a crack's cavity takes away
-#include "cracks.glsl"
 #endif
 
 #include "tonemap.glsl"
@@ -226,8 +226,7 @@ void main() {
     vec3 direct = sun_light(s, n, view_dir) * sun;
     vec3 ambient = ambient_light(s, n, view_dir, vis, hidden);
 #ifdef CRACKS
-    float dark = 1.0 - u_crack_contrast
-                       * crack_hit(v_mesh_pos, dFdx(v_mesh_pos), dFdy(v_mesh_pos)).coverage;
+    float dark = 1.0 - u_crack_contrast * texelFetch(u_crack, ivec2(gl_FragCoord.xy), 0).g;
     direct *= dark;
     ambient *= dark;
 #endif

@@ -4,8 +4,9 @@
 // (an integer texture: nearest sampling by definition); parts without one are 1 (no damage).
 // The crack variant (#define CRACKS, for views that show cracks) labels the pixels that a
 // crack covers at the centre or whose footprint its centreline crosses as concrete damage
-// (exposed rebar stays) and writes the crack's width in millimetres to a second target, 0
-// where no crack is; a draw without cracks (u_has_cracks false) writes 0 there.
+// (exposed rebar stays) and writes to a second target the crack's width in millimetres (0
+// where no crack labels the pixel) and the share of the pixel that cracks cover, which the
+// colour pass darkens by; a draw without cracks (u_has_cracks false) writes 0 there.
 in vec3 v_view_pos;
 in vec2 v_uv;
 
@@ -18,7 +19,7 @@ layout(location = 0) out vec4 f_labels;
 #ifdef CRACKS
 in vec3 v_mesh_pos;
 uniform bool u_has_cracks;
-layout(location = 1) out float f_crack_width_mm;
+layout(location = 1) out vec2 f_crack;  // (width mm, coverage)
 #include "cracks.glsl"
 #endif
 
@@ -30,7 +31,7 @@ void main() {
     CrackHit hit = CrackHit(0.0, 0.0, false);
     if (u_has_cracks) hit = crack_hit(v_mesh_pos, dpdx, dpdy);
     damage = hit.labelled ? max(damage, 2.0) : damage;  // 2: concrete damage, 3: rebar
-    f_crack_width_mm = hit.width_mm;
+    f_crack = vec2(hit.width_mm, hit.coverage);
 #endif
     // Depth along the optical axis, interpolated in camera space: linear and float32-exact,
     // unlike a value read back from the 24-bit z-buffer.

@@ -11,13 +11,14 @@ per method, in this order; each writes its own targets:
 3. labels: one draw per part into one RGBA32F texture holding (component id, damage id, linear
    depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical
    axis. In a view that shows a part with cracks, every part is drawn by the crack variant of
-   the program, which also writes each pixel's crack width (mm) into an R32F texture;
+   the program, which also writes each pixel's crack width (mm) and the share of the pixel
+   that cracks cover into an RG32F texture;
 4. ambient occlusion (for colour, when [render] ao = "ssao"): from the label texture's depth,
    then a 4x4 blur, into a one-channel texture the colour pass reads per pixel;
 5. colour: PBR into an RGBA8 texture, lit by the environment's Lighting
    (glsynth.world.lighting), tested against the label pass's depth so that each pixel is shaded
-   once; parts with cracks through the crack variant, which darkens them where cracks cover the
-   pixel; the sky is drawn last, where no geometry was;
+   once; parts with cracks through the crack variant, which darkens them by the label pass's
+   crack coverage; the sky is drawn last, where no geometry was;
 6. MSAA (when msaa > 0): the geometry again into multisampled targets that keep each sample's
    surface (shaders/msaa.frag); a fullscreen pass gives a pixel whose samples all lie on its
    centre's surface that centre's colour (shaders/msaa_interior.frag), and a second, only at
@@ -337,10 +338,11 @@ class Renderer:
         """The labels and, drawn only in views with cracks, the crack widths beside them."""
         self.label_target = self._nearest_texture(self.size, 4, "f4")
         self.label_fbo = self.ctx.framebuffer([self.label_target], label_depth)
-        self.crack_width_target = self._nearest_texture(self.size, 1, "f4")
-        self.crack_width_fbo = self.ctx.framebuffer([self.crack_width_target])
-        self.label_crack_fbo = self.ctx.framebuffer(
-            [self.label_target, self.crack_width_target], label_depth)
+        self.crack_target = self._nearest_texture(self.size, 2, "f4")
+        """(crack width mm, coverage) per pixel: read back, and darkened by in colour."""
+        self.crack_fbo = self.ctx.framebuffer([self.crack_target])
+        self.label_crack_fbo = self.ctx.framebuffer([self.label_target, self.crack_target],
+                                                    label_depth)
         self._view_has_cracks = False
         """Whether the last label pass drew cracks (read-back then reads their widths)."""
 
@@ -705,7 +707,7 @@ class Renderer:
 
     def _label_pass(self, camera: Camera, placed: list[_Placed]) -> None:
         """Labels into label_target; in a view with cracks, every part through the crack
-        variant, which also writes crack_width_target (a part without cracks writes 0)."""
+        variant, which also writes crack_target (a part without cracks writes 0)."""
         cracked = any(item.draw.cracks is not None for item in placed)
         self._view_has_cracks = cracked
         name = "labels_cracks" if cracked else "labels"
@@ -714,7 +716,7 @@ class Renderer:
         self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
                              camera.zfar, 0.0)
         if cracked:
-            self.crack_width_fbo.clear(0.0)
+            self.crack_fbo.clear(0.0, 0.0)
             self.label_crack_fbo.use()
             # Samplers of different types may not share a unit, even unread.
             for unit, sampler in enumerate(_CRACK_SAMPLERS, start=1):
@@ -779,23 +781,25 @@ class Renderer:
                 draw.textures.get("base", self._defaults["white"]).use(0)
                 draw.textures.get("emissive", self._defaults["white"]).use(1)
                 draw.textures.get("normal", self._defaults["flat"]).use(2)
-                if draw.cracks is not None:
-                    draw.cracks.bind(prog, 8)  # after the view's inputs (_set_view_uniforms)
                 draw.vaos[name].render()
             self._draw_sky(camera)
         self.color_fbo.depth_mask = True
 
     def _set_view_uniforms(self, camera: Camera, shadow: np.ndarray | None, ao: bool) -> None:
         """The colour programs' inputs for one view (the targets of the passes before them:
-        shadow map, ambient occlusion, sky visibility, bound to units 3 to 7) and their
-        uniforms, in the crack variant too where the view shows cracks."""
+        shadow map, ambient occlusion, sky visibility, bound to units 3 to 7; the label pass's
+        crack coverage to 8) and their uniforms, in the crack variant too where the view shows
+        cracks."""
         self.shadow_map.use(3)
         self.ao.use(4)
         for unit, target in enumerate(self.sky_targets, start=5):
             target.use(unit)
         self._set_color_view_uniforms(self.programs["color"], camera, shadow, ao)
         if self._view_has_cracks:
-            self._set_color_view_uniforms(self.programs["color_cracks"], camera, shadow, ao)
+            cracks = self.programs["color_cracks"]
+            self._set_color_view_uniforms(cracks, camera, shadow, ao)
+            cracks["u_crack"].value = 8
+            self.crack_target.use(8)
 
     def _set_color_view_uniforms(self, prog: moderngl.Program, camera: Camera,
                                  shadow: np.ndarray | None, ao: bool) -> None:
@@ -879,5 +883,6 @@ class Renderer:
         width, height = self.size
         if not self._view_has_cracks:
             return np.zeros((height, width), np.float32)
-        raw = self.crack_width_fbo.read(components=1, dtype="f4")
-        return np.ascontiguousarray(np.frombuffer(raw, np.float32).reshape(height, width)[::-1])
+        raw = self.crack_fbo.read(components=2, dtype="f4")
+        return np.ascontiguousarray(
+            np.frombuffer(raw, np.float32).reshape(height, width, 2)[::-1, :, 0])
