@@ -47,9 +47,14 @@ float footprint_across(vec3 dpdx, vec3 dpdy, vec3 along) {
     return max(abs(dot(dpdx, across)) + abs(dot(dpdy, across)), 1e-12);
 }
 
+// The grid cell holding p, along x, y and z.
+ivec3 crack_grid(vec3 p) {
+    return ivec3(floor((p - u_crack_origin) / u_crack_cell_m));
+}
+
 // The grid cell holding p (x fastest), or -1 outside the grid.
 int crack_cell(vec3 p) {
-    ivec3 c = ivec3(floor((p - u_crack_origin) / u_crack_cell_m));
+    ivec3 c = crack_grid(p);
     if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, u_crack_dims))) return -1;
     return c.x + u_crack_dims.x * (c.y + u_crack_dims.y * c.z);
 }
@@ -60,15 +65,13 @@ struct CrackHit {
     bool labelled;   // a crack covers the pixel's centre or its centreline crosses the pixel
 };
 
-// The cracks at mesh-frame point p, seen through a pixel whose derivatives are dpdx, dpdy.
-CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
-    CrackHit hit = CrackHit(0.0, 0.0, false);
-    int cell = crack_cell(p);
-    if (cell < 0) return hit;
+// The segments listed in grid cell ``cell`` (x fastest) into ``hit``; ``nearest``: the
+// distance to the nearest labelling crack so far. A segment seen again changes nothing.
+void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
+                inout float nearest) {
     int cell_row = textureSize(u_crack_cells, 0).x, entry_row = textureSize(u_crack_entries, 0).x;
     int segment_row = textureSize(u_crack_segments, 0).x;
     ivec2 list = texelFetch(u_crack_cells, crack_texel(cell, cell_row), 0).xy;
-    float nearest = 1e30;
     for (int k = 0; k < list.y; ++k) {
         int s = texelFetch(u_crack_entries, crack_texel(list.x + k, entry_row), 0).r;
         vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
@@ -83,5 +86,23 @@ CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
         nearest = labels ? min(d, nearest) : nearest;
         hit.labelled = hit.labelled || labels;
     }
+}
+
+// The cracks at mesh-frame point p, seen through a pixel whose derivatives are dpdx, dpdy.
+// The own cell's list holds every crack within one cell edge beyond its edge; a pixel whose
+// half footprint reaches further also reads the cells within the rest of it, up to one more
+// each way (glsynth.render.cracks_index).
+CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
+    CrackHit hit = CrackHit(0.0, 0.0, false);
+    float nearest = 1e30;
+    float h = u_crack_cell_m;
+    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) - h, 0.0, h);
+    ivec3 lo = max(crack_grid(p - extra), ivec3(0));
+    ivec3 hi = min(crack_grid(p + extra), u_crack_dims - 1);
+    for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+            for (int x = lo.x; x <= hi.x; ++x)
+                crack_walk(x + u_crack_dims.x * (y + u_crack_dims.y * z), p, dpdx, dpdy, hit,
+                           nearest);
     return hit;
 }

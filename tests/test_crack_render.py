@@ -182,12 +182,12 @@ def test_no_cracks_in_view_keeps_every_byte(renderer):
     assert not out.crack_width.any() and out.crack_width.dtype == np.float32
 
 
-@pytest.mark.parametrize(("w", "z"), [(0.05e-3, 0.3), (0.05e-3, 12.0), (5e-3, 0.3),
-                                      (5e-3, 12.0)])
+@pytest.mark.parametrize(("w", "z"), [(0.05e-3, 0.3), (0.05e-3, 16.0), (5e-3, 0.3),
+                                      (5e-3, 16.0)])
 def test_widths_at_both_ends_near_and_far(renderer, w, z):
-    """0.05 and 5 mm cracks at 0.3 m (1.9 mm pixels) and 12 m (75 mm pixels, within the
-    grid's reach: footprints up to two cell edges, 10 cm) are labelled on every row with
-    their width, and darken by w / pixel x contrast."""
+    """0.05 and 5 mm cracks at 0.3 m (1.9 mm pixels) and 16 m (100 mm pixels: the grid's
+    reach, |dp/dx| + |dp/dy| up to four cell edges) are labelled on every row with their
+    width, and darken by w / pixel x contrast."""
     base, out = render(renderer, plane(z), vertical_crack(z, w))
     crack = out.damage == Damage.CONCRETE
     assert crack.any(1).all() and ndimage.label(crack)[1] == 1

@@ -145,8 +145,9 @@ def _brute_force(p, dpdx, dpdy, network):
 
 
 def test_crack_hit_through_the_grid_matches_every_segment(glsl):
-    """The grid lookup (crack_cell and the cell lists) finds what a search of every segment
-    finds, for pixel footprints up to two cell edges."""
+    """The grid lookup (crack_cell, the cell lists and the neighbours that large pixels read)
+    finds what a search of every segment finds, for pixel footprints up to four cell edges
+    (|dpdx| + |dpdy| <= 20 cm)."""
     rng = make_rng(4, 0, Stream.DAMAGE)
     network = _column_network(rng)
     index = pack_cracks(network)
@@ -155,11 +156,16 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     a, b = network.points[seg, 0], network.points[seg, 1]
     p = a + rng.uniform(0, 1, (n, 1)) * (b - a)
     on_x = np.isclose(np.abs(p[:, 0]), 0.4)
-    shift = rng.normal(0, 0.02, n)  # along the face, off the crack
-    p[:, 2] += shift
-    size = rng.choice([5e-5, 1e-3, 2e-2, 0.1], n)[:, None]  # pixel footprint (m)
-    dpdx = np.where(on_x[:, None], [0, 1, 0], [1, 0, 0]) * size
-    dpdy = np.array([0, 0, 1.0]) * size
+    # Pixel sides on the surface (m), across the face and along z: square pixels near and
+    # far, and a grazing view's long pixels (a half footprint beyond a cell edge: it needs the
+    # neighbouring cells).
+    sides = np.array([[5e-5, 5e-5], [1e-3, 1e-3], [2e-2, 2e-2], [0.1, 0.1], [0.02, 0.17]])
+    side = sides[rng.integers(0, len(sides), n)]
+    # Along the face, off the crack: the largest pixels as far as their half footprint.
+    large = side[:, 1] >= 0.1
+    p[:, 2] += np.where(large, rng.uniform(-0.1, 0.1, n), rng.normal(0, 0.02, n))
+    dpdx = np.where(on_x[:, None], [0, 1, 0], [1, 0, 0]) * side[:, :1]
+    dpdy = np.array([0, 0, 1.0]) * side[:, 1:]
     rows = [_rows(x) for x in (p, dpdx, dpdy)]
     textures = upload_cracks(glsl.ctx, index)
     out = glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
@@ -176,7 +182,7 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     assert np.array_equal(out[:, 3], cell_id)
     # A float32 distance near 2.5 m is good to a few of its ulps (0.24 um): over the pixel
     # footprint, that much coverage.
-    footprint = np.linalg.norm(dpdx, axis=1)
+    footprint = np.linalg.norm(dpdx, axis=1)  # the smaller side
     assert np.all(np.abs(out[:, 0] - coverage) <= 8 * 2.5 * EPS / footprint + 1e-6)
     assert np.array_equal(out[clear, 2] == 1, labelled[clear])
     agree = clear & labelled

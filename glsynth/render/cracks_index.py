@@ -6,14 +6,16 @@ cell edges on every side. Its cells are cubes of edge ``cell_m``: 5 cm, or large
 box would need more than 2^20 cells (the edge then grows by 25 % steps until it fits). A cell
 lists every segment whose centreline comes within half the segment's widest width plus two
 cell edges of the cell's centre. Any point of the cell lies within 0.87 cell edges of its
-centre, so a fragment that reads its own cell only sees every segment within half its width
-plus one cell edge (1.13, rounded down) of it. The labelling and coverage rules need cracks up
-to half a pixel footprint beyond their edge (docs/design.md, "Cracks"): they hold exactly
-while the pixel footprint across a crack is at most two cell edges, 10 cm at 5 cm cells (a
+centre, so a fragment that reads its own cell sees every segment within half its width plus
+one cell edge (1.13, rounded down) of it. The labelling and coverage rules need cracks up to
+half a pixel footprint beyond their edge (docs/design.md, "Cracks"), so a fragment whose half
+footprint (half of |dp/dx| + |dp/dy|) exceeds one cell edge also reads the cells within the
+rest of it, at most one more each way (shaders/cracks.glsl). The rules then hold exactly while
+|dp/dx| + |dp/dy| is at most four cell edges, 20 cm at 5 cm cells (square pixels of 10 cm: a
 1920-pixel-wide view through a 36 mm lens on the 36 mm sensor, 190 m away). Beyond that, a
-pixel misses a crack further than a cell edge from its centre, whose darkening there is below
-w / 10 cm anyway. The cost's worst case is the longest cell list, which a fragment in that
-cell walks whole: ``CrackIndex.longest`` reports it.
+pixel misses a crack further than two cell edges from its centre, whose darkening there is
+below w / 10 cm anyway. The cost's worst case is the longest cell list times 27 cells (a far
+fragment), or one list for every fragment nearer: ``CrackIndex.longest`` reports it.
 
 Every texture is 4096 texels wide (ROW), filled row by row; the shader finds an entry's texel
 from the texture's own width.
