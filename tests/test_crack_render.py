@@ -37,7 +37,7 @@ def network(points, widths_m) -> CrackNetwork:
 
 
 def render(renderer, mesh, cracks, cam=None):
-    """Colour, damage, width of ``mesh`` (a column) with and without ``cracks``."""
+    """The renders of ``mesh`` (labelled a column) without and with ``cracks``."""
     outs = []
     for net in (None, cracks):
         renderer.load(scene_of(("part", Component.COLUMN, mesh,
