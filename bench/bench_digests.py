@@ -56,10 +56,15 @@ def main() -> int:
         print(f"{len(now)} digests -> {args.out}")
         return 0
     before = json.loads(Path(args.compare).read_text())["digests"]
-    differ = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
+    differ = sorted(k for k in before if before[k] != now.get(k))
     for key in differ:
         print(f"differs: {key}")
-    print(f"{len(now) - len(differ)} of {len(now)} arrays identical to {args.compare}")
+    # Outputs added since (such as crack_width) have nothing to compare with.
+    added = sorted(now.keys() - before.keys())
+    if added:
+        print(f"{len(added)} arrays new since {args.compare}, not compared: "
+              f"{', '.join(sorted({k.rsplit('/', 1)[1] for k in added}))}")
+    print(f"{len(before) - len(differ)} of {len(before)} arrays identical to {args.compare}")
     return 1 if differ else 0
 
 

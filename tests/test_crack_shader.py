@@ -1,0 +1,216 @@
+"""Shader unit tests: the GLSL crack functions (shaders/cracks.glsl) run alone over grids of
+inputs through tests/shader_harness.py and match numpy references of the same functions within
+float32 tolerance."""
+
+import numpy as np
+import pytest
+from shader_harness import GlslHarness
+
+from glsynth.appearance.cracks import CrackNetwork
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.render.cracks_index import pack_cracks, segment_distance
+from glsynth.render.gl.renderer import upload_cracks
+
+EPS = float(np.finfo(np.float32).eps)
+
+
+@pytest.fixture(scope="module")
+def glsl():
+    with GlslHarness("cracks.glsl") as harness:
+        yield harness
+
+
+def _rows(*columns: np.ndarray) -> np.ndarray:
+    """Columns (n,) or (n, k) side by side, padded with zeros to (n, 4) float32."""
+    out = np.hstack([np.asarray(c, np.float64).reshape(len(c), -1) for c in columns])
+    return np.pad(out, ((0, 0), (0, 4 - out.shape[1]))).astype(np.float32)
+
+
+def band_coverage(d, w, f):
+    return np.clip((np.minimum(d + f / 2, w / 2) - np.maximum(d - f / 2, -w / 2)) / f, 0, 1)
+
+
+def footprint_across(dpdx, dpdy, along):
+    """The pixel's extent across the crack; where the crack runs along the normal, the
+    footprint's larger extent."""
+    across = np.cross(np.cross(dpdx, dpdy), along)
+    size = np.linalg.norm(across, axis=-1, keepdims=True)
+    u = across / np.where(size > 0, size, 1.0)
+    extent = [np.linalg.norm(v, axis=-1) for v in (dpdx, dpdy, along)]
+    degenerate = size[..., 0] <= 1e-3 * extent[0] * extent[1] * extent[2]
+    return np.where(degenerate, extent[0] + extent[1],
+                    np.abs(np.sum(dpdx * u, -1)) + np.abs(np.sum(dpdy * u, -1)))
+
+
+def test_segment_distance_and_parameter_match_numpy(glsl):
+    rng = make_rng(1, 0, Stream.DAMAGE)
+    n = 4096
+    a = rng.uniform(-3, 3, (n, 3))
+    b = a + rng.normal(size=(n, 3)) * rng.uniform(0.01, 1.0, (n, 1))
+    b[:64] = a[:64]  # degenerate segments: the distance to the point
+    p = a + rng.uniform(-0.5, 1.5, (n, 1)) * (b - a) + rng.normal(0, 0.05, (n, 3))
+    a, b, p = (x.astype(np.float32).astype(np.float64) for x in (a, b, p))
+    out = glsl.run("distance(in0.xyz, in1.xyz + (in2.xyz - in1.xyz) * "
+                   "segment_param(in0.xyz, in1.xyz, in2.xyz)), "
+                   "segment_param(in0.xyz, in1.xyz, in2.xyz), 0.0, 0.0",
+                   _rows(p), _rows(a), _rows(b))
+    d, t = segment_distance(p, a, b)
+    # float32 coordinates of up to 4.5 m: a few of their ulps (0.5 um each).
+    assert np.abs(out[:, 0] - d).max() <= 8 * 4.5 * EPS
+    length = np.linalg.norm(b - a, axis=1)
+    assert np.all(np.abs(out[:, 1] - t) * length <= 8 * 4.5 * EPS)
+    assert np.all(out[:64, 1] == 0)
+    assert ((t == 0) | (t == 1)).sum() > 1000 and ((t > 0) & (t < 1)).sum() > 1000
+
+
+def test_width_is_linear_along_the_segment_and_exact_where_the_ends_agree(glsl):
+    rng = make_rng(2, 0, Stream.DAMAGE)
+    w0, w1, t = rng.uniform(0.05, 5.0, 2048), rng.uniform(0.05, 5.0, 2048), rng.uniform(0, 1, 2048)
+    w1[:512] = w0[:512]
+    rows = _rows(w0, w1, t)
+    out = glsl.run("crack_width_at(in0.x, in0.y, in0.z), 0.0, 0.0, 0.0", rows)[:, 0]
+    w0, w1, t = (rows[:, k].astype(np.float64) for k in range(3))
+    assert np.abs(out - (w0 + (w1 - w0) * t)).max() <= 4 * 5.0 * EPS
+    assert np.array_equal(out[:512], rows[:512, 0])  # constant width: bit-exact
+
+
+def test_band_coverage_matches_the_box_filter(glsl):
+    d, w, f = (g.ravel() for g in np.meshgrid(np.linspace(0, 6, 61), np.geomspace(0.05, 5, 25),
+                                              np.geomspace(0.01, 8, 25), indexing="ij"))
+    rows = _rows(d, w, f)
+    out = glsl.run("band_coverage(in0.x, in0.y, in0.z), 0.0, 0.0, 0.0", rows)[:, 0]
+    d, w, f = (rows[:, k].astype(np.float64) for k in range(3))
+    ref = band_coverage(d, w, f)
+    assert np.all(np.abs(out - ref) <= 4 * EPS * (d + w + f) / f + 1e-7)
+    assert out.min() == 0 and out.max() == 1
+    # Across the crack, the coverage integrates to the width (the filter keeps the area).
+    step = 0.001
+    offsets = np.arange(-6, 6, step) + step / 2
+    for width, footprint in ((0.1, 1.0), (2.0, 0.5), (0.05, 7.0)):
+        rows = _rows(np.abs(offsets), np.full_like(offsets, width),
+                     np.full_like(offsets, footprint))
+        out = glsl.run("band_coverage(in0.x, in0.y, in0.z), 0.0, 0.0, 0.0", rows)[:, 0]
+        assert out.sum() * step == pytest.approx(width, rel=1e-3)
+
+
+def test_footprint_across_the_crack_matches_numpy(glsl):
+    rng = make_rng(3, 0, Stream.DAMAGE)
+    n = 2048
+    dpdx, dpdy = rng.normal(0, 1e-3, (n, 3)), rng.normal(0, 1e-3, (n, 3))
+    along = rng.normal(size=(n, 3))
+    along[:32] = np.cross(dpdx[:32], dpdy[:32])  # along the normal: the fallback
+    rows = [_rows(x) for x in (dpdx, dpdy, along)]
+    out = glsl.run("footprint_across(in0.xyz, in1.xyz, in2.xyz), 0.0, 0.0, 0.0", *rows)[:, 0]
+    dpdx, dpdy, along = (r[:, :3].astype(np.float64) for r in rows)
+    ref = footprint_across(dpdx, dpdy, along)
+    assert np.allclose(ref[:32], np.linalg.norm(dpdx[:32], axis=1)
+                       + np.linalg.norm(dpdy[:32], axis=1))
+    assert np.abs(out / ref - 1).max() <= 1e-4
+    # A pixel of side s on a fronto-parallel surface: s across a crack along y, s sqrt(2)
+    # across a diagonal one.
+    rows = [_rows(np.array([[s, 0, 0], [s, 0, 0]])) for s in (2e-3,)]
+    rows += [_rows(np.array([[0, 2e-3, 0], [0, 2e-3, 0]])), _rows(np.array([[0, 1, 0],
+                                                                             [1, 1, 0]]))]
+    out = glsl.run("footprint_across(in0.xyz, in1.xyz, in2.xyz), 0.0, 0.0, 0.0", *rows)[:, 0]
+    assert out == pytest.approx([2e-3, 2e-3 * np.sqrt(2)], rel=1e-6)
+
+
+def _column_network(rng: np.random.Generator) -> CrackNetwork:
+    """40 segments on the lateral faces of a 0.8 x 0.6 m column, some across its corners."""
+    a, b = 0.4, 0.3
+    starts, ends = [], []
+    for k in range(20):
+        z = rng.uniform(-2, 2)
+        y0, dz = rng.uniform(-b, b), rng.uniform(-0.1, 0.1)
+        corner = np.array([a, b if k % 2 else -b, z + dz])  # on the edge x = a, y = +-b
+        starts += [[a, y0, z], corner]
+        ends += [corner, [rng.uniform(-a, a), corner[1], z + 2 * dz]]
+    widths = rng.uniform(5e-5, 5e-3, (40, 2))
+    widths[1::2, 0] = widths[::2, 1]  # one width at the corner, on both faces
+    return CrackNetwork(np.stack([starts, ends], 1), widths, np.repeat(np.arange(20), 2)
+                        .astype(np.int32), ("flexural",) * 20)
+
+
+def _brute_force(p, dpdx, dpdy, network):
+    """crack_hit over every segment, in float64: (coverage, width mm, labelled)."""
+    a, b = network.points[:, 0], network.points[:, 1]
+    d, t = segment_distance(p[:, None], a[None], b[None])
+    w = network.widths_m[:, 0] + (network.widths_m[:, 1] - network.widths_m[:, 0]) * t
+    f = footprint_across(dpdx[:, None], dpdy[:, None], (b - a)[None])
+    coverage = band_coverage(d, w, f).max(1)
+    labels = d <= 0.5 * np.maximum(w, f)
+    nearest = np.argmin(np.where(labels, d, np.inf), 1)
+    width = np.where(labels.any(1), w[np.arange(len(p)), nearest] * 1000, 0.0)
+    return coverage, width, labels.any(1), np.abs(d - 0.5 * np.maximum(w, f)).min(1)
+
+
+def test_crack_hit_through_the_grid_matches_every_segment(glsl):
+    """The grid lookup (crack_cell, the cell lists and the neighbours that large pixels read)
+    finds what a search of every segment finds, for pixel footprints up to four cell edges
+    (|dpdx| + |dpdy| <= 20 cm)."""
+    rng = make_rng(4, 0, Stream.DAMAGE)
+    network = _column_network(rng)
+    index = pack_cracks(network)
+    n = 8192
+    seg = rng.integers(0, 40, n)
+    a, b = network.points[seg, 0], network.points[seg, 1]
+    p = a + rng.uniform(0, 1, (n, 1)) * (b - a)
+    on_x = np.isclose(np.abs(p[:, 0]), 0.4)
+    # Pixel sides on the surface (m), across the face and along z: square pixels near and
+    # far, and a grazing view's long pixels (a half footprint beyond a cell edge: it needs the
+    # neighbouring cells).
+    sides = np.array([[5e-5, 5e-5], [1e-3, 1e-3], [2e-2, 2e-2], [0.1, 0.1], [0.02, 0.17]])
+    side = sides[rng.integers(0, len(sides), n)]
+    # Along the face, off the crack: the largest pixels as far as their half footprint.
+    large = side[:, 1] >= 0.1
+    p[:, 2] += np.where(large, rng.uniform(-0.1, 0.1, n), rng.normal(0, 0.02, n))
+    dpdx = np.where(on_x[:, None], [0, 1, 0], [1, 0, 0]) * side[:, :1]
+    dpdy = np.array([0, 0, 1.0]) * side[:, 1:]
+    rows = [_rows(x) for x in (p, dpdx, dpdy)]
+    textures = upload_cracks(glsl.ctx, index)
+    out = glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
+                   "crack_hit(in0.xyz, in1.xyz, in2.xyz).width_mm, "
+                   "float(crack_hit(in0.xyz, in1.xyz, in2.xyz).labelled), "
+                   "float(crack_cell(in0.xyz))", *rows, setup=lambda prog: textures.bind(prog, 3))
+    for texture in textures.textures:
+        texture.release()
+    p, dpdx, dpdy = (r[:, :3].astype(np.float64) for r in rows)
+    coverage, width, labelled, margin = _brute_force(p, dpdx, dpdy, network)
+    cell = np.floor((p - index.origin) / index.cell_m).astype(int)
+    cell_id = cell[:, 0] + index.dims[0] * (cell[:, 1] + index.dims[1] * cell[:, 2])
+    clear = margin > 1e-6  # not on a labelling boundary to float32 precision
+    assert np.array_equal(out[:, 3], cell_id)
+    # A float32 distance near 2.5 m is good to a few of its ulps (0.24 um): over the pixel
+    # footprint, that much coverage.
+    footprint = np.linalg.norm(dpdx, axis=1)  # the smaller side
+    assert np.all(np.abs(out[:, 0] - coverage) <= 8 * 2.5 * EPS / footprint + 1e-6)
+    assert np.array_equal(out[clear, 2] == 1, labelled[clear])
+    agree = clear & labelled
+    # The width's float32 error is its slope times the nearest point's: within 1 um, a fiftieth
+    # of the thinnest crack.
+    assert np.abs(out[agree, 1] - width[agree]).max() <= 1e-3  # mm
+    assert labelled.mean() > 0.3 and (coverage > 0).mean() > 0.3
+
+
+def test_each_cell_lists_every_segment_within_reach_of_its_points():
+    """pack_cracks: from any point of a cell, every segment whose crack edge lies within one
+    cell edge is in the cell's list; ``longest`` is the longest list."""
+    rng = make_rng(5, 0, Stream.DAMAGE)
+    network = _column_network(rng)
+    index = pack_cracks(network)
+    cells = index.cells.reshape(-1, 2)
+    entries = index.entries.ravel()
+    assert index.longest == cells[:, 1].max() > 0
+    seg = rng.integers(0, len(network.points), 20000)
+    a, b = network.points[seg, 0], network.points[seg, 1]
+    p = a + rng.uniform(0, 1, (20000, 1)) * (b - a) + rng.normal(0, 0.06, (20000, 3))
+    ijk = np.floor((p - index.origin) / index.cell_m).astype(int)
+    inside = np.all((ijk >= 0) & (ijk < index.dims), 1)
+    d, _ = segment_distance(p[:, None], network.points[None, :, 0], network.points[None, :, 1])
+    near = d <= network.widths_m.max(1) / 2 + index.cell_m
+    assert np.all(inside | ~near.any(1))  # no point outside the grid is near a crack
+    cell_id = ijk[:, 0] + index.dims[0] * (ijk[:, 1] + index.dims[1] * ijk[:, 2])
+    for k in np.nonzero(inside & near.any(1))[0]:
+        start, count = cells[cell_id[k]]
+        assert set(np.nonzero(near[k])[0]) <= set(entries[start:start + count])
+    assert (inside & near.any(1)).sum() > 5000 and (~near.any(1)).sum() > 1000
