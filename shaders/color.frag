@@ -7,7 +7,8 @@
 // position and UV, so meshes need no tangent attribute. The sun is shadowed by a shadow map
 // (3x3 percentage-closer filtering) where u_has_shadows is set. Drawn against the label pass's
 // depth, so each visible pixel is shaded once; under MSAA the shading normal goes to a second
-// target, for msaa.frag.
+// target, for msaa.frag. The crack variant (#define CRACKS) darkens the reflected light by the
+// share of the pixel that the part's cracks cover, times u_crack_contrast (cracks.glsl).
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -44,6 +45,12 @@ uniform float u_shadow_offset_m;   // lookups move this far along the normal (ag
 
 layout(location = 0) out vec4 f_color;
 layout(location = 1) out vec4 f_normal;  // the shading normal, for msaa.frag
+
+#ifdef CRACKS
+in vec3 v_mesh_pos;
+uniform float u_crack_contrast;  // the share of the reflected light a crack's cavity takes away
+#include "cracks.glsl"
+#endif
 
 #include "tonemap.glsl"
 #include "facing_normal.glsl"
@@ -218,6 +225,12 @@ void main() {
     Surface s = surface_at_fragment();
     vec3 direct = sun_light(s, n, view_dir) * sun;
     vec3 ambient = ambient_light(s, n, view_dir, vis, hidden);
+#ifdef CRACKS
+    float dark = 1.0 - u_crack_contrast
+                       * crack_hit(v_mesh_pos, dFdx(v_mesh_pos), dFdy(v_mesh_pos)).coverage;
+    direct *= dark;
+    ambient *= dark;
+#endif
     vec3 emissive = u_emissive * srgb_to_linear(texture(u_emissive_map, v_uv).rgb);
     f_color = vec4(tone_map((direct + ambient + emissive) * u_exposure), 1.0);
 }

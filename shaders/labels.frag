@@ -2,6 +2,10 @@
 // One draw writes component id, damage id and linear depth into one RGBA32F target, with no
 // multisampling and no blending, so ids are exact. Damage ids come from the part's damage mask
 // (an integer texture: nearest sampling by definition); parts without one are 1 (no damage).
+// The crack variant (#define CRACKS, for views that show cracks) labels the pixels that a
+// crack covers at the centre or whose footprint its centreline crosses as concrete damage
+// (exposed rebar stays) and writes the crack's width in millimetres to a second target, 0
+// where no crack is; a draw without cracks (u_has_cracks false) writes 0 there.
 in vec3 v_view_pos;
 in vec2 v_uv;
 
@@ -9,11 +13,25 @@ uniform float u_component;
 uniform bool u_has_damage_mask;
 uniform usampler2D u_damage_mask;
 
-out vec4 f_labels;
+layout(location = 0) out vec4 f_labels;
+
+#ifdef CRACKS
+in vec3 v_mesh_pos;
+uniform bool u_has_cracks;
+layout(location = 1) out float f_crack_width_mm;
+#include "cracks.glsl"
+#endif
 
 void main() {
     float damage = 1.0;
     if (u_has_damage_mask) damage = float(texture(u_damage_mask, v_uv).r);
+#ifdef CRACKS
+    vec3 dpdx = dFdx(v_mesh_pos), dpdy = dFdy(v_mesh_pos);
+    CrackHit hit = CrackHit(0.0, 0.0, false);
+    if (u_has_cracks) hit = crack_hit(v_mesh_pos, dpdx, dpdy);
+    damage = hit.labelled ? max(damage, 2.0) : damage;  // 2: concrete damage, 3: rebar
+    f_crack_width_mm = hit.width_mm;
+#endif
     // Depth along the optical axis, interpolated in camera space: linear and float32-exact,
     // unlike a value read back from the 24-bit z-buffer.
     f_labels = vec4(u_component, damage, -v_view_pos.z, 1.0);

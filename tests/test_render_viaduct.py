@@ -101,6 +101,10 @@ def test_render_command_writes_the_documented_files(tmp_path):
     comp = np.array(Image.open(out / "component.png"))
     dmg = np.array(Image.open(out / "damage.png"))
     depth = np.load(out / "depth.npy")
+    # The paper's damage has no crack geometry: the crack-width map is there, all zeros.
+    crack_width = np.load(out / "crack_width.npy")
+    assert crack_width.dtype == np.float32 and crack_width.shape == (108, 192)
+    assert not crack_width.any()
     assert image.shape == (108, 192, 3) and image.dtype == np.uint8
     assert comp.shape == dmg.shape == (108, 192) and comp.dtype == np.uint8
     assert depth.shape == (108, 192) and depth.dtype == np.float32

@@ -77,11 +77,13 @@ class EnvironmentView:
 
 def write_render(out_dir: str | Path, placement: CameraPlacement, output: RenderOutput,
                  meta: dict) -> None:
-    """image.png, component.png, damage.png (uint8 ids), depth.npy (float32), camera.json."""
+    """image.png, component.png, damage.png (uint8 ids), crack_width.npy (float32 mm, 0
+    where no crack is: RenderOutput.crack_width), depth.npy (float32), camera.json."""
     out = Path(out_dir)
     atomic_write_bytes(out / "image.png", png_bytes(output.color))
     atomic_write_bytes(out / "component.png", png_bytes(output.component))
     atomic_write_bytes(out / "damage.png", png_bytes(output.damage))
+    atomic_write_bytes(out / "crack_width.npy", npy_bytes(output.crack_width))
     atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
     info = placement.camera.to_json()
     info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,

@@ -16,6 +16,9 @@ PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "label
             "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
             "ssao": ("fullscreen.vert", "ssao.frag"),
             "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}
+VARIANTS = {"color_cracks": ("color", "CRACKS"), "labels_cracks": ("labels", "CRACKS")}
+"""Variant name -> (program, the macro it defines): compile-time variants, so that draws
+without cracks run the programs without any crack code."""
 _INCLUDE = re.compile(r'^#include "([\w.]+)"$', re.MULTILINE)
 
 
@@ -29,13 +32,24 @@ def shader_source(name: str) -> str:
     return _INCLUDE.sub(lambda m: shader_source(m.group(1)), path.read_text(encoding="utf-8"))
 
 
+def with_define(source: str, macro: str) -> str:
+    """``source`` with ``#define macro`` after its #version line (which must come first)."""
+    version, rest = source.split("\n", 1)
+    return f"{version}\n#define {macro}\n{rest}"
+
+
 def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:
-    """Compile every program for one context (a GLSL error names the file that failed)."""
+    """Compile every program and variant for one context (a GLSL error names the files that
+    failed)."""
+    builds = {name: (vert, frag, None) for name, (vert, frag) in PROGRAMS.items()}
+    builds |= {name: (*PROGRAMS[base], macro) for name, (base, macro) in VARIANTS.items()}
     programs = {}
-    for name, (vert, frag) in PROGRAMS.items():
+    for name, (vert, frag, macro) in builds.items():
+        sources = [shader_source(vert), shader_source(frag)]
+        if macro is not None:
+            sources = [with_define(source, macro) for source in sources]
         try:
-            programs[name] = ctx.program(vertex_shader=shader_source(vert),
-                                         fragment_shader=shader_source(frag))
+            programs[name] = ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
         except moderngl.Error as err:
             raise RuntimeError(f"GLSL program {name!r} ({vert} + {frag}) failed: {err}") from err
     return programs

@@ -10,12 +10,14 @@ per method, in this order; each writes its own targets:
    into a depth texture fitted to this camera's view (glsynth.world.sunlight);
 3. labels: one draw per part into one RGBA32F texture holding (component id, damage id, linear
    depth, hit), single-sampled; the ids are then exact and depth is float32 along the optical
-   axis;
+   axis. In a view that shows a part with cracks, every part is drawn by the crack variant of
+   the program, which also writes each pixel's crack width (mm) into an R32F texture;
 4. ambient occlusion (for colour, when [render] ao = "ssao"): from the label texture's depth,
    then a 4x4 blur, into a one-channel texture the colour pass reads per pixel;
 5. colour: PBR into an RGBA8 texture, lit by the environment's Lighting
    (glsynth.world.lighting), tested against the label pass's depth so that each pixel is shaded
-   once; the sky is drawn last, where no geometry was;
+   once; parts with cracks through the crack variant, which darkens them where cracks cover the
+   pixel; the sky is drawn last, where no geometry was;
 6. MSAA (when msaa > 0): the geometry again into multisampled targets that keep each sample's
    surface (shaders/msaa.frag); a fullscreen pass gives a pixel whose samples all lie on its
    centre's surface that centre's colour (shaders/msaa_interior.frag), and a second, only at
@@ -26,6 +28,12 @@ Only the passes asked for (and those they need) are drawn, and each draws only t
 boxes may be in its frustum (the camera's; the sun's shadow map and the sky-visibility maps,
 in x and y), which changes no byte. Pixels with no geometry read component 1 (Nonbridge),
 damage 1 (no damage) and depth = zfar.
+
+Cracks (a material's CrackNetwork) are packed by glsynth.render.cracks_index into three
+textures per part, uploaded with the scene, and evaluated in the fragment shader
+(shaders/cracks.glsl); the crack code is compiled only into the programs' crack variants
+(programs.VARIANTS), which only views and parts with cracks use, so a scene without cracks
+runs the very programs it ran before.
 """
 
 from collections.abc import Callable, Iterator
@@ -41,6 +49,7 @@ from glsynth.appearance.materials import Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
+from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import create_context
 from glsynth.render.gl.programs import compile_programs
 from glsynth.render.scene import PartInfo, RenderScene
@@ -61,6 +70,13 @@ _GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
 _DEPTH_MAP_OFFSET = (2.0, 4.0)
 """Slope-scaled polygon offset of the depth maps (sun, sky) against acne on grazed surfaces."""
 _MAX_VIS = 16  # the length of the sky-visibility arrays in sky_visibility.frag
+_ATTRIBUTES = {"color": ("3f 3f 2f", "in_position", "in_normal", "in_uv"),
+               "labels": ("3f 12x 2f", "in_position", "in_uv"),
+               "shadow": ("3f 20x", "in_position"),
+               "msaa": ("3f 3f 8x", "in_position", "in_normal"),
+               "sky_visibility": ("3f 3f 8x", "in_position", "in_normal")}
+"""The vertex layout and attributes each mesh program reads of (position, normal, uv)."""
+_CRACK_SAMPLERS = ("u_crack_segments", "u_crack_cells", "u_crack_entries")
 _CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
 
 
@@ -74,6 +90,28 @@ class RenderOutput:
     """(H, W) uint8 damage ids."""
     depth: np.ndarray | None = None
     """(H, W) float32 metres along the optical axis; zfar where nothing was hit."""
+    crack_width: np.ndarray | None = None
+    """(H, W) float32 millimetres, with ``damage``: at each pixel a crack labels (concrete
+    damage by the crack rule of docs/design.md), the width of the nearest such crack there;
+    0 elsewhere, and everywhere in a view without cracks."""
+
+
+@dataclass(frozen=True, eq=False)
+class _CrackTextures:
+    """A part's crack network on the GPU (glsynth.render.cracks_index.CrackIndex)."""
+    textures: tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture]
+    """Segments, cells, entries: shaders/cracks.glsl's three samplers, in this order."""
+    index: CrackIndex
+
+    def bind(self, prog: moderngl.Program, first_unit: int) -> None:
+        """Bind the textures to units first_unit.. and set ``prog``'s crack uniforms."""
+        for unit, (name, texture) in enumerate(zip(_CRACK_SAMPLERS, self.textures, strict=True),
+                                               start=first_unit):
+            prog[name].value = unit
+            texture.use(unit)
+        prog["u_crack_origin"].value = tuple(float(v) for v in self.index.origin)
+        prog["u_crack_cell_m"].value = self.index.cell_m
+        prog["u_crack_dims"].value = self.index.dims
 
 
 @dataclass
@@ -94,6 +132,7 @@ class _Draw:
     """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
     corners: np.ndarray
     """(8, 3) world-space corners of the box, for the frustum tests."""
+    cracks: _CrackTextures | None = None
 
 
 @dataclass(frozen=True)
@@ -284,8 +323,15 @@ class Renderer:
         self.shadow_fbo = self.ctx.framebuffer(depth_attachment=self.shadow_map)
 
     def _make_label_targets(self, label_depth: moderngl.Renderbuffer) -> None:
+        """The labels and, drawn only in views with cracks, the crack widths beside them."""
         self.label_target = self._nearest_texture(self.size, 4, "f4")
         self.label_fbo = self.ctx.framebuffer([self.label_target], label_depth)
+        self.crack_width_target = self._nearest_texture(self.size, 1, "f4")
+        self.crack_width_fbo = self.ctx.framebuffer([self.crack_width_target])
+        self.label_crack_fbo = self.ctx.framebuffer(
+            [self.label_target, self.crack_width_target], label_depth)
+        self._view_has_cracks = False
+        """Whether the last label pass drew cracks (read-back then reads their widths)."""
 
     def _make_ao_targets(self) -> None:
         self.ao_raw, self.ao = (self.ctx.texture(self.size, 1, dtype="f2") for _ in range(2))
@@ -384,6 +430,11 @@ class Renderer:
             if material is not info.material:
                 # Built for this upload: its maps go now, one column's at a time.
                 self._detach(material)
+        if any(d.cracks is not None for d in self._draws):
+            # A view with cracks draws every part's labels through the crack variant.
+            for draw in self._draws:
+                draw.vaos["labels_cracks"] = self._vertex_array(
+                    "labels_cracks", draw.buffers[0], draw.buffers[1])
         # Kept textures of earlier scenes that this one does not draw.
         self._free_textures(lambda key, _: key in self._used)
         self._bake_sky_visibility(extent)
@@ -401,6 +452,10 @@ class Renderer:
         # _color_pass), each triangle's corners as they are.
         reversed_ibo = self.ctx.buffer(triangles[::-1].tobytes())
         vaos = self._vertex_arrays(vbo, ibo, reversed_ibo)
+        cracks = None
+        if material.cracks is not None:
+            cracks = self._upload_cracks(pack_cracks(material.cracks))
+            vaos["color_cracks"] = self._vertex_array("color_cracks", vbo, reversed_ibo)
         textures = {slot: self._upload_texture(array) for slot, array in (
             ("emissive", material.emissive_map), ("normal", material.normal_map))
             if array is not None}
@@ -414,23 +469,33 @@ class Renderer:
                      material=info.material, textures=textures,
                      component=float(info.component), damage_mask=mask,
                      center=pose[:3, :3] @ box.mean(0) + pose[:3, 3],
-                     radiance=_emitted(material), corners=box_corners(box, pose))
+                     radiance=_emitted(material), corners=box_corners(box, pose),
+                     cracks=cracks)
+
+    def _upload_cracks(self, index: CrackIndex) -> _CrackTextures:
+        """A crack network's textures, read texel by texel (released with the scene)."""
+        textures = []
+        for data, channels, dtype in ((index.segments, 4, "f4"), (index.cells, 2, "i4"),
+                                      (index.entries, 1, "i4")):
+            texture = self.ctx.texture(data.shape[1::-1], channels, data.tobytes(), dtype=dtype)
+            texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            textures.append(texture)
+        return _CrackTextures(tuple(textures), index)
+
+    def _vertex_array(self, program: str, vbo: moderngl.Buffer,
+                      indices: moderngl.Buffer) -> moderngl.VertexArray:
+        """A primitive's vertex array for ``program``, reading the attributes it needs from
+        the interleaved position, normal and uv."""
+        layout, *names = _ATTRIBUTES[program.removesuffix("_cracks")]
+        return self.ctx.vertex_array(self.programs[program], [(vbo, layout, *names)], indices,
+                                     4)
 
     def _vertex_arrays(self, vbo: moderngl.Buffer, ibo: moderngl.Buffer,
                        reversed_ibo: moderngl.Buffer) -> dict[str, moderngl.VertexArray]:
-        """One primitive's vertex array for each program that draws meshes, reading the
-        attributes it needs from the interleaved position, normal and uv."""
-        def vao(program: str, layout: str, *names: str,
-                indices: moderngl.Buffer = ibo) -> moderngl.VertexArray:
-            return self.ctx.vertex_array(self.programs[program], [(vbo, layout, *names)],
-                                         indices, 4)
-
-        return {"color": vao("color", "3f 3f 2f", "in_position", "in_normal", "in_uv",
-                             indices=reversed_ibo),
-                "labels": vao("labels", "3f 12x 2f", "in_position", "in_uv"),
-                "shadow": vao("shadow", "3f 20x", "in_position"),
-                **{name: vao(name, "3f 3f 8x", "in_position", "in_normal")
-                   for name in ("msaa", "sky_visibility")}}
+        """One primitive's vertex array for each program that draws meshes (the colour pass's
+        with the triangles reversed)."""
+        return {name: self._vertex_array(name, vbo, reversed_ibo if name == "color" else ibo)
+                for name in _ATTRIBUTES}
 
     def make_current(self) -> None:
         """This renderer's context becomes the thread's current one: another Renderer in the
@@ -448,6 +513,8 @@ class Renderer:
                 vao.release()
             for buffer in draw.buffers:
                 buffer.release()
+            for texture in draw.cracks.textures if draw.cracks is not None else ():
+                texture.release()
         self._free_textures(lambda _, sources: not any(
             a is not None and a.flags.writeable for a in sources))
         for tex in self._scene_textures:
@@ -467,13 +534,15 @@ class Renderer:
     def _set_lighting(self, lighting: Lighting) -> None:
         """The uniforms that stay the same for every camera of an environment: all of them
         from ``lighting`` (the SH ambient light, the sky, the sun's strength, the exposure)."""
-        color, sky = self.programs["color"], self.programs["sky"]
-        for prog in (color, sky):
-            prog["u_exposure"].value = lighting.exposure
-        color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
+        sky = self.programs["sky"]
+        sky["u_exposure"].value = lighting.exposure
         sky_sh, ground_sh = lighting.irradiance_sh()
-        color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
-        color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
+        for color in (self.programs["color"], self.programs["color_cracks"]):
+            color["u_exposure"].value = lighting.exposure
+            color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
+            color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
+            color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
+        self.programs["color_cracks"]["u_crack_contrast"].value = CRACK_CONTRAST
         sky["u_sky_model"].value = 0 if lighting.sky == "preetham" else 1
         sky["u_sky_strength"].value = lighting.sky_strength
         sky["u_sky_uniform"].value = tuple(lighting.sky_strength * np.array(lighting.sky_rgb))
@@ -633,10 +702,21 @@ class Renderer:
         return light
 
     def _label_pass(self, camera: Camera, placed: list[_Placed]) -> None:
-        prog = self.programs["labels"]
+        """Labels into label_target; in a view with cracks, every part through the crack
+        variant, which also writes crack_width_target (a part without cracks writes 0)."""
+        cracked = any(item.draw.cracks is not None for item in placed)
+        self._view_has_cracks = cracked
+        name = "labels_cracks" if cracked else "labels"
+        prog = self.programs[name]
         self.label_fbo.use()
         self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
                              camera.zfar, 0.0)
+        if cracked:
+            self.crack_width_fbo.clear(0.0)
+            self.label_crack_fbo.use()
+            # Samplers of different types may not share a unit, even unread.
+            for unit, sampler in enumerate(_CRACK_SAMPLERS, start=1):
+                prog[sampler].value = unit
         prog["u_projection"].write(_gl_matrix(camera.projection()))
         prog["u_damage_mask"].value = 0
         with _depth_state(self.ctx):
@@ -647,7 +727,11 @@ class Renderer:
                 prog["u_has_damage_mask"].value = draw.damage_mask is not None
                 if draw.damage_mask is not None:
                     draw.damage_mask.use(0)
-                draw.vaos["labels"].render()
+                if cracked:
+                    prog["u_has_cracks"].value = draw.cracks is not None
+                    if draw.cracks is not None:
+                        draw.cracks.bind(prog, 1)
+                draw.vaos[name].render()
 
     def _ao_pass(self, camera: Camera) -> None:
         """Occlusion from the label texture (drawn for this camera) into self.ao."""
@@ -670,7 +754,6 @@ class Renderer:
                     ao: bool) -> None:
         """Colour of ``placed`` into color_target (and their shading normals into
         normal_target), then the sky where no part was drawn."""
-        prog = self.programs["color"]
         self._set_view_uniforms(camera, shadow, ao)
         # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
         # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
@@ -682,6 +765,8 @@ class Renderer:
         with _depth_state(self.ctx, depth_func="<="):
             for item in reversed(placed):
                 draw, mat = item.draw, item.draw.material
+                name = "color" if draw.cracks is None else "color_cracks"
+                prog = self.programs[name]
                 prog["u_modelview"].write(item.modelview)
                 prog["u_normal_matrix"].write(item.normal)
                 prog["u_base_color"].value = tuple(float(c) for c in mat.base_color)
@@ -692,14 +777,28 @@ class Renderer:
                 draw.textures.get("base", self._defaults["white"]).use(0)
                 draw.textures.get("emissive", self._defaults["white"]).use(1)
                 draw.textures.get("normal", self._defaults["flat"]).use(2)
-                draw.vaos["color"].render()
+                if draw.cracks is not None:
+                    draw.cracks.bind(prog, 8)  # after the view's inputs (_set_view_uniforms)
+                draw.vaos[name].render()
             self._draw_sky(camera)
         self.color_fbo.depth_mask = True
 
     def _set_view_uniforms(self, camera: Camera, shadow: np.ndarray | None, ao: bool) -> None:
-        """The colour program's uniforms and inputs for one view: the camera, the sun, and the
-        targets of the passes before it (shadow map, ambient occlusion, sky visibility)."""
-        prog = self.programs["color"]
+        """The colour programs' inputs for one view (the targets of the passes before them:
+        shadow map, ambient occlusion, sky visibility, bound to units 3 to 7) and their
+        uniforms, in the crack variant too where the view shows cracks."""
+        self.shadow_map.use(3)
+        self.ao.use(4)
+        for unit, target in enumerate(self.sky_targets, start=5):
+            target.use(unit)
+        self._set_color_view_uniforms(self.programs["color"], camera, shadow, ao)
+        if self._view_has_cracks:
+            self._set_color_view_uniforms(self.programs["color_cracks"], camera, shadow, ao)
+
+    def _set_color_view_uniforms(self, prog: moderngl.Program, camera: Camera,
+                                 shadow: np.ndarray | None, ao: bool) -> None:
+        """One colour program's uniforms for one view: the camera, the sun, the units of the
+        inputs that _set_view_uniforms binds."""
         prog["u_projection"].write(_gl_matrix(camera.projection()))
         prog["u_sun_dir"].value = tuple(camera.view()[:3, :3] @ self.lighting.sun_direction)
         prog["u_world_from_view"].write(_gl_matrix(camera.pose[:3, :3]))
@@ -707,15 +806,11 @@ class Renderer:
                                      "u_shadow_map", "u_ao")):
             prog[name].value = unit
         prog["u_has_shadows"].value = shadow is not None
-        self.shadow_map.use(3)
         prog["u_has_ao"].value = ao
-        self.ao.use(4)
         prog["u_vis_count"].value = 0 if self._sky_maps is None else len(
             self._sky_maps.directions)
-        for unit, (name, target) in enumerate(zip(("u_sky_light", "u_sky_surface", "u_sky_open"),
-                                                   self.sky_targets, strict=True), start=5):
+        for unit, name in enumerate(("u_sky_light", "u_sky_surface", "u_sky_open"), start=5):
             prog[name].value = unit
-            target.use(unit)
         if shadow is not None:
             px = self.config.shadow_map_px
             prog["u_shadow_from_view"].write(_gl_matrix(_CLIP_TO_TEXTURE @ shadow @ camera.pose))
@@ -767,9 +862,20 @@ class Renderer:
                 out["damage"] = labels[..., 1].astype(np.uint8)
             if "depth" in passes:
                 out["depth"] = np.ascontiguousarray(labels[..., 2])
+        if "damage" in passes:
+            out["crack_width"] = self._read_crack_width()
         if "color" in passes:
             fbo = self.resolve_fbo if self.config.msaa else self.color_fbo
             raw = fbo.read(components=3, alignment=1)
             out["color"] = np.ascontiguousarray(
                 np.frombuffer(raw, np.uint8).reshape(height, width, 3)[::-1])
         return RenderOutput(**out)
+
+    def _read_crack_width(self) -> np.ndarray:
+        """(H, W) float32 mm, rows top to bottom: the label pass's crack widths, or zeros in a
+        view without cracks."""
+        width, height = self.size
+        if not self._view_has_cracks:
+            return np.zeros((height, width), np.float32)
+        raw = self.crack_width_fbo.read(components=1, dtype="f4")
+        return np.ascontiguousarray(np.frombuffer(raw, np.float32).reshape(height, width)[::-1])

@@ -1,0 +1,128 @@
+"""A crack network packed for the fragment shader (shaders/cracks.glsl): its segments, and a
+uniform 3D grid over them so that a fragment tests only the segments that can reach it.
+
+The grid covers the network's box in the mesh frame, grown by half the widest width and two
+cell edges on every side. Its cells are cubes of edge ``cell_m``: 5 cm, or larger where the
+box would need more than 2^20 cells (the edge then grows by 25 % steps until it fits). A cell
+lists every segment whose centreline comes within half the segment's widest width plus two
+cell edges of the cell's centre. Any point of the cell lies within 0.87 cell edges of its
+centre, so a fragment that reads its own cell only sees every segment within half its width
+plus one cell edge (1.13, rounded down) of it. The labelling and coverage rules need cracks up
+to half a pixel footprint beyond their edge (docs/design.md, "Cracks"): they hold exactly
+while the pixel footprint across a crack is at most two cell edges, 10 cm at 5 cm cells (a
+1920-pixel-wide view through a 36 mm lens on the 36 mm sensor, 190 m away). Beyond that, a
+pixel misses a crack further than a cell edge from its centre, whose darkening there is below
+w / 10 cm anyway. The cost's worst case is the longest cell list, which a fragment in that
+cell walks whole: ``CrackIndex.longest`` reports it.
+
+Every texture is 4096 texels wide (ROW), filled row by row; the shader finds an entry's texel
+from the texture's own width.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from glsynth.appearance.cracks import CrackNetwork
+
+CELL_M = 0.05
+"""The grid's smallest cell edge."""
+MAX_CELLS = 1 << 20
+ROW = 4096
+CRACK_CONTRAST = 0.85
+"""Share of the surface's reflected light that a crack's interior takes away: a crack is a
+cavity much deeper than wide, which traps most of the light that enters it (its effective
+albedo is about 15 % of the surface's)."""
+
+
+@dataclass(frozen=True, eq=False)
+class CrackIndex:
+    """A network's segments and grid, as the shader reads them (rows of ROW texels)."""
+
+    segments: np.ndarray
+    """(rows, ROW, 4) float32: texel 2i holds segment i's first end point (mesh frame, m) and
+    its width there (mm), texel 2i + 1 the second."""
+    cells: np.ndarray
+    """(rows, ROW, 2) int32: per cell (x fastest, then y, then z), its first entry in
+    ``entries`` and its number of entries."""
+    entries: np.ndarray
+    """(rows, ROW) int32: segment ids, cell after cell."""
+    origin: np.ndarray
+    """(3,) float32: the grid's lower corner in the mesh frame."""
+    cell_m: float
+    dims: tuple[int, int, int]
+    longest: int
+    """The longest cell list: the most segments one fragment tests."""
+
+
+def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray,
+                                                                           np.ndarray]:
+    """Distance from points ``p`` (..., 3) to segments a-b (..., 3), and the parameter t in
+    [0, 1] of the nearest point a + t (b - a)."""
+    ab = b - a
+    length2 = np.sum(ab * ab, -1)
+    t = np.clip(np.sum((p - a) * ab, -1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    t = np.where(length2 > 0, t, 0.0)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1), t
+
+
+def _rows(flat: np.ndarray) -> np.ndarray:
+    """``flat`` (n, ...) padded with zeros to whole rows of ROW: (rows, ROW, ...)."""
+    rows = max(1, -(-len(flat) // ROW))
+    out = np.zeros((rows * ROW,) + flat.shape[1:], flat.dtype)
+    out[:len(flat)] = flat
+    return out.reshape((rows, ROW) + flat.shape[1:])
+
+
+def _grid(points: np.ndarray, half_width: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """(origin, cell edge, cells along x, y, z) of the grid over ``points`` (n, 3) grown by
+    ``half_width`` plus two cell edges on every side."""
+    lo, hi = points.min(0), points.max(0)
+    cell = CELL_M
+    while True:
+        origin = lo - half_width - 2 * cell
+        dims = np.floor((hi + half_width + 2 * cell - origin) / cell).astype(np.int64) + 1
+        if np.prod(dims) <= MAX_CELLS:
+            return origin, cell, dims
+        cell *= 1.25
+
+
+def _candidates(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For boxes of cells lo..hi (N, 3) inclusive: (box of each cell, the cells (M, 3))."""
+    size = hi - lo + 1
+    counts = np.prod(size, 1)
+    owner = np.repeat(np.arange(len(lo)), counts)
+    local = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    sx, sy = size[owner, 0], size[owner, 1]
+    offset = np.stack([local % sx, (local // sx) % sy, local // (sx * sy)], 1)
+    return owner, lo[owner] + offset
+
+
+def pack_cracks(network: CrackNetwork) -> CrackIndex:
+    """The textures and grid of ``network`` (docstring of this module)."""
+    points, widths = network.points, network.widths_m
+    if not len(points):
+        empty = np.zeros((1, 3))
+        origin, cell, dims = _grid(empty, 0.0)
+        return CrackIndex(_rows(np.zeros((0, 4), np.float32)),
+                          _rows(np.zeros((int(np.prod(dims)), 2), np.int32)),
+                          _rows(np.zeros(0, np.int32)), origin.astype(np.float32), cell,
+                          tuple(int(d) for d in dims), 0)
+    half = widths.max(1) / 2
+    origin, cell, dims = _grid(points.reshape(-1, 3), float(half.max()))
+    reach = half + 2 * cell
+    low = np.floor((points.min(1) - reach[:, None] - origin) / cell).astype(np.int64)
+    high = np.floor((points.max(1) + reach[:, None] - origin) / cell).astype(np.int64)
+    owner, ijk = _candidates(np.clip(low, 0, dims - 1), np.clip(high, 0, dims - 1))
+    centre = origin + (ijk + 0.5) * cell
+    near = segment_distance(centre, points[owner, 0], points[owner, 1])[0] <= reach[owner]
+    owner, ijk = owner[near], ijk[near]
+    cell_id = ijk[:, 0] + dims[0] * (ijk[:, 1] + dims[1] * ijk[:, 2])
+    order = np.lexsort((owner, cell_id))
+    counts = np.bincount(cell_id, minlength=int(np.prod(dims)))
+    starts = np.cumsum(counts) - counts
+    segments = np.concatenate([points, widths[..., None] * 1000.0], -1).reshape(-1, 4)
+    return CrackIndex(_rows(segments.astype(np.float32)),
+                      _rows(np.stack([starts, counts], 1).astype(np.int32)),
+                      _rows(owner[order].astype(np.int32)), origin.astype(np.float32), cell,
+                      tuple(int(d) for d in dims), int(counts.max()))
