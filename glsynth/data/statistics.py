@@ -111,9 +111,10 @@ class CrackLength:
 
 def surface_area_m2(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
     """The surface area each pixel of a depth map sees [m^2]: the parallelogram between the
-    back-projected steps to its neighbours in x and in y, each step taken towards the
-    neighbour of nearer depth (the same surface, where the pixel is on a silhouette). That is
-    (z / f)^2 / cos(tilt) on a plane; at most MAX_SLANT times (z / f)^2."""
+    back-projected steps to its neighbours in x and in y. A step is the mean of the steps to
+    the two neighbours where they agree within half their length (one smooth surface), else
+    the step to the neighbour of nearer depth (the pixel's own surface at a silhouette or an
+    edge). That is (z / f)^2 / cos(tilt) on a plane; at most MAX_SLANT times (z / f)^2."""
     h, w = depth_m.shape
     rows, cols = np.mgrid[0:h, 0:w]
     z = depth_m.astype(np.float64)
@@ -125,7 +126,10 @@ def surface_area_m2(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
         before, after = [(0, 0)] * 3, [(0, 0)] * 3
         before[axis], after[axis] = (1, 0), (0, 1)
         back, ahead = np.pad(d, before, mode="edge"), np.pad(d, after, mode="edge")
-        return np.where((np.abs(ahead[..., 2]) <= np.abs(back[..., 2]))[..., None], ahead, back)
+        near = np.where((np.abs(ahead[..., 2]) <= np.abs(back[..., 2]))[..., None], ahead, back)
+        size = (np.linalg.norm(ahead, axis=-1) + np.linalg.norm(back, axis=-1)) / 2
+        smooth = np.linalg.norm(ahead - back, axis=-1) <= 0.5 * size
+        return np.where(smooth[..., None], (ahead + back) / 2, near)
 
     area = np.linalg.norm(np.cross(step(1), step(0)), axis=-1)
     return np.minimum(area, MAX_SLANT * (z / focal_px) ** 2)
