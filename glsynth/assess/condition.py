@@ -383,8 +383,8 @@ def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | N
     path = root / crack_width_path(damage_rel)
     folder = path.parent
     if not folder.is_dir():
-        return None, (f"no ground-truth crack widths: {folder} does not exist (a dataset "
-                      "generated without crack geometry has none)")
+        return None, (f"no ground-truth crack widths: {folder} does not exist (the released "
+                      "dataset and glsynth's from before crack widths have none)")
     if not path.is_file():
         return None, f"no ground-truth crack widths: {path} is missing"
     with Image.open(path) as im:
