@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import SMALL
 from PIL import Image
 from test_statistics import write_dataset
 
@@ -241,24 +242,8 @@ def test_stats_with_crack_widths_count_the_maps_and_the_lists(tmp_path):
 
 
 # --- generated datasets ---------------------------------------------------------------------
-MECHANICS = """
-[dataset]
-n_environments = 2
-n_test_environments = 1
-n_plates = 1
-n_test_plates = 0
-plates_per_task = 1
-[cameras]
-n_regular = 3
-n_closeup = 2
-[damage]
-model = "mechanics"
-resolution = 64
-[materials]
-texture_size = 32
-builtin_size = 64
-images_per_category = 3
-"""
+MECHANICS = SMALL.replace("[damage]\n", '[damage]\nmodel = "mechanics"\n')
+"""conftest's tiny dataset under the mechanics damage model."""
 
 
 @pytest.fixture(scope="module")
