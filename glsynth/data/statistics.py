@@ -418,10 +418,12 @@ def _crack_axes(stats: dict, widths, lengths) -> None:
     widths.bar(names, hist["pixels"] or [0] * len(names))
     widths.tick_params(axis="x", labelrotation=90)
     widths.set_xlabel("crack width [mm]"), widths.set_ylabel("pixels")
-    widths.set_title("crack widths" if hist["pixels"] is not None else "no crack widths")
+    widths.set_title("crack widths: map pixels per bin" if hist["pixels"] is not None
+                     else "no crack widths")
+    (_, _, value), = _crack_rows(stats)[1:]
     lengths.axis("off")
-    lengths.text(0, 0.5, "\n".join(f"{a}: {c}" for a, _, c in _crack_rows(stats)[1:]),
-                 wrap=True)
+    lengths.set_title("crack length per m^2 of column\nand beam surface in the RRDR")
+    lengths.text(0.5, 0.5, value, ha="center", va="center")
 
 
 def write_statistics(root: str | Path, out: str | Path) -> dict:
