@@ -64,7 +64,7 @@ def test_a_one_pixel_crack_survives_3x_downsampling_at_any_offset():
         # Every block the crack touches keeps its width; no other block has one.
         assert np.array_equal(small > 0, touched) and np.all(small[touched] == np.float32(0.37))
         damage = downsample_damage(np.where(mask, Damage.CONCRETE, labels).astype(np.uint8),
-                                   widths)
+                                   small)
         assert np.array_equal(damage == Damage.CONCRETE, touched)
         # The released rule, sampling block centres, loses the crack wherever it misses them.
         dropped += int((downsample_labels(np.where(mask, 2, 1)) == 2).sum() < touched.sum())
@@ -78,14 +78,17 @@ def test_the_widest_crack_of_a_block_wins_and_rebar_stays():
     damage = np.full((3, 6), Damage.NO_DAMAGE, np.uint8)
     damage[1, 4] = Damage.REBAR  # the second block's centre
     assert np.array_equal(downsample_crack_width(widths), np.float32([[1.4, 0.05]]))
-    assert downsample_damage(damage, widths).tolist() == [[Damage.CONCRETE, Damage.REBAR]]
+    assert downsample_damage(damage, downsample_crack_width(widths)).tolist() == [
+        [Damage.CONCRETE, Damage.REBAR]]
 
 
 def test_without_cracks_damage_downsampling_is_the_centre_sample():
     # Every id at every offset of a block, in a pattern that does not repeat per block.
     labels = (np.arange(1080 * 1920).reshape(1080, 1920) * 7919 // 13 % 4).astype(np.uint8)
-    zeros = np.zeros(labels.shape, np.float32)
+    zeros = np.zeros((360, 640), np.float32)
     assert np.array_equal(downsample_damage(labels, zeros), downsample_labels(labels))
+    with pytest.raises(ValueError, match="differ in size"):
+        downsample_damage(labels, np.zeros((10, 10), np.float32))
     with pytest.raises(ValueError, match="multiples of 3"):
         downsample_crack_width(np.zeros((10, 9), np.float32))
 

@@ -167,12 +167,15 @@ def _label_maps(output, camera) -> tuple[dict[str, np.ndarray], bool, np.ndarray
     Crack pixels of the render keep their block (docs/design.md)."""
     reliable = rrdr(output.depth, camera.fx)
     masked = mask_damage(output.damage, reliable)
-    # Outside the RRDR a crack's pixels are unlabelled, so the map holds no width there.
-    widths = np.where(reliable, output.crack_width, np.float32(0))
+    widths = output.crack_width
+    if widths.any():  # a view without cracks (all of the paper model's) skips the copy
+        # Outside the RRDR a crack's pixels are unlabelled, so the map holds no width there.
+        widths = np.where(reliable, widths, np.float32(0))
+    blocks = downsample_crack_width(widths)
     maps = {"component": downsample_labels(output.component),
-            "damage": downsample_damage(masked, widths),
+            "damage": downsample_damage(masked, blocks),
             "depth": downsample_labels(encode_depth(output.depth)),
-            "crackwidth": encode_crack_width(downsample_crack_width(widths))}
+            "crackwidth": encode_crack_width(blocks)}
     # The flag describes the map that is written: damage inside the RRDR at full size
     # can vanish in the 3x downsampling.
     return maps, bool(np.any(maps["damage"] >= Damage.CONCRETE)), widths
