@@ -60,9 +60,15 @@ def test_label_downsampling_is_nearest_at_block_centres():
         downsample_labels(np.zeros((10, 10), np.uint8))
 
 
+def listed(split: str, env: int, camera: int) -> list[str]:
+    """The four paths of a frame that its manifest row lists (not its crack-width map)."""
+    paths = frame_paths(split, env, camera)
+    return [paths[k] for k in ("image", "component", "damage", "depth")]
+
+
 def test_manifest_round_trip_with_backslashes(tmp_path):
-    rows = [FrameRecord(*frame_paths("test", 180, 3).values(), 27.5, True, False),
-            FrameRecord(*frame_paths("test", 181, 60).values(), None, False, True)]
+    rows = [FrameRecord(*listed("test", 180, 3), 27.5, True, False),
+            FrameRecord(*listed("test", 181, 60), None, False, True)]
     (tmp_path / "files_test.csv").write_text(manifest_text(rows))
     assert read_manifest(tmp_path, "files_test.csv") == rows
     text = manifest_text(rows).replace("/", "\\")

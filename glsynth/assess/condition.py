@@ -378,12 +378,13 @@ def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | N
     <stem>.png`` (uint16, 0.01 mm steps) in mm, or None and why it is missing."""
     from PIL import Image
 
-    damage = Path(damage_rel.replace("\\", "/"))
-    folder = root / damage.parent.parent / "crackwidth"
-    path = folder / f"{damage.stem}.png"
+    from glsynth.data.tokaido import crack_width_path, decode_crack_width
+
+    path = root / crack_width_path(damage_rel)
+    folder = path.parent
     if not folder.is_dir():
-        return None, (f"no ground-truth crack widths: {folder} does not exist (a dataset "
-                      "generated without crack geometry has none)")
+        return None, (f"no ground-truth crack widths: {folder} does not exist (the released "
+                      "dataset and glsynth's from before crack widths have none)")
     if not path.is_file():
         return None, f"no ground-truth crack widths: {path} is missing"
     with Image.open(path) as im:
@@ -391,4 +392,4 @@ def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | N
     if code.dtype != np.uint16:
         raise ValueError(f"{path}: crack widths must be uint16 in 0.01 mm steps, not "
                          f"{code.dtype}")
-    return code.astype(np.float32) / 100, None
+    return decode_crack_width(code), None

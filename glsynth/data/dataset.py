@@ -34,6 +34,7 @@ from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.filters import mask_damage, removal_reason, view_rrdr
 from glsynth.data.statistics import (
+    CrackLength,
     ImageCounts,
     dataset_statistics,
     image_counts,
@@ -44,15 +45,21 @@ from glsynth.data.tokaido import (
     LABEL_STRIDE,
     FrameRecord,
     PuretexRecord,
+    downsample_crack_width,
+    downsample_damage,
     downsample_labels,
+    encode_crack_width,
     encode_depth,
     frame_paths,
     manifest_text,
     puretex_paths,
 )
+from glsynth.data.visible_cracks import visible_cracks
 
 RUN_FILE = "glsynth_run.json"
 REASONS = ("dark", "single_component", "too_close")
+_FORMATS = {"component": "BMP", "damage": "BMP", "depth": "PNG", "crackwidth": "PNG"}
+"""The label maps a kept view writes, with their file formats."""
 
 
 def check_format(config: Config) -> None:
@@ -108,6 +115,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     rows, counts = [], []
     removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
     columns = [p for p in view.environment.parts if p.name.startswith("column")]
+    networks, records = _crack_networks(view)
     to_cycles = []  # (placement, image path) of the kept views, with --renderer cycles
     with BackgroundWriter() as writer:
         for index in range(config.cameras.total):
@@ -119,17 +127,19 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
                 removed[placement.kind][reason] += 1
                 clock.lap("filters, RRDR and labels")
                 continue
-            maps, in_rrdr = _label_maps(output, placement.camera, config.filters)
+            maps, in_rrdr, widths = _label_maps(output, placement.camera, config.filters)
+            cracks = visible_cracks(view.environment.parts, networks, records,
+                                    placement.camera, widths, output.depth,
+                                    maps["crackwidth"], LABEL_STRIDE)
             clock.lap("filters, RRDR and labels")
             paths = frame_paths(split, env, index)
-            images = {paths["component"]: (maps["component"], "BMP"),
-                      paths["damage"]: (maps["damage"], "BMP"),
-                      paths["depth"]: (maps["depth"], "PNG")}
+            images = {paths[name]: (maps[name], fmt) for name, fmt in _FORMATS.items()}
             if config.render.renderer == "cycles":
                 to_cycles.append((placement, paths["image"]))
             else:
                 images[paths["image"]] = (output.color, "PNG")
             meta = _view_meta(view, placement, root_seed, env, split, in_rrdr, columns)
+            meta["cracks_in_view"] = cracks
             writer.submit(write_files, out, images,
                           {f"meta/{split}/image_case{env}_frame{index}.json": meta})
             focal = round(placement.camera.focal_mm, 6)
@@ -138,7 +148,9 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
                 placement.kind == "regular", in_rrdr)))
             counts.append(dataclasses.asdict(image_counts(
                 placement.kind, split, maps["component"], maps["damage"], maps["depth"], focal,
-                in_rrdr)))
+                in_rrdr, maps["crackwidth"], CrackLength(
+                    sum(c["labelled_length_m"] for c in cracks), placement.camera.fx,
+                    placement.camera.width))))
             clock.lap("queue files")
     clock.lap("wait for the writer")
     if to_cycles:
@@ -149,16 +161,37 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
             "removed": removed, "timings": clock.totals}
 
 
-def _label_maps(output, camera, filters) -> tuple[dict[str, np.ndarray], bool]:
+def _label_maps(output, camera, filters) -> tuple[dict[str, np.ndarray], bool, np.ndarray]:
     """The maps a kept view writes, at a LABEL_STRIDE-th of its size: component ids, damage
-    ids inside the RRDR, encoded depth; and whether the damage map shows damage."""
-    masked = mask_damage(output.damage, view_rrdr(filters, output.depth, camera.fx))
+    ids inside the RRDR, encoded depth, encoded crack widths inside the RRDR; whether the
+    damage map shows damage; and the render's crack widths inside the RRDR (full size, mm).
+    Crack pixels of the render keep their block (docs/design.md)."""
+    reliable = view_rrdr(filters, output.depth, camera.fx)
+    masked = mask_damage(output.damage, reliable)
+    widths = output.crack_width
+    if widths.any():  # a view without cracks (all of the paper model's) skips the copy
+        # Outside the RRDR a crack's pixels are unlabelled, so the map holds no width there.
+        widths = np.where(reliable, widths, np.float32(0))
+    blocks = downsample_crack_width(widths)
     maps = {"component": downsample_labels(output.component),
-            "damage": downsample_labels(masked),
-            "depth": downsample_labels(encode_depth(output.depth))}
+            "damage": downsample_damage(masked, blocks),
+            "depth": downsample_labels(encode_depth(output.depth)),
+            "crackwidth": encode_crack_width(blocks)}
     # The flag describes the map that is written: damage inside the RRDR at full size
     # can vanish in the 3x downsampling.
-    return maps, bool(np.any(maps["damage"] >= Damage.CONCRETE))
+    return maps, bool(np.any(maps["damage"] >= Damage.CONCRETE)), widths
+
+
+def _crack_networks(view) -> tuple[dict, dict[str, list[dict]]]:
+    """The crack networks of the environment's dressed parts and their records (the
+    dressing's per-crack id, member, type, length and widths), by part name."""
+    networks, records = {}, {}
+    for name, assignment in view.dressing.assignments.items():
+        listed = (assignment.damage or {}).get("cracks")
+        if listed:
+            networks[name] = view.dressing.materials[name].cracks
+            records[name] = listed
+    return networks, records
 
 
 def _view_meta(view, placement, root_seed: int, env: int, split: str, in_rrdr: bool,

@@ -8,7 +8,13 @@ Definitions (docs/design.md):
 - damage shares are concrete-damage and exposed-rebar pixels over the labelled pixels of the
   damage task's images (frames whose written map holds damage, plus the plates), the quantity
   the paper gives as 3.9 % and 0.4 % (Section 4.5);
-- images for damage recognition are those frames plus the plates (paper: 4,990 + 3,000).
+- images for damage recognition are those frames plus the plates (paper: 4,990 + 3,000);
+- the crack-width histogram counts the pixels of the written crack-width maps (each the widest
+  crack of its 3x3 block) per width bin; crack length per m^2 is the labelled length of the
+  cracks the views' meta lists over the area of column and beam surface the views show inside
+  the RRDR (surface_area_m2), the region where cracks are labelled. Datasets without
+  crack-width maps or crack lists (the released one, older glsynth datasets) have neither,
+  and say so.
 """
 
 import json
@@ -18,12 +24,32 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.labels import Component, Damage
-from glsynth.data.tokaido import DEPTH_FAR_M, DEPTH_MAX_CODE, DEPTH_NEAR_M, read_manifest
+from glsynth.data.filters import rrdr
+from glsynth.data.tokaido import (
+    CRACK_WIDTH_STEP_MM,
+    DEPTH_FAR_M,
+    DEPTH_MAX_CODE,
+    DEPTH_NEAR_M,
+    crack_width_path,
+    decode_depth,
+    read_manifest,
+)
 
 DEPTH_EDGES_M = tuple(float(e) for e in np.arange(0.5, 30.5, 2.0))
 """Depth histogram bins [m]; sky (the 30 m clip) is counted apart."""
 FOCAL_EDGES_MM = tuple(float(e) for e in range(15, 60, 5))
 """Focal-length histogram bins [mm] over the paper's [15, 55]."""
+CRACK_WIDTH_EDGES_MM = (0.01, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0,
+                        5.0, 10.0, 655.35)
+"""Crack-width histogram bins [mm], each [low, high): finer than the grades of inspection
+practice (0.2, 0.3, 0.5, 1.0 mm, edges here) over the generator's 0.05-5 mm; the first edge
+is the smallest width a map can hold, the last its largest."""
+CRACKED_MEMBERS = (Component.COLUMN, Component.BEAM)
+"""The components whose surface can crack (columns, and cross and tie beams; girders are
+beams too, and get no cracks yet)."""
+MAX_SLANT = 10.0
+"""surface_area_m2 counts a pixel as at most this many times its fronto-parallel area (a
+surface tilted up to 84 degrees): steeper steps in a depth map are silhouettes or noise."""
 KINDS = ("regular", "closeup", "plate")
 COMPONENTS = [c for c in Component if c != Component.UNLABELLED]
 
@@ -53,6 +79,13 @@ class ImageCounts:
     focal_mm: float | None
     depth: tuple[int, ...] | None
     """Pixels per DEPTH_EDGES_M bin, then the sky (code 65535); None for plates."""
+    crack_width: tuple[int, ...] | None = None
+    """Pixels per CRACK_WIDTH_EDGES_MM bin of the crack-width map; None without one."""
+    crack_length_m: float | None = None
+    """Labelled crack length (the meta's crack list); None without a list."""
+    member_area_m2: float | None = None
+    """Column and beam surface in view inside the RRDR (surface_area_m2), where
+    crack_length_m is known."""
 
     @classmethod
     def from_json(cls, data: dict) -> "ImageCounts":
@@ -60,13 +93,63 @@ class ImageCounts:
         def tup(values: list | None) -> tuple | None:
             return None if values is None else tuple(values)
         return cls(**{**data, "component": tup(data["component"]),
-                      "damage": tuple(data["damage"]), "depth": tup(data["depth"])})
+                      "damage": tuple(data["damage"]), "depth": tup(data["depth"]),
+                      "crack_width": tup(data.get("crack_width"))})
+
+
+@dataclass(frozen=True)
+class CrackLength:
+    """What crack length per m^2 needs of a view beside its maps."""
+
+    labelled_m: float
+    """The labelled length of the cracks the view shows (the meta's ``cracks_in_view``)."""
+    focal_px: float
+    """The photo's focal length in pixels."""
+    photo_width: int
+    """The photo's width in pixels (its label maps are narrower by the label stride)."""
+
+
+def surface_area_m2(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
+    """The surface area each pixel of a depth map sees [m^2]: the parallelogram between the
+    back-projected steps to its neighbours in x and in y. A step is the mean of the steps to
+    the two neighbours where they agree within half their length (one smooth surface), else
+    the step to the neighbour of nearer depth (the pixel's own surface at a silhouette or an
+    edge). That is (z / f)^2 / cos(tilt) on a plane; at most MAX_SLANT times (z / f)^2."""
+    h, w = depth_m.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    z = depth_m.astype(np.float64)
+    points = np.stack([(cols - (w - 1) / 2) * z / focal_px, (rows - (h - 1) / 2) * z / focal_px,
+                       z], axis=-1)
+
+    def step(axis: int) -> np.ndarray:
+        d = np.diff(points, axis=axis)
+        before, after = [(0, 0)] * 3, [(0, 0)] * 3
+        before[axis], after[axis] = (1, 0), (0, 1)
+        back, ahead = np.pad(d, before, mode="edge"), np.pad(d, after, mode="edge")
+        near = np.where((np.abs(ahead[..., 2]) <= np.abs(back[..., 2]))[..., None], ahead, back)
+        size = (np.linalg.norm(ahead, axis=-1) + np.linalg.norm(back, axis=-1)) / 2
+        smooth = np.linalg.norm(ahead - back, axis=-1) <= 0.5 * size
+        return np.where(smooth[..., None], (ahead + back) / 2, near)
+
+    area = np.linalg.norm(np.cross(step(1), step(0)), axis=-1)
+    return np.minimum(area, MAX_SLANT * (z / focal_px) ** 2)
+
+
+def crack_width_counts(code: np.ndarray) -> tuple[int, ...]:
+    """Pixels of a crack-width map (uint16 codes) per CRACK_WIDTH_EDGES_MM bin."""
+    edges = np.rint(np.asarray(CRACK_WIDTH_EDGES_MM) / CRACK_WIDTH_STEP_MM).astype(np.int64)
+    hist = np.bincount(np.searchsorted(edges, code[code > 0], side="right"),
+                       minlength=len(edges) + 1)
+    hist[-2] += hist[-1]  # the last bin holds its upper edge, the largest code
+    return tuple(hist[1:-1].tolist())
 
 
 def image_counts(kind: str, split: str, component: np.ndarray | None, damage: np.ndarray,
                  depth_code: np.ndarray | None, focal_mm: float | None,
-                 damage_in_rrdr: bool) -> ImageCounts:
-    """Counts of one image from its written maps (ids and the uint16 depth code)."""
+                 damage_in_rrdr: bool, crack_code: np.ndarray | None = None,
+                 cracks: CrackLength | None = None) -> ImageCounts:
+    """Counts of one image from its written maps (ids, the uint16 depth and crack-width
+    codes) and the visible length of its cracks."""
     comp = None if component is None else tuple(
         np.bincount(component.ravel(), minlength=len(Component))[:len(Component)].tolist())
     dmg = tuple(np.bincount(damage.ravel(), minlength=len(Damage))[:len(Damage)].tolist())
@@ -77,11 +160,38 @@ def image_counts(kind: str, split: str, component: np.ndarray | None, damage: np
             DEPTH_FAR_M - DEPTH_NEAR_M) + DEPTH_NEAR_M
         hist = np.histogram(metres, bins=DEPTH_EDGES_M + (DEPTH_FAR_M,))[0]
         depth = tuple(hist.tolist()) + (int(sky.sum()),)
-    return ImageCounts(kind, split, comp, dmg, bool(damage_in_rrdr), focal_mm, depth)
+    widths = None if crack_code is None else crack_width_counts(crack_code)
+    length = area = None
+    if cracks is not None and component is not None and depth_code is not None:
+        depth_m = decode_depth(depth_code)
+        # The RRDR from the written depth, as `glsynth assess` takes it: the crack list
+        # counts labelled cracks, which lie inside the RRDR of the render.
+        members = np.isin(component, CRACKED_MEMBERS) & rrdr(depth_m, cracks.focal_px)
+        length = float(cracks.labelled_m)
+        focal = cracks.focal_px * component.shape[1] / cracks.photo_width
+        area = float(surface_area_m2(depth_m, focal)[members].sum())
+    return ImageCounts(kind, split, comp, dmg, bool(damage_in_rrdr), focal_mm, depth, widths,
+                       length, area)
+
+
+def _crack_length(root: Path, split: str, image: str) -> CrackLength | None:
+    """The labelled crack length and the photo's focal length of a frame, from the meta JSON
+    glsynth writes beside it; None where there is none or it lists no cracks (older runs)."""
+    stem = Path(image).name.removesuffix("_Scene.png")
+    path = root / "meta" / split / f"{stem}.json"
+    if not path.is_file():
+        return None
+    meta = json.loads(path.read_text())
+    if "cracks_in_view" not in meta:
+        return None
+    camera = meta["camera"]
+    return CrackLength(sum(c["labelled_length_m"] for c in meta["cracks_in_view"]),
+                       camera["K"][0][0], camera["width"])
 
 
 def read_image_counts(root: str | Path) -> list[ImageCounts]:
-    """Counts of every image a Tokaido-layout dataset lists, read from its files."""
+    """Counts of every image a Tokaido-layout dataset lists, read from its files; crack widths
+    and lengths where the dataset has crack-width maps and crack lists."""
     from PIL import Image
 
     root = Path(root)
@@ -93,9 +203,12 @@ def read_image_counts(root: str | Path) -> list[ImageCounts]:
     counts = []
     for split in ("train", "test"):
         for row in read_manifest(root, f"files_{split}.csv"):
+            widths = crack_width_path(row.damage)
             counts.append(image_counts("regular" if row.regular else "closeup", split,
                                        ids(row.component), ids(row.damage), ids(row.depth),
-                                       row.focal_mm, row.damage_in_rrdr))
+                                       row.focal_mm, row.damage_in_rrdr,
+                                       ids(widths) if (root / widths).is_file() else None,
+                                       _crack_length(root, split, row.image)))
         puretex = root / f"files_puretex_{split}.csv"
         if puretex.is_file():
             for row in read_manifest(root, puretex.name):
@@ -169,8 +282,24 @@ def dataset_statistics(images: list[ImageCounts],
         "edges_mm": list(FOCAL_EDGES_MM),
         "images": np.histogram(inside, bins=FOCAL_EDGES_MM)[0].tolist(),
         "outside": len(focals) - len(inside), "unknown": len(frames) - len(focals)}
+    stats.update(crack_statistics(frames))
     stats["paper"] = PAPER
     return stats
+
+
+def crack_statistics(frames: list[ImageCounts]) -> dict:
+    """The crack-width histogram over the frames with crack-width maps and the crack length
+    per m^2 of member surface over those with crack lists; None where no frame has them."""
+    with_widths = [i.crack_width for i in frames if i.crack_width is not None]
+    lengths = [(i.crack_length_m, i.member_area_m2) for i in frames
+               if i.crack_length_m is not None]
+    length, area = (float(np.sum(v)) for v in zip(*lengths)) if lengths else (0.0, 0.0)
+    return {"crack_width_histogram": {
+                "edges_mm": list(CRACK_WIDTH_EDGES_MM), "images": len(with_widths),
+                "pixels": np.sum(with_widths, axis=0).tolist() if with_widths else None},
+            "crack_length": None if not lengths else {
+                "images": len(lengths), "labelled_length_m": length, "member_area_m2": area,
+                "per_m2": _share(length, area)}}
 
 
 def _pct(value: float | None, digits: int = 1) -> str:
@@ -214,7 +343,24 @@ def statistics_table(stats: dict) -> str:
     outside = f" ({f['outside']} outside 15-55)" if f["outside"] else ""
     rows.append(("focal lengths [mm], per 5 mm from 15", "U[15, 55]",
                  " ".join(str(v) for v in f["images"]) + outside))
+    rows += _crack_rows(stats)
     return "\n".join(f"| {a} | {b} | {c} |" for a, b, c in rows) + "\n"
+
+
+def _crack_rows(stats: dict) -> list[tuple[str, str, str]]:
+    hist, length = stats["crack_width_histogram"], stats["crack_length"]
+    if hist["pixels"] is None:
+        widths = "no crack widths (no crackwidth maps)"
+    else:
+        edges = hist["edges_mm"]
+        widths = ", ".join(f"{lo:g}-{hi:g}: {n:,}" for lo, hi, n in
+                           zip(edges, edges[1:], hist["pixels"]) if n) or "no crack pixels"
+    per_m2 = "no crack lists (no meta cracks_in_view)" if length is None else (
+        f"{length['per_m2']:.3f} m/m^2 ({length['labelled_length_m']:.1f} m over "
+        f"{length['member_area_m2']:.1f} m^2)" if length["per_m2"] is not None else
+        "no member surface in view")
+    return [("crack-width pixels per bin [mm]", "not given", widths),
+            ("crack length per m^2 of column and beam surface in the RRDR", "not given", per_m2)]
 
 
 def statistics_figure(stats: dict, path: Path) -> None:
@@ -224,7 +370,7 @@ def statistics_figure(stats: dict, path: Path) -> None:
 
     from glsynth.core.plots import save_figure
 
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8), layout="constrained")
+    fig, axes = plt.subplots(2, 4, figsize=(20, 8), layout="constrained")
     ax = axes[0, 0]
     kinds = list(KINDS)
     ax.bar(kinds, [stats["images"][k] for k in kinds])
@@ -261,7 +407,25 @@ def statistics_figure(stats: dict, path: Path) -> None:
     f = stats["focal_histogram"]
     ax.bar(f["edges_mm"][:-1], f["images"], np.diff(f["edges_mm"]), align="edge")
     ax.set_xlabel("focal length [mm]"), ax.set_title("focal-length histogram")
+    _crack_axes(stats, axes[0, 3], axes[1, 3])
     save_figure(fig, path)
+
+
+def _crack_axes(stats: dict, widths, lengths) -> None:
+    """The crack-width histogram (one bar per bin) and the crack length per m^2, or what the
+    dataset lacks for them."""
+    hist = stats["crack_width_histogram"]
+    edges = hist["edges_mm"]
+    names = [f"{lo:g}-{hi:g}" for lo, hi in zip(edges, edges[1:])]
+    widths.bar(names, hist["pixels"] or [0] * len(names))
+    widths.tick_params(axis="x", labelrotation=90)
+    widths.set_xlabel("crack width [mm]"), widths.set_ylabel("pixels")
+    widths.set_title("crack widths: map pixels per bin" if hist["pixels"] is not None
+                     else "no crack widths")
+    (_, _, value), = _crack_rows(stats)[1:]
+    lengths.axis("off")
+    lengths.set_title("crack length per m^2 of column\nand beam surface in the RRDR")
+    lengths.text(0.5, 0.5, value, ha="center", va="center")
 
 
 def write_statistics(root: str | Path, out: str | Path) -> dict:

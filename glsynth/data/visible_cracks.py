@@ -1,0 +1,120 @@
+"""The cracks a rendered view shows, for its meta JSON (docs/design.md, "Crack ground truth").
+
+The renderer labels crack pixels and their widths but not which crack a pixel belongs to, so
+each crack's centreline is sampled here, every half pixel or finer, and projected into the
+view. A sample is labelled when it lands in the image in front of the near plane, the render's
+crack widths inside the RRDR (those the written map keeps) hold a crack within one pixel of it
+(a surface in front without cracks hides it, and cracks outside the RRDR are unlabelled), and
+the rendered depth there is the sample's own (a cracked surface in front hides it too). A crack
+is listed when at least one of its samples is labelled, with the length its labelled samples
+stand for and the number of pixels of the written 640x360 crack-width map that they mark.
+Pure numpy.
+"""
+
+import numpy as np
+
+from glsynth.appearance.cracks import CrackNetwork
+from glsynth.world.cameras import Camera
+from glsynth.world.environment import Part
+from glsynth.world.visibility import part_corners, seen_by
+
+SAMPLE_STEP_PX = 0.5
+"""Samples along a centreline, at most this many image pixels apart."""
+MAX_SAMPLES_PER_SEGMENT = 4096
+"""A bound for segments that reach behind the camera (their step is taken at the near
+plane); 4096 half pixels cover twice the image's width."""
+DEPTH_TOLERANCE = (0.02, 0.01)
+"""A sample is on the rendered surface when its depth is within 2 % + 1 cm of the depth there:
+on a face seen at 85 degrees the surface under a pixel spans about 1 % of the depth, and an
+occluding surface stands farther off than that."""
+
+
+def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points along every segment, in world coordinates (M, 3), the segment each lies on (M,)
+    and the length in metres each stands for (M,). A segment is cut into equal pieces at most
+    SAMPLE_STEP_PX long in the image (taken at its nearer end) and sampled at their middles."""
+    a = net.points[:, 0] @ pose[:3, :3].T + pose[:3, 3]
+    b = net.points[:, 1] @ pose[:3, :3].T + pose[:3, 3]
+    view = camera.view()
+    depth = -np.minimum(a @ view[2, :3], b @ view[2, :3]) - view[2, 3]
+    step_m = SAMPLE_STEP_PX * np.maximum(depth, camera.znear) / camera.fx
+    length = np.linalg.norm(b - a, axis=1)
+    n = np.clip(np.ceil(length / step_m), 1, MAX_SAMPLES_PER_SEGMENT).astype(np.int64)
+    segment = np.repeat(np.arange(len(n)), n)
+    t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[segment]
+    points = a[segment] + t[:, None] * (b - a)[segment]
+    return points, segment, (length / n)[segment]
+
+
+def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixel column and row (nearest pixel centre) and depth along the optical axis of world
+    points; columns and rows are -1 where the point is outside the image or before the near
+    plane."""
+    view = camera.view()
+    c = points @ view[:3, :3].T + view[:3, 3]
+    depth = -c[:, 2]
+    front = depth > camera.znear
+    safe = np.where(front, depth, 1.0)
+    k = camera.K
+    col = np.rint(k[0, 0] * c[:, 0] / safe + k[0, 2])
+    row = np.rint(k[1, 2] - k[1, 1] * c[:, 1] / safe)
+    inside = front & (col >= 0) & (col < camera.width) & (row >= 0) & (row < camera.height)
+    return (np.where(inside, col, -1).astype(np.int64),
+            np.where(inside, row, -1).astype(np.int64), depth)
+
+
+def near_crack(crack_width_mm: np.ndarray) -> np.ndarray:
+    """Pixels with a labelled crack within one pixel (the 3x3 neighbourhood), bool."""
+    cracked = np.pad(crack_width_mm > 0, 1)
+    h, w = crack_width_mm.shape
+    out = np.zeros((h, w), bool)
+    for dr in range(3):
+        for dc in range(3):
+            out |= cracked[dr:dr + h, dc:dc + w]
+    return out
+
+
+def member_cracks(records: list[dict], net: CrackNetwork, part: Part, camera: Camera,
+                  near: np.ndarray, depth_m: np.ndarray, written_code: np.ndarray,
+                  stride: int) -> list[dict]:
+    """The labelled cracks of one member: its dressing records (id, member, type, length and
+    widths) with ``labelled_length_m`` and ``pixels`` (of the written crack-width map, whose
+    pixels span ``stride`` x ``stride`` render pixels)."""
+    points, segment, weight = centreline_samples(net, part.pose, camera)
+    col, row, depth = project(points, camera)
+    on = col >= 0
+    rel, ab = DEPTH_TOLERANCE
+    on[on] = near[row[on], col[on]] & (
+        np.abs(depth[on] - depth_m[row[on], col[on]]) <= rel * depth[on] + ab)
+    crack = net.crack[segment]
+    listed = []
+    for record in records:
+        mine = on & (crack == record["id"])
+        if not mine.any():
+            continue
+        cells = np.unique((row[mine] // stride) * written_code.shape[1] + col[mine] // stride)
+        pixels = int(np.count_nonzero(written_code.ravel()[cells]))
+        listed.append({**record, "labelled_length_m": round(float(weight[mine].sum()), 4),
+                       "pixels": pixels})
+    return listed
+
+
+def visible_cracks(parts: list[Part], networks: dict[str, CrackNetwork],
+                   records: dict[str, list[dict]], camera: Camera, crack_width_mm: np.ndarray,
+                   depth_m: np.ndarray, written_code: np.ndarray, stride: int) -> list[dict]:
+    """Every crack the view labels, member by member in part order: ``networks`` and
+    ``records`` (the dressing's crack records) by part name; ``crack_width_mm`` (inside the
+    RRDR) and ``depth_m`` the render's full-size maps, ``written_code`` the crack-width map
+    written."""
+    cracked = [p for p in parts if p.name in networks]
+    if not cracked or not crack_width_mm.any():
+        return []
+    in_view = seen_by(np.stack([part_corners(p) for p in cracked]), camera)
+    near = near_crack(crack_width_mm)
+    listed = []
+    for part, seen in zip(cracked, in_view):
+        if seen:
+            listed += member_cracks(records[part.name], networks[part.name], part, camera,
+                                    near, depth_m, written_code, stride)
+    return listed
