@@ -20,6 +20,7 @@ from pathlib import Path
 
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
+from glsynth.data.quality import QUALITY
 from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import write_render
 from glsynth.view.camera import camera_json
@@ -40,7 +41,7 @@ Send = Callable[[dict | bytes], None]
 MOVING_WIDTHS = (192, 256, 320, 384, 480, 640)
 """The widths a moving camera's frames step through, to hold MOVING_FPS."""
 MOVING_FPS = 12.0
-VERDICT_AFTER_S = 1.0
+VERDICT_AFTER_S = 2.0
 """Verdicts (full-size renders) start this long after the last move."""
 
 
@@ -110,7 +111,8 @@ class RenderWorker:
             cid = next(self._ids)
             self._clients[cid] = Client(send)
             hello = self.scene.summary() if self.scene is not None else None
-        send({"type": "hello", "client": cid, "passes": self._passes()})
+        send({"type": "hello", "client": cid, "passes": self._passes(),
+              "qualities": list(QUALITY)})
         for message in (hello, self.loading):
             if message is not None:
                 send(message)
@@ -184,8 +186,8 @@ class RenderWorker:
         if self.scene is None:
             return None
         if self._lighting is not None:
-            values, self._lighting = self._lighting
-            return lambda: self._relight(*values)
+            lighting, self._lighting = self._lighting, None
+            return lambda: self._relight(*lighting)
         ids = sorted(self._clients)
         self._turn += 1
         ids = ids[self._turn % len(ids):] + ids[:self._turn % len(ids)] if ids else ids
