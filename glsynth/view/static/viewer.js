@@ -227,6 +227,7 @@ const handlers = {
   legend: (m) => showLegend(m.legend),
   inspect: (m) => {
     $("inspect").textContent = `pixel (${m.col}, ${m.row}): ${m.component}, damage ${m.damage}, depth ${m.depth_m.toFixed(3)} m, part ${m.part || "none (sky)"}`;
+    Object.assign($("inspect").dataset, { col: m.col, row: m.row });
     $("inspect").dataset.component = m.component; $("inspect").dataset.depth = m.depth_m; $("inspect").dataset.part = m.part || "";
   },
   saved: (m) => { $("saved").textContent = `saved ${m.folder}`; },
