@@ -8,6 +8,8 @@ sampled cameras' Section 3.4 verdicts are worked out one at a time. Results go b
 each client's ``send``, which must be safe to call from this thread.
 """
 
+import ctypes
+import gc
 import itertools
 import json
 import threading
@@ -261,10 +263,12 @@ class RenderWorker:
             return
         with self._lock:
             self.scene, self.loading = scene, None
+            previous = None
             for client in self._clients.values():
                 client.last = None
                 client.pending = client.pending or self._still(client)
         self._broadcast({**scene.summary(), "seconds": time.perf_counter() - t0})
+        return_free_memory()
 
     def _relight(self, values: dict[str, float], cid: int) -> None:
         try:
@@ -362,6 +366,16 @@ class RenderWorker:
                 return
             scene.verdicts[index] = verdict
         self._broadcast({"type": "verdict", "index": index, "verdict": verdict})
+
+
+def return_free_memory() -> None:
+    """Hand the heap that the last environment freed back to the system (glibc keeps it
+    otherwise), so that the RSS of a long session follows what it holds."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass  # not glibc: nothing to trim
 
 
 def pack_frame(header: dict, data: bytes) -> bytes:
