@@ -325,13 +325,13 @@ def add_view_parser(sub: Commands) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from glsynth.view.scene import SceneSettings
+    from glsynth.view.scene import SceneSettings, scene_config
     from glsynth.view.server import serve
 
-    if _config(args).render.renderer == "cycles":
-        raise UserError('the viewer renders with GL: set [render] renderer = "gl" in --config')
+    load_config(args.preset, args.config)  # its errors name the file
     text = Path(args.config).read_text(encoding="utf-8") if args.config else None
     settings = SceneSettings(args.preset, args.seed, args.env, args.quality, text)
+    scene_config(settings)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"glsynth view: listening on {args.host}: anyone who reaches it can render and "
               f"save views into {args.out}", file=sys.stderr)

@@ -212,3 +212,24 @@ def test_ctrl_c_stops_the_server_with_130(tmp_path):
     from viewhelpers import ViewServer
 
     assert ViewServer(tmp_path).stop() == 130
+
+
+def test_render_refuses_a_bad_camera_json_in_one_line_before_any_work(tmp_path, capsys):
+    from glsynth.cli import main
+
+    bad = tmp_path / "camera.json"
+    bad.write_text(json.dumps({"pose": (3 * POSE).tolist(), "focal_mm": 24.0}))
+    code = main(["render", "--preset", "demo", "--seed", "0", "--env", "0", "--camera-json",
+                 str(bad), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "orthonormal" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_view_refuses_a_cycles_config_before_it_serves(tmp_path, capsys):
+    from glsynth.cli import main
+
+    config = tmp_path / "cycles.toml"
+    config.write_text('[render]\nrenderer = "cycles"\n')
+    code = main(["view", "--config", str(config), "--port", "0", "--out", str(tmp_path)])
+    assert code == 2 and "renderer" in capsys.readouterr().err

@@ -53,6 +53,9 @@ def scene_config(settings: SceneSettings) -> Config:
         config = apply_quality(config, settings.quality)
     if settings.lighting is not None:
         config = with_lighting(config, settings.lighting)
+    if config.render.renderer != "gl":
+        raise UserError(f'[render] renderer = "{config.render.renderer}": the viewer draws '
+                        'with GL; set renderer = "gl"')
     return config
 
 

@@ -58,6 +58,8 @@ class Client:
     last: tuple[Camera, RenderOutput] | None = None
     """The last frame sent, for inspecting its pixels."""
     frames: int = 0
+    passes: list[str] = field(default_factory=list)
+    """The passes the page offers."""
 
 
 @dataclass
@@ -111,9 +113,9 @@ class RenderWorker:
     def add_client(self, send: Send) -> int:
         with self._lock:
             cid = next(self._ids)
-            self._clients[cid] = Client(send)
+            self._clients[cid] = client = Client(send, passes=self._passes())
             hello = self.scene.summary() if self.scene is not None else None
-        send({"type": "hello", "client": cid, "passes": self._passes(),
+        send({"type": "hello", "client": cid, "passes": client.passes,
               "qualities": list(QUALITY)})
         for message in (hello, self.loading):
             if message is not None:
@@ -306,7 +308,10 @@ class RenderWorker:
                                              and client.pending.moving):
                 return  # closed, or moved again: this still is stale
             name = client.pass_name
-        if name not in available_passes(output):
+        if available_passes(output) != client.passes:  # a renderer with more passes
+            client.passes = available_passes(output)
+            client.send({"type": "passes", "passes": client.passes, "current": name})
+        if name not in client.passes:
             self._error(cid, ValueError(f"pass {name}: this renderer does not draw it"))
             name = client.pass_name = "color"
         data, mime = encode(pass_image(name, output, camera.fx), still)

@@ -166,12 +166,12 @@ $("copy").onclick = () => {
   $("camera-json").value = text;
   if (navigator.clipboard) navigator.clipboard.writeText(text).catch(() => {});
 };
-function showPasses(passes) {
+function showPasses(passes, current = "color") {
   const box = $("passes"); box.textContent = "";
   for (const name of passes) {
     const label = document.createElement("label");
     label.innerHTML = `<input type="radio" name="pass" value="${name}"> ${name.replace("_", " ")}`;
-    label.firstChild.checked = name === "color";
+    label.firstChild.checked = name === current;
     label.firstChild.onchange = () => send({ type: "pass", name });
     box.appendChild(label);
   }
@@ -213,6 +213,7 @@ const handlers = {
     showPasses(m.passes); $("status").textContent = "connected";
     for (const q of m.qualities) $("quality").add(new Option(q, q));
   },
+  passes: (m) => showPasses(m.passes, m.current),
   progress: (m) => { $("progress").value = m.fraction; $("stage").textContent = `env ${m.env}: ${m.stage}`; },
   scene: (m) => {
     const first = !scene || scene.env !== m.env || scene.seed !== m.seed;
@@ -236,7 +237,11 @@ const handlers = {
 function connect() {
   ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = "arraybuffer";
-  ws.onmessage = (e) => (typeof e.data === "string" ? handlers[JSON.parse(e.data).type](JSON.parse(e.data)) : onFrame(e.data));
+  ws.onmessage = (e) => {
+    if (typeof e.data !== "string") return onFrame(e.data);
+    const message = JSON.parse(e.data);
+    handlers[message.type](message);
+  };
   ws.onclose = () => { $("status").textContent = "disconnected: reload the page once the server runs"; };
 }
 showLegend({});
