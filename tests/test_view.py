@@ -233,3 +233,24 @@ def test_view_refuses_a_cycles_config_before_it_serves(tmp_path, capsys):
     config.write_text('[render]\nrenderer = "cycles"\n')
     code = main(["view", "--config", str(config), "--port", "0", "--out", str(tmp_path)])
     assert code == 2 and "renderer" in capsys.readouterr().err
+
+
+def test_relighting_draws_what_opening_under_that_light_draws():
+    """Scene.relight (Renderer.relight, no upload) against a scene opened afresh under the
+    same fixed lighting: the same bytes."""
+    from glsynth.view.scene import SceneSettings, open_scene
+
+    settings = SceneSettings("demo", 0, 0, quality="preview")
+    values = {"sun_elevation_deg": 35.0, "sun_azimuth_deg": 80.0, "turbidity": 5.0,
+              "exposure": 1.5}
+    relit = open_scene(settings, None, lambda *_: None)
+    try:
+        relit.relight(values)
+        _, colour = relit.view.render(1)
+        assert relit.view.lighting.sun_azimuth_deg == 80.0
+        fresh = open_scene(SceneSettings("demo", 0, 0, quality="preview", lighting=values),
+                           relit.view.renderer, lambda *_: None)
+        _, expected = fresh.view.render(1)
+        assert np.array_equal(colour.color, expected.color)
+    finally:
+        relit.view.renderer.release()
