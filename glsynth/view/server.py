@@ -31,13 +31,18 @@ def _page_file(name: str) -> bytes:
 
 
 async def _pump(ws: WebSocket, outbox: asyncio.Queue) -> None:
-    """Send what the render thread queued for this page, in order."""
+    """Send what the render thread queued for this page, in order; of the frames queued
+    together only the newest goes (a slow connection shows the latest view, not a backlog)."""
     while True:
-        message = await outbox.get()
-        if isinstance(message, bytes):
-            await ws.send_bytes(message)
-        else:
-            await ws.send_json(message)
+        batch = [await outbox.get()]
+        while not outbox.empty():
+            batch.append(outbox.get_nowait())
+        newest = next((m for m in reversed(batch) if isinstance(m, bytes)), None)
+        for message in batch:
+            if message is newest:
+                await ws.send_bytes(message)
+            elif not isinstance(message, bytes):
+                await ws.send_json(message)
 
 
 def make_app(worker: RenderWorker) -> Starlette:

@@ -140,7 +140,7 @@ class RenderWorker:
                 client.pass_name = request.name
                 client.send({"type": "legend", "pass": request.name,
                              "legend": legend(request.name)})
-                client.pending = client.pending or self._still(client)
+                client.actions.append(request)
             elif isinstance(request, SceneRequest):
                 base = self._scene_request[0] if self._scene_request else self._settings()
                 self._scene_request = (replace(base, seed=request.seed, env=request.env,
@@ -307,7 +307,23 @@ class RenderWorker:
             if cid not in self._clients or (still and client.pending is not None
                                              and client.pending.moving):
                 return  # closed, or moved again: this still is stale
-            name = client.pass_name
+        self._send_frame(cid, client, camera, output, still, t0, rendered)
+        if not still:
+            self.pacer.measured(time.perf_counter() - t0)
+
+    def _repaint(self, cid: int, client: Client) -> None:
+        """A new pass of the last full-size frame, without rendering it again."""
+        with self._lock:
+            last = client.last
+            if last is None or last[0].width != self.scene.full_size[0]:
+                client.pending = client.pending or self._still(client)
+                return
+        self._send_frame(cid, client, *last, True, time.perf_counter(), 0.0)
+
+    def _send_frame(self, cid: int, client: Client, camera: Camera, output: RenderOutput,
+                    still: bool, t0: float, rendered: float) -> None:
+        """Encode the client's pass of ``output`` and send it with its header."""
+        name = client.pass_name
         if available_passes(output) != client.passes:  # a renderer with more passes
             client.passes = available_passes(output)
             client.send({"type": "passes", "passes": client.passes, "current": name})
@@ -315,8 +331,6 @@ class RenderWorker:
             self._error(cid, ValueError(f"pass {name}: this renderer does not draw it"))
             name = client.pass_name = "color"
         data, mime = encode(pass_image(name, output, camera.fx), still)
-        if not still:
-            self.pacer.measured(time.perf_counter() - t0)
         client.last = (camera, output)
         client.frames += 1
         header = {"type": "frame", "seq": client.frames, "still": still, "pass": name,
@@ -331,6 +345,8 @@ class RenderWorker:
                 client.send(self._inspect(client, action))
             elif isinstance(action, SaveRequest):
                 client.send(self._save(client))
+            elif isinstance(action, PassRequest):
+                self._repaint(cid, client)
         except UserError as err:
             self._error(cid, err)
 
