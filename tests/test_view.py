@@ -254,3 +254,26 @@ def test_relighting_draws_what_opening_under_that_light_draws():
         assert np.array_equal(colour.color, expected.color)
     finally:
         relit.view.renderer.release()
+
+
+def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages(tmp_path):
+    """The render thread's choice of job, without GL: each page's newest camera wins, moving
+    frames go before stills, and a closed page's pending frame is dropped."""
+    from glsynth.view.scene import SceneSettings
+    from glsynth.view.worker import RenderWorker
+
+    worker = RenderWorker(SceneSettings("demo", 0, 0), tmp_path)
+    worker._scene_request = None  # as if the scene were open
+    worker.scene = types.SimpleNamespace(cameras=[], verdicts={}, summary=lambda: {})
+    done = []
+    worker._frame = lambda cid, client, request: done.append((cid, request.focal_mm))
+    still, moving = worker.add_client(lambda m: None), worker.add_client(lambda m: None)
+    worker.submit(still, parse_message(camera_message(focal_mm=30.0, moving=False)))
+    for focal in (40.0, 41.0, 42.0):
+        worker.submit(moving, parse_message(camera_message(focal_mm=focal)))
+    while (job := worker._pick_job()) is not None:
+        job()
+    assert done == [(moving, 42.0), (still, 30.0)]
+    worker.submit(moving, parse_message(camera_message(focal_mm=50.0)))
+    worker.remove_client(moving)
+    assert worker._pick_job() is None
