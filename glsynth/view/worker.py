@@ -91,6 +91,8 @@ class RenderWorker:
         self._clients: dict[int, Client] = {}
         self._ids = itertools.count(1)
         self._turn = 0
+        self._wanted = settings
+        """The settings last asked for (the preset stays the command line's)."""
         self._scene_request: tuple[SceneSettings, int | None] | None = (settings, None)
         self._lighting: tuple[dict[str, float], int] | None = None
         self._lock = threading.Condition()
@@ -142,11 +144,10 @@ class RenderWorker:
                              "legend": legend(request.name)})
                 client.actions.append(request)
             elif isinstance(request, SceneRequest):
-                base = self._scene_request[0] if self._scene_request else self._settings()
-                self._scene_request = (replace(base, seed=request.seed, env=request.env,
-                                               quality=request.quality,
-                                               config_toml=request.config_toml,
-                                               lighting=None), cid)
+                self._wanted = replace(self._wanted, seed=request.seed, env=request.env,
+                                       quality=request.quality,
+                                       config_toml=request.config_toml, lighting=None)
+                self._scene_request = (self._wanted, cid)
             elif isinstance(request, LightingRequest):
                 self._lighting = (request.values, cid)
             else:
@@ -154,9 +155,6 @@ class RenderWorker:
             self._lock.notify_all()
 
     # --- the render thread -------------------------------------------------------------
-    def _settings(self) -> SceneSettings:
-        return self.scene.settings
-
     @staticmethod
     def _still(client: Client) -> CameraRequest | None:
         return replace(client.camera, moving=False) if client.camera else None
@@ -200,7 +198,7 @@ class RenderWorker:
                 job = self._client_job(cid, self._clients[cid], want)
                 if job is not None:
                     return job
-        # Verdicts wait for a second without moves: one is a full-size render.
+        # Verdicts wait for a pause in the moves: each is a full-size render.
         if self._clients and time.monotonic() - self._last_move > VERDICT_AFTER_S:
             todo = [i for i in range(len(self.scene.cameras)) if i not in self.scene.verdicts]
             return (lambda: self._verdict(todo[0])) if todo else None
@@ -233,7 +231,10 @@ class RenderWorker:
     def _error(self, cid: int | None, err: Exception) -> None:
         message = {"type": "error", "message": " ".join(str(err).split())}
         client = self._clients.get(cid) if cid is not None else None
-        client.send(message) if client is not None else self._broadcast(message)
+        if client is not None:
+            client.send(message)
+        else:
+            self._broadcast(message)
 
     def _progress(self, settings: SceneSettings) -> Callable[[str, float], None]:
         def report(stage: str, fraction: float) -> None:
