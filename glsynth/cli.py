@@ -211,9 +211,14 @@ def add_render_parser(sub: Commands) -> None:
     _add_config_args(p)
     _add_env_args(p)
     _add_quality_arg(p)
-    p.add_argument("--camera", type=non_negative_int, nargs="+", required=True,
-                   help="camera index: the [cameras] n_regular regular ones first, then the "
-                        "close-ups (paper preset: 0-49, 50-99); several make subfolders")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--camera", type=non_negative_int, nargs="+",
+                       help="camera index: the [cameras] n_regular regular ones first, then "
+                            "the close-ups (paper preset: 0-49, 50-99); several make "
+                            "subfolders")
+    which.add_argument("--camera-json", metavar="FILE",
+                       help="a camera placed by hand: JSON with pose (4x4 world-from-camera) "
+                            "and focal_mm, as glsynth view's 'copy camera' or a camera.json")
     _add_renderer_args(p)
     _add_blender_arg(p)
     p.add_argument("--out", required=True, help="output folder")
@@ -224,6 +229,8 @@ def cmd_render(args: argparse.Namespace) -> None:
     from glsynth.render.view import EnvironmentView, describe_output, write_render
 
     config = _config(args)
+    if args.camera_json:
+        return _render_camera_json(args, config)
     _check_cameras(config, args.camera)
     view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
     print(f"GL platform: {view.renderer.platform}")
@@ -250,6 +257,25 @@ def cmd_render(args: argparse.Namespace) -> None:
               f"{describe_output(output)}; rendered in {elapsed:.2f} s -> {out}")
 
 
+def _render_camera_json(args: argparse.Namespace, config: Config) -> None:
+    """render --camera-json: one camera placed anywhere, so every part is uploaded and every
+    column damaged (EnvironmentView.open's ``anywhere``); colour by GL."""
+    from glsynth.render.view import EnvironmentView, describe_output, write_render
+    from glsynth.view.camera import read_camera_json
+
+    if config.render.renderer == "cycles":
+        raise UserError("--camera-json renders with GL only; drop --renderer cycles")
+    camera = read_camera_json(args.camera_json, config)
+    view = EnvironmentView.open(config, args.seed, args.env, cull=False, anywhere=True)
+    t0 = time.perf_counter()
+    output = view.renderer.render(camera)
+    elapsed = time.perf_counter() - t0
+    write_render(args.out, camera, output, {"root_seed": args.seed, "env": args.env,
+                                            "renderer": "gl"})
+    print(f"camera {args.camera_json} (f = {camera.focal_mm:.1f} mm): "
+          f"{describe_output(output)}; rendered in {elapsed:.2f} s -> {args.out}")
+
+
 def add_preview_parser(sub: Commands) -> None:
     p = sub.add_parser("preview", help="low-resolution contact sheet of one environment")
     _add_config_args(p)
@@ -273,6 +299,49 @@ def cmd_preview(args: argparse.Namespace) -> None:
     print(f"cameras {cameras} at {config.render.width}x{config.render.height} "
           f"(colour | components | damage | depth) in {time.perf_counter() - t0:.1f} s "
           f"-> {args.out}")
+
+
+def port_number(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{value}: a port is 0 to 65535 (0: any free one)")
+    return value
+
+
+def add_view_parser(sub: Commands) -> None:
+    p = sub.add_parser("view", help="interactive preview in the browser: free camera, passes, "
+                                    "sampled cameras, lighting, inspect, save")
+    _add_config_args(p)
+    _add_env_args(p, required=False)
+    _add_quality_arg(p)
+    p.add_argument("--port", type=port_number, default=8080, help="default 8080")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1, this machine only); another "
+                        "lets anyone who reaches it render and save views (README)")
+    p.add_argument("--out", default="views",
+                   help="folder 'save view' writes view_NNN folders into (default ./views)")
+    # A preview: 'fast' holds 10 frames/s while moving on 2 CPU cores (docs/results.md).
+    p.set_defaults(func=cmd_view, quality="fast")
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    from glsynth.view.scene import SceneSettings, scene_config
+    from glsynth.view.server import serve
+
+    load_config(args.preset, args.config)  # its errors name the file
+    text = Path(args.config).read_text(encoding="utf-8") if args.config else None
+    settings = SceneSettings(args.preset, args.seed, args.env, args.quality, text)
+    scene_config(settings)
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"glsynth view: listening on {args.host}: anyone who reaches it can render and "
+              f"save views into {args.out}", file=sys.stderr)
+    try:
+        serve(settings, args.host, args.port, Path(args.out),
+              lambda url: print(f"glsynth view: open {url} (Ctrl-C stops)", flush=True))
+    except KeyboardInterrupt:
+        print("glsynth view: stopped", file=sys.stderr)
+        return 130
+    return 0
 
 
 def add_generate_parser(sub: Commands) -> None:
@@ -615,7 +684,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for add in (add_export_parser, add_histograms_parser, add_render_parser, add_preview_parser,
                 add_generate_parser, add_stats_parser, add_train_parser, add_evaluate_parser,
-                add_predict_parser, add_assess_parser, add_bench_parser, add_textures_parser):
+                add_predict_parser, add_assess_parser, add_bench_parser, add_textures_parser,
+                add_view_parser):
         add(sub)
     return parser
 

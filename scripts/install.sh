@@ -37,11 +37,20 @@ if [ -z "${GLSYNTH_NO_BLENDER:-}" ] && ! command -v blender >/dev/null; then
         >/dev/null 2>&1 || echo "note: could not install Blender; glsynth bench blender will skip"
 fi
 
+# Optional: Debian's Chromium and its WebDriver, for the viewer's browser tests (about 100 MB).
+# GLSYNTH_NO_CHROMIUM=1 skips it; without it those tests skip. Tried once, like Blender.
+if [ -z "${GLSYNTH_NO_CHROMIUM:-}" ] && ! command -v chromedriver >/dev/null; then
+    echo "installing Chromium (optional; GLSYNTH_NO_CHROMIUM=1 skips it)"
+    { apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium \
+        chromium-driver; } >/dev/null 2>&1 \
+        || echo "note: could not install Chromium; the viewer's browser tests will skip"
+fi
+
 [ -x .venv/bin/python ] || python3 -m venv .venv
 pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
 # torch first and pinned: a looser requirement would pull several GB of CUDA packages.
 "${pip[@]}" "torch==2.13.0"
-"${pip[@]}" -e ".[model,test,ray,bench]"
+"${pip[@]}" -e ".[model,test,ray,bench,view]"
 
 # The Khronos glTF validator (a test checks exported scenes with it), when npm is available.
 if command -v npm >/dev/null; then

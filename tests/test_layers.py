@@ -5,7 +5,8 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ["core", "world", "appearance", "render", "data", "assess", "measure", "model", "cli"]
+LAYERS = ["core", "world", "appearance", "render", "data", "assess", "measure", "view", "model",
+          "cli"]
 
 
 def _modules() -> dict[str, Path]:

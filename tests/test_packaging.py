@@ -27,7 +27,8 @@ def test_wheel_maps_shaders_textures_and_model(tmp_path):
                for p in (ROOT / "glsynth").rglob("*.py")}
     assert modules <= names, f"modules missing from the wheel: {sorted(modules - names)}"
     for required in ("glsynth/shaders/__init__.py", "glsynth/textures/__init__.py",
-                     "glsynth/model/__init__.py", "glsynth/cli.py"):
+                     "glsynth/model/__init__.py", "glsynth/cli.py",
+                     "glsynth/view/static/index.html", "glsynth/view/static/viewer.js"):
         assert required in names
     shader_sources = {p.name for p in (ROOT / "shaders").iterdir()
                       if p.suffix in {".vert", ".frag", ".glsl"}}

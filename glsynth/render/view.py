@@ -4,6 +4,7 @@ GL stays in glsynth.render.gl; this module only orchestrates: environment -> mat
 renderer -> files. Every output is written atomically.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
-from glsynth.world.cameras import CameraPlacement
+from glsynth.world.cameras import Camera, CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
 from glsynth.world.face_cameras import place_camera, place_cameras
 from glsynth.world.lighting import Lighting, environment_lighting
@@ -38,21 +39,27 @@ class EnvironmentView:
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
-             renderer: Renderer | None = None, cull: bool = True) -> "EnvironmentView":
+             renderer: Renderer | None = None, cull: bool = True, anywhere: bool = False,
+             progress: Callable[[str, float], None] | None = None) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
         renders the same bytes alone or in a batch, and the same as with ``cull=False``
-        (everything uploaded; for measuring)."""
+        (everything uploaded; for measuring). ``anywhere`` uploads every part and damages
+        every column, for cameras placed anywhere (glsynth view, render --camera-json).
+        ``progress(stage, fraction)`` hears of each stage."""
+        report = progress or (lambda stage, fraction: None)
         if renderer is not None:
             # Free the previous environment's textures (and the arrays behind them) before
             # dressing this one: a worker then peaks at one environment, not two.
             renderer.release_scene()
+        report("building the environment", 0.0)
         env = build_environment(config, root_seed, env_index)
         n_cameras = config.cameras.total
         cameras = [p.camera for p in place_cameras(env, config.cameras, config.render,
                                                      range(n_cameras))]
-        visible = visible_parts(env.parts, cameras)
+        visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
+        report("dressing: materials and damage", 0.3)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
         ground = ground_parts(env.parts)
@@ -60,9 +67,11 @@ class EnvironmentView:
             surface_albedo(ground, dressing.materials) if ground else None))
         needed = visible | shadowing_parts(env.parts, cameras, config.render, lighting)
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts
+        report("uploading to GL", 0.6)
         scene = build_scene(parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
         renderer.load(scene, lighting, occlusion_extent(env.parts))
+        report("ready", 1.0)
         return cls(config, env, dressing, scene, lighting, renderer)
 
     def camera(self, index: int) -> CameraPlacement:
@@ -75,16 +84,20 @@ class EnvironmentView:
         return placement, self.renderer.render(placement.camera, passes)
 
 
-def write_render(out_dir: str | Path, placement: CameraPlacement, output: RenderOutput,
-                 meta: dict) -> None:
+def write_render(out_dir: str | Path, placement: CameraPlacement | Camera,
+                 output: RenderOutput, meta: dict) -> None:
     """image.png, component.png, damage.png (uint8 ids), crack_width.npy (float32 mm, 0
-    where no crack is: RenderOutput.crack_width), depth.npy (float32), camera.json."""
+    where no crack is: RenderOutput.crack_width), depth.npy (float32), camera.json. A bare
+    Camera (placed by hand, not sampled) records kind "free" and no sampled values."""
     out = Path(out_dir)
     atomic_write_bytes(out / "image.png", png_bytes(output.color))
     atomic_write_bytes(out / "component.png", png_bytes(output.component))
     atomic_write_bytes(out / "damage.png", png_bytes(output.damage))
     atomic_write_bytes(out / "crack_width.npy", npy_bytes(output.crack_width))
     atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
+    if isinstance(placement, Camera):
+        atomic_write_json(out / "camera.json", {**placement.to_json(), "kind": "free", **meta})
+        return
     info = placement.camera.to_json()
     info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,
                 side=placement.side, distance_m=placement.distance_m,

@@ -39,7 +39,7 @@ runs the very programs it ran before.
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import moderngl
@@ -280,16 +280,43 @@ class Renderer:
 
     # --- targets, one builder per pass ------------------------------------------------------
     def _make_targets(self) -> None:
+        self._make_sky_map_targets()
+        self._make_shadow_targets()
+        self._make_sized_targets()
+
+    def _make_sized_targets(self) -> None:
+        """The targets whose size is the image's."""
         # The colour pass tests against the label pass's depth: they share its depth buffer.
         label_depth = self.ctx.depth_renderbuffer(self.size)
-        self._make_sky_map_targets()
         self._make_sky_visibility_targets()
-        self._make_shadow_targets()
         self._make_label_targets(label_depth)
         self._make_ao_targets()
         self._make_color_targets(label_depth)
         if self.config.msaa:
             self._make_msaa_targets()
+
+    def _sized_framebuffers(self) -> list[moderngl.Framebuffer]:
+        fbos = [self.sky_fbo, self.label_fbo, self.crack_fbo, self.label_crack_fbo,
+                self.ao_raw_fbo, self.ao_fbo, self.color_fbo]
+        return fbos + ([self.msaa_fbo, self.resolve_fbo] if self.config.msaa else [])
+
+    def resize(self, width: int, height: int) -> None:
+        """Render ``width`` x ``height`` images from now on, on the same context and with the
+        loaded scene (an interactive viewer alternates a small size while the camera moves
+        and the full one when it stops). The sky and shadow maps do not depend on it."""
+        if (width, height) == self.size:
+            return
+        self.make_current()
+        attachments: dict[int, moderngl.Texture | moderngl.Renderbuffer] = {}
+        for fbo in self._sized_framebuffers():
+            for target in (*fbo.color_attachments, fbo.depth_attachment):
+                if target is not None:
+                    attachments[id(target)] = target
+            fbo.release()
+        for target in attachments.values():
+            target.release()
+        self.size = (width, height)
+        self._make_sized_targets()
 
     def _nearest_texture(self, size: tuple[int, int], channels: int,
                          dtype: str = "f1") -> moderngl.Texture:
@@ -535,6 +562,20 @@ class Renderer:
             tex.release()
         self.ctx.release()
 
+    def relight(self, lighting: Lighting) -> None:
+        """Light the loaded scene by ``lighting`` instead: the same images as loading it again
+        under ``lighting``, without the upload (the sky maps' depth depends on no light; only
+        their weights do)."""
+        self.make_current()
+        self.lighting = lighting
+        self._set_lighting(lighting)
+        if self._sky_maps is not None:
+            self._sky_maps = replace(self._sky_maps,
+                                     weights=self._sky_weights(self._sky_maps.directions))
+
+    def _sky_weights(self, directions: np.ndarray) -> np.ndarray:
+        return np.maximum(self.lighting.sky_radiance(directions) @ LUMINANCE, 1e-6)
+
     def _set_lighting(self, lighting: Lighting) -> None:
         """The uniforms that stay the same for every camera of an environment: all of them
         from ``lighting`` (the SH ambient light, the sky, the sun's strength, the exposure)."""
@@ -574,10 +615,9 @@ class Renderer:
                 self.vis_fbo.viewport = (tx * px, ty * px, px, px)
                 self._draw_depth(light, self._draws)
         self.vis_fbo.viewport = (0, 0, *self.vis_map.size)
-        weights = self.lighting.sky_radiance(directions) @ LUMINANCE
         self._sky_maps = _SkyMaps(
             atlas_from_world=_atlas_from_clip(matrices, self.vis_tiles), directions=directions,
-            weights=np.maximum(weights, 1e-6),
+            weights=self._sky_weights(directions),
             texel_m=max(shadow_texel_m(m, px) for m in matrices))
 
     # --- one view ---------------------------------------------------------------------------

@@ -1,0 +1,137 @@
+"""The scene every page of one ``glsynth view`` shares: a config (preset, config text,
+quality, fixed lighting), one environment opened on the renderer, its sampled cameras and
+their Section 3.4 verdicts. Opening and relighting run on the render thread."""
+
+import dataclasses
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from glsynth.core.config import Config, config_from_dict, load_config
+from glsynth.core.errors import UserError
+from glsynth.data.filters import removal_reason
+from glsynth.data.quality import apply_quality
+from glsynth.render.gl.renderer import Renderer
+from glsynth.render.view import EnvironmentView
+from glsynth.view.pick import PartPicker
+from glsynth.view.protocol import LIGHTING_FIELDS
+from glsynth.world.cameras import CameraPlacement
+from glsynth.world.lighting import Lighting, environment_lighting
+
+
+@dataclass(frozen=True)
+class SceneSettings:
+    preset: str
+    seed: int
+    env: int
+    quality: str | None = None
+    config_toml: str | None = None
+    """Text of a config file overlaid on the preset (as ``--config`` overlays its file)."""
+    lighting: dict[str, float] | None = None
+    """Fixed values of LIGHTING_FIELDS; None: the environment's own draw."""
+
+
+def with_lighting(config: Config, values: dict[str, float]) -> Config:
+    """``config`` whose [lighting] ranges are fixed at ``values`` (what a TOML with
+    ``sun_elevation_deg = [v, v]`` and so on gives, so a saved view can be rendered again)."""
+    ranges = {k: [v, v] for k, v in values.items() if k != "exposure"}
+    return config_from_dict({"lighting": {**ranges, "exposure": values["exposure"]}}, config)
+
+
+def scene_config(settings: SceneSettings) -> Config:
+    """The config of ``settings``, or UserError (one line) before any work."""
+    config = load_config(settings.preset)
+    if settings.config_toml is not None:
+        try:
+            data = tomllib.loads(settings.config_toml)
+        except tomllib.TOMLDecodeError as err:
+            raise UserError(f"config file: not valid TOML: {err}") from None
+        config = config_from_dict(data, config)
+    if settings.quality:
+        config = apply_quality(config, settings.quality)
+    if settings.lighting is not None:
+        config = with_lighting(config, settings.lighting)
+    if config.render.renderer != "gl":
+        raise UserError(f'[render] renderer = "{config.render.renderer}": the viewer draws '
+                        'with GL; set renderer = "gl"')
+    return config
+
+
+def lighting_values(lighting: Lighting) -> dict[str, float]:
+    return {k: float(getattr(lighting, k)) for k in LIGHTING_FIELDS}
+
+
+def camera_summary(placement: CameraPlacement) -> dict:
+    """What the page lists of a sampled camera, with the pose it jumps to."""
+    return {"index": placement.index, "kind": placement.kind,
+            "focal_mm": placement.camera.focal_mm, "s_m": placement.s_m,
+            "side": placement.side, "distance_m": placement.distance_m,
+            "height_m": placement.height_m,
+            "euler_deg": [float(np.degrees(a)) for a in placement.euler_xyz_rad],
+            "pose": placement.camera.pose.tolist()}
+
+
+@dataclass
+class Scene:
+    settings: SceneSettings
+    config: Config
+    view: EnvironmentView
+    cameras: list[CameraPlacement]
+    picker: PartPicker
+    verdicts: dict[int, str] = field(default_factory=dict)
+    """Camera index -> "kept" or the Section 3.4 reason it is removed."""
+
+    @property
+    def full_size(self) -> tuple[int, int]:
+        return self.config.render.width, self.config.render.height
+
+    def summary(self) -> dict:
+        s = self.settings
+        return {"type": "scene", "preset": s.preset, "seed": s.seed, "env": s.env,
+                "quality": s.quality, "size": list(self.full_size),
+                "sensor_mm": self.config.cameras.sensor_mm,
+                "lighting": lighting_values(self.view.lighting),
+                "cameras": [camera_summary(p) for p in self.cameras],
+                "verdicts": {str(k): v for k, v in self.verdicts.items()}}
+
+    def relight(self, values: dict[str, float]) -> None:
+        """The same environment under fixed lighting ``values`` (UserError if out of range)."""
+        config = with_lighting(self.config, values)
+        env = self.view.environment
+        lighting = environment_lighting(config.lighting, env.root_seed, env.env_index,
+                                        ground_albedo=np.array(self.view.lighting.ground_albedo))
+        self.view.renderer.relight(lighting)
+        self.view.lighting = lighting
+        self.config = self.view.config = config
+        self.settings = dataclasses.replace(self.settings, lighting=dict(values))
+
+    def verdict(self, index: int) -> str:
+        """Camera ``index`` rendered at full size, through the Section 3.4 filters; the
+        renderer must be at the full size."""
+        _, output = self.view.render(index)
+        return removal_reason(output.color, output.component, output.depth) or "kept"
+
+
+def _same_targets(renderer: Renderer, config: Config) -> bool:
+    """Whether ``renderer`` was made for this [render] section, but for the image size."""
+    strip = {"width": 1, "height": 1}
+    return dataclasses.replace(renderer.config, **strip) == dataclasses.replace(config.render,
+                                                                                **strip)
+
+
+def open_scene(settings: SceneSettings, renderer: Renderer | None,
+               progress: Callable[[str, float], None]) -> Scene:
+    """Open ``settings``' environment on ``renderer`` (a new one if its [render] section
+    differs, the old one released first: one context at a time)."""
+    config = scene_config(settings)
+    if renderer is not None and not _same_targets(renderer, config):
+        renderer.release()
+        renderer = None
+    if renderer is not None:
+        renderer.resize(config.render.width, config.render.height)
+    view = EnvironmentView.open(config, settings.seed, settings.env, renderer, cull=False,
+                                anywhere=True, progress=progress)
+    cameras = [view.camera(i) for i in range(config.cameras.total)]
+    return Scene(settings, config, view, cameras, PartPicker(view.environment.parts))

@@ -1,0 +1,279 @@
+"""glsynth view: message checks, the camera JSON, pass images, picking, and the server over a
+real websocket (the browser tests are in test_view_browser.py)."""
+
+import contextlib
+import json
+import types
+
+import numpy as np
+import pytest
+import trimesh
+
+from glsynth.core.config import Config
+from glsynth.core.errors import UserError
+from glsynth.core.labels import Component
+from glsynth.core.palette import COMPONENT_RGB
+from glsynth.view.camera import camera_from_json, camera_json
+from glsynth.view.protocol import (
+    MAX_MESSAGE_BYTES,
+    CameraRequest,
+    SceneRequest,
+    parse_message,
+)
+from glsynth.world.cameras import Camera, euler_xyz
+from glsynth.world.environment import Part
+
+POSE = np.eye(4)
+POSE[:3, :3] = euler_xyz(1.4, 0.1, 0.3)
+POSE[:3, 3] = (10.0, -4.0, 6.0)
+
+
+def camera_message(**change) -> str:
+    message = {"type": "camera", "pose": POSE.tolist(), "focal_mm": 24.0, "moving": True}
+    return json.dumps({**message, **change})
+
+
+def test_a_camera_message_gives_its_pose_and_focal_length():
+    request = parse_message(camera_message())
+    assert isinstance(request, CameraRequest)
+    assert np.array_equal(request.pose, POSE) and request.focal_mm == 24.0 and request.moving
+
+
+@pytest.mark.parametrize("message, words", [
+    ("not json", "not JSON"),
+    (json.dumps({"type": "fly"}), "type is one of"),
+    (json.dumps({"type": "save", "path": "/etc/passwd"}), "unknown field(s) ['path']"),
+    (json.dumps({"type": "inspect", "x": 0.5}), "missing field(s) ['y']"),
+    (json.dumps({"type": "inspect", "x": 1.5, "y": 0.5}), "x = 1.5: must be in [0, 1]"),
+    (camera_message(focal_mm=1.0), "focal_mm = 1.0: must be in [4, 800]"),
+    (camera_message(focal_mm=float("nan")), "must be a finite number"),
+    (camera_message(pose=(2 * POSE).tolist()), "orthonormal"),
+    (camera_message(pose=[[1, 2], [3, 4]]), "4 rows of 4"),
+    (camera_message(moving="yes"), "moving = 'yes'"),
+    (json.dumps({"type": "pass", "name": "normals"}), "pass 'normals': choose one of"),
+    (json.dumps({"type": "scene", "seed": -1, "env": 0, "quality": None, "config_toml": None}),
+     "seed = -1"),
+    (json.dumps({"type": "scene", "seed": 0, "env": 0, "quality": "ultra", "config_toml": None}),
+     "quality = 'ultra'"),
+])
+def test_a_bad_message_is_refused_with_the_field_named(message, words):
+    with pytest.raises(UserError) as err:
+        parse_message(message)
+    assert words in str(err.value)
+
+
+def test_an_oversized_message_is_refused_before_it_is_parsed():
+    text = json.dumps({"type": "scene", "seed": 0, "env": 0, "quality": None,
+                       "config_toml": "#" * MAX_MESSAGE_BYTES})
+    with pytest.raises(UserError, match=f"at most {MAX_MESSAGE_BYTES}"):
+        parse_message(text)
+
+
+def test_a_scene_message_carries_config_text_not_a_path():
+    request = parse_message(json.dumps({"type": "scene", "seed": 3, "env": 1, "quality": "fast",
+                                        "config_toml": "[render]\nmsaa = 0\n"}))
+    assert request == SceneRequest(3, 1, "fast", "[render]\nmsaa = 0\n")
+
+
+def test_the_camera_json_round_trips_at_the_configs_size():
+    config = Config()
+    camera = Camera(config.render.width, config.render.height, 35.0, 36.0, POSE,
+                    config.render.znear_m, config.render.zfar_m)
+    again = camera_from_json(json.loads(json.dumps(camera_json(camera))), config)
+    assert np.array_equal(again.pose, camera.pose) and again.focal_mm == camera.focal_mm
+    assert (again.width, again.height, again.sensor_mm) == (camera.width, camera.height, 36.0)
+    with pytest.raises(UserError, match="pose .4x4 world-from-camera. and focal_mm"):
+        camera_from_json({"focal_mm": 35.0}, config)
+
+
+def test_the_pacer_steps_down_when_slow_and_up_when_fast():
+    from glsynth.view.worker import MOVING_FPS, Pacer
+
+    pacer = Pacer()
+    start = pacer.width()
+    pacer.measured(2.0 / MOVING_FPS)
+    assert pacer.width() < start
+    for _ in range(3):
+        pacer.measured(0.1 / MOVING_FPS)
+    assert pacer.width() > start
+
+
+def test_saves_go_to_new_numbered_folders_under_out(tmp_path):
+    from glsynth.view.worker import new_folder
+
+    (tmp_path / "view_000").mkdir()
+    made = [new_folder(tmp_path, "view") for _ in range(2)]
+    assert [m.name for m in made] == ["view_001", "view_002"]
+    assert all(m.parent == tmp_path and m.is_dir() for m in made)
+
+
+def test_the_picker_finds_the_nearest_part_and_its_axial_depth():
+    from glsynth.view.pick import PartPicker
+
+    def box(name, x):
+        pose = np.eye(4)
+        pose[:3, 3] = (x, 0.0, 0.0)
+        return Part(name, Component.COLUMN, 0, trimesh.creation.box((1.0, 1.0, 1.0)), pose)
+
+    # From the origin along world +x: camera x, y, z are world -y, +z, -x.
+    pose = np.eye(4)
+    pose[:3, :3] = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]]).T
+    camera = Camera(101, 101, 36.0, 36.0, pose, 0.05, 100.0)
+    hit = PartPicker([box("far", 10.0), box("near", 5.0)]).pick(camera, 50, 50)
+    assert hit.part == "near" and hit.depth_m == pytest.approx(4.5, abs=1e-9)
+    assert PartPicker([box("far", 10.0)]).pick(camera, 0, 0) is None
+
+
+def test_the_component_pass_is_the_palette_and_crack_width_needs_its_map():
+    from glsynth.view.frames import available_passes, legend, pass_image
+
+    ids = np.array([[1, 4], [2, 6]], np.uint8)
+    output = types.SimpleNamespace(component=ids, color=np.zeros((2, 2, 3), np.uint8))
+    assert np.array_equal(pass_image("component", output, 10.0), COMPONENT_RGB[ids])
+    assert "crack_width" not in available_passes(output)
+    with pytest.raises(ValueError, match="no crack widths"):
+        pass_image("crack_width", output, 10.0)
+    output.crack_width = np.array([[0.0, 0.3], [2.5, 0.0]], np.float32)
+    assert "crack_width" in available_passes(output)
+    image = pass_image("crack_width", output, 10.0)
+    assert image.shape == (2, 2, 3) and not np.array_equal(image[0, 1], image[1, 0])
+    assert [s["value"] for s in legend("depth")["scale"]][:2] == [0.5, 1.0]
+    assert legend("component")["swatches"][4] == {"label": "column", "rgb": [230, 25, 75]}
+
+
+# --- the server, over a real websocket -------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    from viewhelpers import ViewServer
+
+    running = ViewServer(tmp_path_factory.mktemp("views"))
+    try:
+        yield running
+    finally:
+        assert running.stop() == 130
+
+
+@contextlib.contextmanager
+def _connect(server):
+    """A page's websocket, once the scene is open, with the scene's summary."""
+    from viewhelpers import receive
+    from websockets.sync.client import connect
+
+    with connect(server.ws_url, max_size=None, open_timeout=30) as ws:
+        yield ws, receive(ws, "scene", timeout=180)
+
+
+def _camera(pose, focal_mm, moving=False) -> str:
+    return json.dumps({"type": "camera", "pose": pose, "focal_mm": focal_mm, "moving": moving})
+
+
+def test_a_bad_message_gets_an_error_and_the_server_keeps_rendering(server):
+    from viewhelpers import receive
+
+    with _connect(server) as (ws, scene):
+        ws.send("{\"type\": \"camera\", \"pose\": 3}")
+        assert "missing field(s) ['focal_mm', 'moving']" in receive(ws, "error")["message"]
+        ws.send(_camera(scene["cameras"][1]["pose"], scene["cameras"][1]["focal_mm"], True))
+        header, image = receive(ws, "frame")
+        assert not header["still"] and header["width"] < scene["size"][0] and image
+
+
+def test_two_pages_keep_their_own_cameras(server):
+    from viewhelpers import receive
+
+    with _connect(server) as (a, scene), _connect(server) as (b, _):
+        a.send(_camera(scene["cameras"][0]["pose"], 20.0))
+        b.send(_camera(scene["cameras"][0]["pose"], 60.0))
+        assert receive(a, "frame")[0]["focal_mm"] == 20.0
+        assert receive(b, "frame")[0]["focal_mm"] == 60.0
+
+
+def test_save_view_writes_renders_files_and_its_camera_renders_the_same(server, tmp_path):
+    import cv2
+    from viewhelpers import receive, render_camera_json
+
+    with _connect(server) as (ws, scene):
+        ws.send(_camera(scene["cameras"][2]["pose"], scene["cameras"][2]["focal_mm"]))
+        receive(ws, "frame")
+        ws.send(json.dumps({"type": "save"}))
+        saved = receive(ws, "saved")
+    folder = server.out / saved["folder"]
+    assert folder.parent == server.out
+    assert sorted(p.name for p in folder.iterdir()) == ["camera.json", "component.png",
+                                                        "damage.png", "depth.npy", "image.png"]
+    again = render_camera_json(json.loads((folder / "camera.json").read_text()), tmp_path)
+    for name in ("image.png", "component.png", "damage.png"):
+        assert np.array_equal(cv2.imread(str(folder / name)), cv2.imread(str(again / name))), name
+    assert np.array_equal(np.load(folder / "depth.npy"), np.load(again / "depth.npy"))
+
+
+def test_ctrl_c_stops_the_server_with_130(tmp_path):
+    from viewhelpers import ViewServer
+
+    assert ViewServer(tmp_path).stop() == 130
+
+
+def test_render_refuses_a_bad_camera_json_in_one_line_before_any_work(tmp_path, capsys):
+    from glsynth.cli import main
+
+    bad = tmp_path / "camera.json"
+    bad.write_text(json.dumps({"pose": (3 * POSE).tolist(), "focal_mm": 24.0}))
+    code = main(["render", "--preset", "demo", "--seed", "0", "--env", "0", "--camera-json",
+                 str(bad), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "orthonormal" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_view_refuses_a_cycles_config_before_it_serves(tmp_path, capsys):
+    from glsynth.cli import main
+
+    config = tmp_path / "cycles.toml"
+    config.write_text('[render]\nrenderer = "cycles"\n')
+    code = main(["view", "--config", str(config), "--port", "0", "--out", str(tmp_path)])
+    assert code == 2 and "renderer" in capsys.readouterr().err
+
+
+def test_relighting_draws_what_opening_under_that_light_draws():
+    """Scene.relight (Renderer.relight, no upload) against a scene opened afresh under the
+    same fixed lighting: the same bytes."""
+    from glsynth.view.scene import SceneSettings, open_scene
+
+    settings = SceneSettings("demo", 0, 0, quality="preview")
+    values = {"sun_elevation_deg": 35.0, "sun_azimuth_deg": 80.0, "turbidity": 5.0,
+              "exposure": 1.5}
+    relit = open_scene(settings, None, lambda *_: None)
+    try:
+        relit.relight(values)
+        _, colour = relit.view.render(1)
+        assert relit.view.lighting.sun_azimuth_deg == 80.0
+        fresh = open_scene(SceneSettings("demo", 0, 0, quality="preview", lighting=values),
+                           relit.view.renderer, lambda *_: None)
+        _, expected = fresh.view.render(1)
+        assert np.array_equal(colour.color, expected.color)
+    finally:
+        relit.view.renderer.release()
+
+
+def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages(tmp_path):
+    """The render thread's choice of job, without GL: each page's newest camera wins, moving
+    frames go before stills, and a closed page's pending frame is dropped."""
+    from glsynth.view.scene import SceneSettings
+    from glsynth.view.worker import RenderWorker
+
+    worker = RenderWorker(SceneSettings("demo", 0, 0), tmp_path)
+    worker._scene_request = None  # as if the scene were open
+    worker.scene = types.SimpleNamespace(cameras=[], verdicts={}, summary=lambda: {})
+    done = []
+    worker._frame = lambda cid, client, request: done.append((cid, request.focal_mm))
+    still, moving = worker.add_client(lambda m: None), worker.add_client(lambda m: None)
+    worker.submit(still, parse_message(camera_message(focal_mm=30.0, moving=False)))
+    for focal in (40.0, 41.0, 42.0):
+        worker.submit(moving, parse_message(camera_message(focal_mm=focal)))
+    while (job := worker._pick_job()) is not None:
+        job()
+    assert done == [(moving, 42.0), (still, 30.0)]
+    worker.submit(moving, parse_message(camera_message(focal_mm=50.0)))
+    worker.remove_client(moving)
+    assert worker._pick_job() is None

@@ -1,0 +1,65 @@
+"""A running ``glsynth view`` for the viewer's server and browser tests."""
+
+import json
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+VIEW_ARGS = ["--preset", "demo", "--quality", "fast", "--seed", "0", "--env", "0"]
+"""The scene of every viewer test: `glsynth render` with the same arguments draws it too."""
+
+
+class ViewServer:
+    """``glsynth view`` in a child process on a free port; ``stop()`` sends Ctrl-C."""
+
+    def __init__(self, out: Path, *extra: str) -> None:
+        self.out = out
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "glsynth.cli", "view", *VIEW_ARGS, "--port", "0", "--out",
+             str(out), *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        line = self.proc.stdout.readline()
+        found = re.search(r"(http://\S+/)", line)
+        if not found:
+            self.proc.kill()
+            raise AssertionError(f"glsynth view did not start: {line}{self.proc.stdout.read()}")
+        self.url = found.group(1)
+        self.ws_url = self.url.replace("http://", "ws://") + "ws"
+
+    def stop(self, timeout: float = 60.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            return self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            raise
+
+
+def receive(ws, want: str, timeout: float = 120.0) -> dict | tuple[dict, bytes]:
+    """The next message of type ``want`` (a frame comes as (header, image bytes)); others
+    are skipped."""
+    deadline = time.monotonic() + timeout
+    while True:
+        message = ws.recv(timeout=max(0.1, deadline - time.monotonic()))
+        if isinstance(message, bytes):
+            n = int.from_bytes(message[:4], "big")
+            header = json.loads(message[4:4 + n])
+            if want == "frame":
+                return header, message[4 + n:]
+        elif json.loads(message)["type"] == want:
+            return json.loads(message)
+
+
+def render_camera_json(camera: dict, folder: Path) -> Path:
+    """`glsynth render --camera-json` of ``camera`` into ``folder``, with the viewer tests'
+    scene."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "camera_in.json").write_text(json.dumps(camera))
+    subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *VIEW_ARGS,
+                    "--camera-json", str(folder / "camera_in.json"), "--out", str(folder)],
+                   check=True, capture_output=True, timeout=300)
+    return folder
