@@ -201,11 +201,13 @@ def test_save_view_writes_renders_files_and_its_camera_renders_the_same(server, 
     folder = server.out / saved["folder"]
     assert folder.parent == server.out
     assert sorted(p.name for p in folder.iterdir()) == ["camera.json", "component.png",
-                                                        "damage.png", "depth.npy", "image.png"]
+                                                        "crack_width.npy", "damage.png",
+                                                        "depth.npy", "image.png"]
     again = render_camera_json(json.loads((folder / "camera.json").read_text()), tmp_path)
     for name in ("image.png", "component.png", "damage.png"):
         assert np.array_equal(cv2.imread(str(folder / name)), cv2.imread(str(again / name))), name
-    assert np.array_equal(np.load(folder / "depth.npy"), np.load(again / "depth.npy"))
+    for name in ("depth.npy", "crack_width.npy"):
+        assert np.array_equal(np.load(folder / name), np.load(again / name)), name
 
 
 def test_ctrl_c_stops_the_server_with_130(tmp_path):
