@@ -34,7 +34,9 @@ Cracks (a material's CrackNetwork) are packed by glsynth.render.cracks_index int
 textures per part, uploaded with the scene, and evaluated in the fragment shader
 (shaders/cracks.glsl); the crack code is compiled only into the programs' crack variants
 (programs.VARIANTS), which only views and parts with cracks use, so a scene without cracks
-runs the very programs it ran before.
+runs the very programs it ran before. Likewise a material's damage zones (a spalled column's
+hinge zones) are drawn by the zone variants (#define SPALL), which confine its damage mask and
+damaged material to mesh-frame z intervals and show its intact concrete elsewhere.
 """
 
 from collections.abc import Callable, Iterator
