@@ -6,6 +6,7 @@ axis) and map each pixel back to its mesh-frame height through the depth pass; t
 checks measure areas on the column's faces."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -29,6 +30,7 @@ from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import clear_spans, dress, open_repository
 from glsynth.appearance.materials import DamageZones, Material
 from glsynth.core.config import Config, DamageConfig, MaterialsConfig
+from glsynth.core.fileio import jsonable
 from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.gl.renderer import Renderer
@@ -217,6 +219,8 @@ def test_dressing_spalls_medium_and_severe_seen_columns_in_their_hinge_zones(tmp
         zones = hinge_zones(mech.damage, clear_spans(env, part))
         assert built.zones.intervals == zones
         assert record["hinge_zones_m"] == [[round(z, 4) for z in zone] for zone in zones]
+        assert json.loads(json.dumps(jsonable(record)))["params"]["severity"] \
+            == record["severity"]
         assert built.cracks is materials.factors(part.name).cracks
         assert [{"member": part.name, **r} for r in crack_records(built.cracks)] \
             == record["cracks"]

@@ -210,7 +210,8 @@ class Assignment:
     damage: dict | None = None
     """For columns: {"damaged": bool, and if damaged severity, bank index, params}; under
     [damage] model = "mechanics", severity, drift and the crack list (id, member, type, length
-    in m, mean and maximum width in mm) instead of the bank's entry."""
+    in m, mean and maximum width in mm), and for a spalling (medium or severe) column the
+    bank's entry with its hinge zones."""
 
 
 def part_kind(name: str) -> str:
