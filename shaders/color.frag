@@ -9,7 +9,10 @@
 // depth, so each visible pixel is shaded once; under MSAA the shading normal goes to a second
 // target, for msaa.frag. The crack variant (#define CRACKS) darkens the reflected light by the
 // share of the pixel that the part's cracks cover (from the label pass, which drew this very
-// surface at this pixel), times u_crack_contrast.
+// surface at this pixel), times u_crack_contrast. The zone variant (#define SPALL) shows the
+// damage material only inside the part's zones and there only where the damage mask is
+// spalled or rebar (the filtered share u_spall_map), the intact concrete u_intact_map
+// elsewhere: no metal, no relief outside the zones.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -50,6 +53,14 @@ layout(location = 1) out vec4 f_normal;  // the shading normal, for msaa.frag
 #ifdef CRACKS
 uniform sampler2D u_crack;       // the label pass's (crack width mm, coverage) per pixel
 uniform float u_crack_contrast;  // the share of the reflected light a crack's cavity takes away
+#endif
+
+#ifdef SPALL
+in vec3 v_mesh_pos;
+uniform sampler2D u_intact_map;   // sRGB: the part's own concrete
+uniform sampler2D u_spall_map;    // R: 1 where the damage mask is 2 or 3, filtered
+uniform float u_intact_uv_ratio;  // the intact map's uv_scale over the damage material's
+#include "zones.glsl"
 #endif
 
 #include "tonemap.glsl"
@@ -153,6 +164,13 @@ Surface surface_at_fragment() {
     vec4 texel = texture(u_base_color_map, v_uv);
     vec4 base = u_base_color * vec4(srgb_to_linear(texel.rgb), 1.0);
     float metallic = clamp(u_metallic * texel.a, 0.0, 1.0);
+#ifdef SPALL
+    // Looked up everywhere and selected after: derivatives need uniform control flow.
+    float spalled = texture(u_spall_map, v_uv).r * float(in_zones(v_mesh_pos.z));
+    vec3 intact = srgb_to_linear(texture(u_intact_map, v_uv * u_intact_uv_ratio).rgb);
+    base.rgb = mix(intact, base.rgb, spalled);
+    metallic *= spalled;
+#endif
     return Surface(base.rgb, metallic, clamp(u_roughness, 0.04, 1.0),
                    mix(vec3(0.04), base.rgb, metallic));
 }
@@ -221,7 +239,14 @@ void main() {
     float sun = sun_visibility(n);       // by the mesh normal: the normal map only shades
     vec3 hidden;
     vec2 vis = sky_visibility(n, hidden);
+#ifdef SPALL
+    if (u_has_normal_map) {
+        vec3 relief = perturbed_normal(n);
+        n = in_zones(v_mesh_pos.z) ? relief : n;
+    }
+#else
     if (u_has_normal_map) n = perturbed_normal(n);
+#endif
     Surface s = surface_at_fragment();
     vec3 direct = sun_light(s, n, view_dir) * sun;
     vec3 ambient = ambient_light(s, n, view_dir, vis, hidden);

@@ -6,9 +6,14 @@
 // crack covers at the centre or whose footprint its centreline crosses as concrete damage
 // (exposed rebar stays) and writes to a second target the crack's width in millimetres (0
 // where no crack labels the pixel) and the share of the pixel that cracks cover, which the
-// colour pass darkens by; a draw without cracks (u_has_cracks false) writes 0 there.
+// colour pass darkens by; a draw without cracks (u_has_cracks false) writes 0 there. The zone
+// variant (#define SPALL, for parts whose damage material has zones) takes the damage mask only
+// inside the zones and 1 (no damage) outside; cracks still label on top.
 in vec3 v_view_pos;
 in vec2 v_uv;
+#if defined(CRACKS) || defined(SPALL)
+in vec3 v_mesh_pos;
+#endif
 
 uniform float u_component;
 uniform bool u_has_damage_mask;
@@ -16,8 +21,11 @@ uniform usampler2D u_damage_mask;
 
 layout(location = 0) out vec4 f_labels;
 
+#ifdef SPALL
+#include "zones.glsl"
+#endif
+
 #ifdef CRACKS
-in vec3 v_mesh_pos;
 uniform bool u_has_cracks;
 layout(location = 1) out vec2 f_crack;  // (width mm, coverage)
 #include "cracks.glsl"
@@ -26,6 +34,9 @@ layout(location = 1) out vec2 f_crack;  // (width mm, coverage)
 void main() {
     float damage = 1.0;
     if (u_has_damage_mask) damage = float(texture(u_damage_mask, v_uv).r);
+#ifdef SPALL
+    if (!in_zones(v_mesh_pos.z)) damage = 1.0;
+#endif
 #ifdef CRACKS
     vec3 dpdx = dFdx(v_mesh_pos), dpdy = dFdy(v_mesh_pos);
     CrackHit hit = CrackHit(0.0, 0.0, false);

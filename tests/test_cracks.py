@@ -268,7 +268,10 @@ def test_dressing_under_mechanics_puts_cracks_on_seen_damaged_columns(tmp_path):
         ra, rb, m = a.assignments[part.name].damage, b.assignments[part.name].damage, \
             b.materials[part.name]
         assert (ra["damaged"], ra.get("severity")) == (rb["damaged"], rb.get("severity"))
-        assert not b.materials.is_deferred(part.name) and m.damage_mask is None
+        # Medium and severe seen columns also spall in their hinge zones (test_spalling).
+        spalls = part.name in seen and rb.get("severity") in ("medium", "severe")
+        assert b.materials.is_deferred(part.name) == spalls
+        assert (m.damage_mask is not None) == spalls
         if not (rb["damaged"] and part.name in seen):
             assert m.cracks is None and "cracks" not in rb
             continue

@@ -132,6 +132,17 @@ def hinge_length_m(cfg: DamageConfig, shear_span_m: float) -> float:
     return cfg.hinge_span_factor * shear_span_m + strain_penetration_m(cfg)
 
 
+def hinge_zones(cfg: DamageConfig, spans: Sequence[tuple[float, float]]
+                ) -> tuple[tuple[float, float], ...]:
+    """The plastic-hinge zones [z0, z0 + Lp] and [z1 - Lp, z1] of each clear span (z0, z1),
+    Lp at most the shear span (a short span's two zones then meet at mid-span)."""
+    zones = []
+    for z0, z1 in spans:
+        lp = min(hinge_length_m(cfg, (z1 - z0) / 2), (z1 - z0) / 2)
+        zones += [(z0, z0 + lp), (z1 - lp, z1)]
+    return tuple(zones)
+
+
 def yield_curvature(cfg: DamageConfig, depth_m: float) -> float:
     """phi_y = 2.10 eps_y / h of a rectangular section (Priestley, Calvi and Kowalsky 2007)."""
     return YIELD_CURVATURE_FACTOR * cfg.fy_mpa / STEEL_MODULUS_MPA / depth_m

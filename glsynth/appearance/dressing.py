@@ -9,10 +9,12 @@ sampled damage record but is drawn with plain concrete, which no image can show.
 materials are deferred (glsynth.appearance.materials.Materials): built when asked for, so that
 the renderer holds one column's maps at a time, not the environment's.
 
-Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network instead
-(glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index) and
-no damage texture: spalling and exposed bars placed by mechanics are not built yet. Its
-severity is drawn as under "paper", so both models damage the same columns. Cross and tie
+Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network
+(glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index);
+a medium or severe one also gets its Section 3.3 damage texture (the bank entry and scale
+drawn as under "paper"), confined to the plastic-hinge zones at both ends of each clear span
+(Material.zones), its own concrete elsewhere. Its severity is drawn as under "paper", so both
+models damage the same columns. Cross and tie
 beams draw their severity, drift and cracks from the CRACKS stream (item = their index); the
 girders, swept along the track, get none yet.
 """
@@ -30,10 +32,12 @@ from glsynth.appearance.cracks import (
     column_cracks,
     column_demand,
     crack_records,
+    hinge_zones,
 )
 from glsynth.appearance.damage_bank import DamageBank, damage_factors
 from glsynth.appearance.materials import (
     Assignment,
+    DamageZones,
     Material,
     Materials,
     part_kind,
@@ -160,6 +164,39 @@ def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: 
     return record, replace(material, cracks=cracks)
 
 
+def spalls(severity: str) -> bool:
+    """Under mechanics, medium and severe columns spall in their hinge zones; slight ones
+    only crack (docs/design.md, "Damage by mechanics")."""
+    return severity in ("medium", "severe")
+
+
+def spalled_material(bank: DamageBank, repository: TextureRepository, damage: dict,
+                     cracked: Material, zones: tuple[tuple[float, float], ...]) -> Material:
+    """The bank's damage material of ``damage`` (severity, bank index, scale) with the
+    cracks of ``cracked`` (the column's concrete material), confined to ``zones``; the
+    concrete of ``cracked`` outside them."""
+    built = bank.material(damage["severity"], damage["bank_index"], repository,
+                          damage["scale"])
+    return replace(built, cracks=cracked.cracks,
+                   zones=DamageZones(zones, cracked.base_color_map, cracked.uv_scale))
+
+
+def _spalling(env: Environment, config: Config, bank: DamageBank,
+              repository: TextureRepository, part: Part, damage: dict, record: dict,
+              material: Material) -> tuple[dict, tuple[Material, Callable[[], Material]]]:
+    """A spalling column's record (the bank entry and its hinge zones added) and deferred
+    material: the factors, and the function that builds the maps."""
+    key = (damage["severity"], damage["bank_index"])
+    params, images = bank.record(*key, repository)
+    zones = hinge_zones(config.damage, clear_spans(env, part))
+    record = {**record, "bank_index": damage["bank_index"], "scale": damage["scale"],
+              "params": params, "images": list(images),
+              "hinge_zones_m": [[round(z, 4) for z in zone] for zone in zones]}
+    factors = replace(damage_factors(config.damage, damage["scale"]), cracks=material.cracks)
+    build = functools.partial(spalled_material, bank, repository, damage, material, zones)
+    return record, (factors, build)
+
+
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
           visible: set[str]) -> Dressing:
     cfg = config.materials
@@ -188,8 +225,12 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             if damage["damaged"]:
                 damage["built"] = part.name in visible
                 if config.damage.model == "mechanics":
+                    sampled = damage
                     damage, material = _mechanics_damage(env, config.damage, part, ordinal,
-                                                         damage, material)
+                                                         sampled, material)
+                    if damage["built"] and spalls(damage["severity"]):
+                        damage, deferred[part.name] = _spalling(
+                            env, config, bank, repository, part, sampled, damage, material)
                 elif damage["built"]:
                     key = (damage["severity"], damage["bank_index"])
                     params, images = bank.record(*key, repository)

@@ -1,12 +1,13 @@
-"""Materials: metallic-roughness PBR parameters and maps, plus an optional damage-id mask and
-crack network.
+"""Materials: metallic-roughness PBR parameters and maps, plus an optional damage-id mask,
+crack network and damage zones.
 
 Maps are numpy arrays: base colour and emissive (H, W, 3) uint8 sRGB; metallic (H, W) uint8,
 multiplying ``metallic`` (255: the factor); normal (H, W, 3) uint8 tangent space; damage mask
 (H, W) uint8 damage ids. Cracks are a CrackNetwork in the part's mesh frame. No material varies
 its roughness over the surface, so there is no roughness map (the glTF export writes the
 metallic map in glTF's packing). ``uv_scale`` multiplies the mesh UVs (metres), so a map
-repeats every 1 / uv_scale metres.
+repeats every 1 / uv_scale metres. Damage zones confine a damage material's maps to
+intervals along the member's axis and show the member's intact concrete elsewhere.
 """
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -19,6 +20,46 @@ from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.world.environment import Part
+
+MAX_ZONES = 4
+"""Damage zones a material may have: the hinge zones at both ends of a column's two clear
+spans (the renderer's uniform arrays hold this many)."""
+
+
+@dataclass(frozen=True, eq=False)
+class DamageZones:
+    """Where a damage material's maps apply: mesh-frame z intervals (the member's axis), the
+    hinge zones of docs/design.md "Damage by mechanics". Outside them the surface is the
+    member's intact concrete: ``intact_map`` repeating every 1 / intact_uv_scale metres, no
+    metal, no relief, no damage id."""
+
+    intervals: tuple[tuple[float, float], ...]
+    """(z0, z1) with z0 < z1, at most MAX_ZONES; a point is inside where z0 <= z <= z1."""
+    intact_map: np.ndarray
+    """(H, W, 3) uint8 sRGB: the member's own concrete image."""
+    intact_uv_scale: float
+
+    def __post_init__(self) -> None:
+        spans = self.intervals
+        if not (isinstance(spans, tuple) and 0 < len(spans) <= MAX_ZONES
+                and all(len(s) == 2 and np.isfinite(s).all() and s[0] < s[1] for s in spans)):
+            raise ValueError(f"DamageZones.intervals = {spans!r}: 1 to {MAX_ZONES} finite "
+                             "(z0, z1) with z0 < z1")
+        m = self.intact_map
+        if not (isinstance(m, np.ndarray) and m.dtype == np.uint8 and m.ndim == 3
+                and m.shape[2] == 3):
+            raise ValueError("DamageZones.intact_map: must be uint8 (H, W, 3)")
+        if not (np.isfinite(self.intact_uv_scale) and self.intact_uv_scale > 0):
+            raise ValueError(f"DamageZones.intact_uv_scale = {self.intact_uv_scale!r}: "
+                             "must be > 0")
+
+    def contains(self, z: np.ndarray) -> np.ndarray:
+        """Whether each mesh-frame z lies in some interval (as the shaders test it)."""
+        z = np.asarray(z)
+        inside = np.zeros(z.shape, bool)
+        for z0, z1 in self.intervals:
+            inside |= (z >= z0) & (z <= z1)
+        return inside
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,8 +77,14 @@ class Material:
     damage_mask: np.ndarray | None = None
     cracks: CrackNetwork | None = None
     """Cracks on the part's surface, in its mesh frame (glsynth.appearance.cracks)."""
+    zones: DamageZones | None = None
+    """Confines the maps and damage mask to these zones (needs a damage mask)."""
 
     def __post_init__(self) -> None:
+        if self.zones is not None and (not isinstance(self.zones, DamageZones)
+                                       or self.damage_mask is None):
+            raise ValueError("material.zones: a DamageZones, on a material with a damage "
+                             "mask")
         if self.cracks is not None and not isinstance(self.cracks, CrackNetwork):
             raise ValueError(f"material.cracks: {type(self.cracks).__name__}; must be a "
                              "CrackNetwork or None")
@@ -163,7 +210,8 @@ class Assignment:
     damage: dict | None = None
     """For columns: {"damaged": bool, and if damaged severity, bank index, params}; under
     [damage] model = "mechanics", severity, drift and the crack list (id, member, type, length
-    in m, mean and maximum width in mm) instead of the bank's entry."""
+    in m, mean and maximum width in mm), and for a spalling (medium or severe) column the
+    bank's entry with its hinge zones."""
 
 
 def part_kind(name: str) -> str:

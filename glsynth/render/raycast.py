@@ -2,7 +2,8 @@
 
 Depth is the hit's distance along the optical axis, the component that of the part hit, and
 the damage id the part's damage mask at the hit's interpolated UV, sampled as GL samples it
-(nearest texel, repeating, UV (0, 0) at the image's bottom-left corner). Used by the test
+(nearest texel, repeating, UV (0, 0) at the image's bottom-left corner), and 1 outside the
+material's damage zones where it has them (cracks are not cast). Used by the test
 suite and by ``glsynth bench quality`` as the accuracy reference of the rasterizer.
 """
 
@@ -82,7 +83,12 @@ def ray_cast(parts: Sequence[Part], materials: Mapping[str, Material],
         bary = trimesh.triangles.points_to_barycentric(scene.triangles[tri[hits]], loc[hits])
         face_uv = part.mesh.visual.uv[part.mesh.faces[tri[hits] - first_face[i]]]
         uv = np.einsum("nk,nkj->nj", bary, face_uv)
-        damage[ray[hits]] = mask_lookup(material.damage_mask, uv * material.uv_scale)
+        ids = mask_lookup(material.damage_mask, uv * material.uv_scale)
+        if material.zones is not None:
+            local = np.einsum("nk,nkj->nj", bary,
+                              part.mesh.vertices[part.mesh.faces[tri[hits] - first_face[i]]])
+            ids = np.where(material.zones.contains(local[:, 2]), ids, Damage.NO_DAMAGE)
+        damage[ray[hits]] = ids
     h, w = camera.height, camera.width
     return RayCastTruth(component=comp.reshape(h, w), damage=damage.reshape(h, w),
                         depth=depth.reshape(h, w).astype(np.float32))

@@ -16,9 +16,11 @@ PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "label
             "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
             "ssao": ("fullscreen.vert", "ssao.frag"),
             "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}
-VARIANTS = {"color_cracks": ("color", "CRACKS"), "labels_cracks": ("labels", "CRACKS")}
-"""Variant name -> (program, the macro it defines): compile-time variants, so that draws
-without cracks run the programs without any crack code."""
+VARIANTS = {f"{base}{suffix}": (base, macros) for base in ("color", "labels")
+            for suffix, macros in (("_cracks", ("CRACKS",)), ("_spall", ("SPALL",)),
+                                   ("_cracks_spall", ("CRACKS", "SPALL")))}
+"""Variant name -> (program, the macros it defines): compile-time variants, so that draws
+without cracks or damage zones run the programs without any crack or zone code."""
 _INCLUDE = re.compile(r'^#include "([\w.]+)"$', re.MULTILINE)
 
 
@@ -32,22 +34,29 @@ def shader_source(name: str) -> str:
     return _INCLUDE.sub(lambda m: shader_source(m.group(1)), path.read_text(encoding="utf-8"))
 
 
-def with_define(source: str, macro: str) -> str:
-    """``source`` with ``#define macro`` after its #version line (which must come first)."""
+def with_define(source: str, *macros: str) -> str:
+    """``source`` with ``#define macro`` for each of ``macros`` after its #version line (which
+    must come first)."""
     version, rest = source.split("\n", 1)
-    return f"{version}\n#define {macro}\n{rest}"
+    defines = "".join(f"#define {macro}\n" for macro in macros)
+    return f"{version}\n{defines}{rest}"
+
+
+def variant(base: str, cracks: bool, spall: bool) -> str:
+    """The name of program ``base`` ("color" or "labels") with crack and zone code as asked."""
+    return base + "_cracks" * cracks + "_spall" * spall
 
 
 def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:
     """Compile every program and variant for one context (a GLSL error names the files that
     failed)."""
-    builds = {name: (vert, frag, None) for name, (vert, frag) in PROGRAMS.items()}
-    builds |= {name: (*PROGRAMS[base], macro) for name, (base, macro) in VARIANTS.items()}
+    builds = {name: (vert, frag, ()) for name, (vert, frag) in PROGRAMS.items()}
+    builds |= {name: (*PROGRAMS[base], macros) for name, (base, macros) in VARIANTS.items()}
     programs = {}
-    for name, (vert, frag, macro) in builds.items():
+    for name, (vert, frag, macros) in builds.items():
         sources = [shader_source(vert), shader_source(frag)]
-        if macro is not None:
-            sources = [with_define(source, macro) for source in sources]
+        if macros:
+            sources = [with_define(source, *macros) for source in sources]
         try:
             programs[name] = ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
         except moderngl.Error as err:

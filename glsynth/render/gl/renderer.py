@@ -34,7 +34,9 @@ Cracks (a material's CrackNetwork) are packed by glsynth.render.cracks_index int
 textures per part, uploaded with the scene, and evaluated in the fragment shader
 (shaders/cracks.glsl); the crack code is compiled only into the programs' crack variants
 (programs.VARIANTS), which only views and parts with cracks use, so a scene without cracks
-runs the very programs it ran before.
+runs the very programs it ran before. Likewise a material's damage zones (a spalled column's
+hinge zones) are drawn by the zone variants (#define SPALL), which confine its damage mask and
+damaged material to mesh-frame z intervals and show its intact concrete elsewhere.
 """
 
 from collections.abc import Callable, Iterator
@@ -46,13 +48,13 @@ import moderngl
 import numpy as np
 import pyrender
 
-from glsynth.appearance.materials import Material, built_in_order, srgb_decode
+from glsynth.appearance.materials import MAX_ZONES, Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import create_context
-from glsynth.render.gl.programs import compile_programs
+from glsynth.render.gl.programs import VARIANTS, compile_programs, variant
 from glsynth.render.scene import PartInfo, RenderScene
 from glsynth.world.cameras import Camera
 from glsynth.world.lighting import (
@@ -78,6 +80,9 @@ _ATTRIBUTES = {"color": ("3f 3f 2f", "in_position", "in_normal", "in_uv"),
                "sky_visibility": ("3f 3f 8x", "in_position", "in_normal")}
 """The vertex layout and attributes each mesh program reads of (position, normal, uv)."""
 _CRACK_SAMPLERS = ("u_crack_segments", "u_crack_cells", "u_crack_entries")
+_SPALL_UNITS = {"u_intact_map": 9, "u_spall_map": 10}
+"""The zone variant's colour samplers (units 0-8 hold the colour pass's other inputs)."""
+_COLOR_PROGRAMS = ("color", *(name for name, (base, _) in VARIANTS.items() if base == "color"))
 _CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
 
 
@@ -115,6 +120,30 @@ class CrackTextures:
         prog["u_crack_dims"].value = self.index.dims
 
 
+@dataclass(frozen=True, eq=False)
+class ZoneUniforms:
+    """A part's damage zones (glsynth.appearance.materials.DamageZones) as its programs'
+    zone variants read them."""
+    zones: bytes
+    """MAX_ZONES (z0, z1) float32 pairs, zero-padded."""
+    count: int
+    intact_uv_ratio: float
+    """The intact map's uv_scale over the damage material's (the part's UVs carry the
+    latter)."""
+
+    def set(self, prog: moderngl.Program) -> None:
+        prog["u_zones"].write(self.zones)
+        prog["u_zone_count"].value = self.count
+
+
+def zone_uniforms(material: Material) -> ZoneUniforms:
+    zones = material.zones
+    pairs = np.zeros((MAX_ZONES, 2), np.float32)
+    pairs[:len(zones.intervals)] = zones.intervals
+    return ZoneUniforms(pairs.tobytes(), len(zones.intervals),
+                        zones.intact_uv_scale / material.uv_scale)
+
+
 @dataclass
 class _Draw:
     name: str
@@ -134,6 +163,15 @@ class _Draw:
     corners: np.ndarray
     """(8, 3) world-space corners of the box, for the frustum tests."""
     cracks: CrackTextures | None = None
+    zones: ZoneUniforms | None = None
+    """Where the part's damage material applies (textures "intact" and "spall" with it)."""
+
+    def program(self, base: str, view_has_cracks: bool) -> str:
+        """The variant of ``base`` that draws this part: with crack code in a view with
+        cracks (labels) or for a part with cracks (colour), with zone code for a part with
+        zones."""
+        cracks = view_has_cracks if base == "labels" else self.cracks is not None
+        return variant(base, cracks, self.zones is not None)
 
 
 @dataclass(frozen=True)
@@ -471,10 +509,10 @@ class Renderer:
                 # Built for this upload: its maps go now, one column's at a time.
                 self._detach(material)
         if any(d.cracks is not None for d in self._draws):
-            # A view with cracks draws every part's labels through the crack variant.
+            # A view with cracks draws every part's labels through a crack variant.
             for draw in self._draws:
-                draw.vaos["labels_cracks"] = self._vertex_array(
-                    "labels_cracks", draw.buffers[0], draw.buffers[1])
+                name = draw.program("labels", True)
+                draw.vaos[name] = self._vertex_array(name, draw.buffers[0], draw.buffers[1])
         # Kept textures of earlier scenes that this one does not draw.
         self._free_textures(lambda key, _: key in self._used)
         self._bake_sky_visibility(extent)
@@ -495,10 +533,17 @@ class Renderer:
         cracks = None
         if material.cracks is not None:
             cracks = upload_cracks(self.ctx, pack_cracks(material.cracks))
-            vaos["color_cracks"] = self._vertex_array("color_cracks", vbo, reversed_ibo)
         textures = {slot: self._upload_texture(array) for slot, array in (
             ("emissive", material.emissive_map), ("normal", material.normal_map))
             if array is not None}
+        zones = None
+        if material.zones is not None:
+            zones = zone_uniforms(material)
+            textures |= self._zone_textures(material)
+            vaos["labels_spall"] = self._vertex_array("labels_spall", vbo, ibo)
+        if material.cracks is not None or zones is not None:
+            name = variant("color", material.cracks is not None, zones is not None)
+            vaos[name] = self._vertex_array(name, vbo, reversed_ibo)
         base = self._base_texture(material)
         if base is not None:
             textures["base"] = base
@@ -510,14 +555,23 @@ class Renderer:
                      component=float(info.component), damage_mask=mask,
                      center=pose[:3, :3] @ box.mean(0) + pose[:3, 3],
                      radiance=_emitted(material), corners=box_corners(box, pose),
-                     cracks=cracks)
+                     cracks=cracks, zones=zones)
+
+    def _zone_textures(self, material: Material) -> dict[str, moderngl.Texture]:
+        """The zone variant's textures: the intact concrete (a repository image, cached like
+        any map) and the share of each texel that is spalled or rebar, from the damage mask
+        (the scene owns it)."""
+        spalled = np.where(material.damage_mask >= Damage.CONCRETE, np.uint8(255), np.uint8(0))
+        spall = self._make_texture(texture_data(spalled))
+        self._scene_textures.append(spall)
+        return {"intact": self._upload_texture(material.zones.intact_map), "spall": spall}
 
 
     def _vertex_array(self, program: str, vbo: moderngl.Buffer,
                       indices: moderngl.Buffer) -> moderngl.VertexArray:
         """A primitive's vertex array for ``program``, reading the attributes it needs from
         the interleaved position, normal and uv."""
-        layout, *names = _ATTRIBUTES[program.removesuffix("_cracks")]
+        layout, *names = _ATTRIBUTES[VARIANTS[program][0] if program in VARIANTS else program]
         return self.ctx.vertex_array(self.programs[program], [(vbo, layout, *names)], indices,
                                      4)
 
@@ -582,12 +636,14 @@ class Renderer:
         sky = self.programs["sky"]
         sky["u_exposure"].value = lighting.exposure
         sky_sh, ground_sh = lighting.irradiance_sh()
-        for color in (self.programs["color"], self.programs["color_cracks"]):
+        for name in _COLOR_PROGRAMS:
+            color = self.programs[name]
             color["u_exposure"].value = lighting.exposure
             color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
             color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
             color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
-        self.programs["color_cracks"]["u_crack_contrast"].value = CRACK_CONTRAST
+            if "_cracks" in name:
+                color["u_crack_contrast"].value = CRACK_CONTRAST
         sky["u_sky_model"].value = 0 if lighting.sky == "preetham" else 1
         sky["u_sky_strength"].value = lighting.sky_strength
         sky["u_sky_uniform"].value = tuple(lighting.sky_strength * np.array(lighting.sky_rgb))
@@ -750,22 +806,25 @@ class Renderer:
         variant, which also writes crack_target (a part without cracks writes 0)."""
         cracked = any(item.draw.cracks is not None for item in placed)
         self._view_has_cracks = cracked
-        name = "labels_cracks" if cracked else "labels"
-        prog = self.programs[name]
+        names = {item.draw.program("labels", cracked) for item in placed}
         self.label_fbo.use()
         self.label_fbo.clear(float(Component.NONBRIDGE), float(Damage.NO_DAMAGE),
                              camera.zfar, 0.0)
         if cracked:
             self.crack_fbo.clear(0.0, 0.0)
             self.label_crack_fbo.use()
-            # Samplers of different types may not share a unit, even unread.
-            for unit, sampler in enumerate(_CRACK_SAMPLERS, start=1):
-                prog[sampler].value = unit
-        prog["u_projection"].write(_gl_matrix(camera.projection()))
-        prog["u_damage_mask"].value = 0
+        for prog in (self.programs[name] for name in names):
+            if cracked:
+                # Samplers of different types may not share a unit, even unread.
+                for unit, sampler in enumerate(_CRACK_SAMPLERS, start=1):
+                    prog[sampler].value = unit
+            prog["u_projection"].write(_gl_matrix(camera.projection()))
+            prog["u_damage_mask"].value = 0
         with _depth_state(self.ctx):
             for item in placed:
                 draw = item.draw
+                name = draw.program("labels", cracked)
+                prog = self.programs[name]
                 prog["u_modelview"].write(item.modelview)
                 prog["u_component"].value = draw.component
                 prog["u_has_damage_mask"].value = draw.damage_mask is not None
@@ -775,6 +834,8 @@ class Renderer:
                     prog["u_has_cracks"].value = draw.cracks is not None
                     if draw.cracks is not None:
                         draw.cracks.bind(prog, 1)
+                if draw.zones is not None:
+                    draw.zones.set(prog)
                 draw.vaos[name].render()
 
     def _ao_pass(self, camera: Camera) -> None:
@@ -798,7 +859,7 @@ class Renderer:
                     ao: bool) -> None:
         """Colour of ``placed`` into color_target (and their shading normals into
         normal_target), then the sky where no part was drawn."""
-        self._set_view_uniforms(camera, shadow, ao)
+        self._set_view_uniforms(camera, placed, shadow, ao)
         # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
         # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
         # where they tie in depth the last written is the first drawn, which the labels keep:
@@ -809,7 +870,7 @@ class Renderer:
         with _depth_state(self.ctx, depth_func="<="):
             for item in reversed(placed):
                 draw, mat = item.draw, item.draw.material
-                name = "color" if draw.cracks is None else "color_cracks"
+                name = draw.program("color", self._view_has_cracks)
                 prog = self.programs[name]
                 prog["u_modelview"].write(item.modelview)
                 prog["u_normal_matrix"].write(item.normal)
@@ -821,24 +882,35 @@ class Renderer:
                 draw.textures.get("base", self._defaults["white"]).use(0)
                 draw.textures.get("emissive", self._defaults["white"]).use(1)
                 draw.textures.get("normal", self._defaults["flat"]).use(2)
+                if draw.zones is not None:
+                    draw.zones.set(prog)
+                    prog["u_intact_uv_ratio"].value = draw.zones.intact_uv_ratio
+                    draw.textures["intact"].use(_SPALL_UNITS["u_intact_map"])
+                    draw.textures["spall"].use(_SPALL_UNITS["u_spall_map"])
                 draw.vaos[name].render()
             self._draw_sky(camera)
         self.color_fbo.depth_mask = True
 
-    def _set_view_uniforms(self, camera: Camera, shadow: np.ndarray | None, ao: bool) -> None:
+    def _set_view_uniforms(self, camera: Camera, placed: list[_Placed],
+                           shadow: np.ndarray | None, ao: bool) -> None:
         """The colour programs' inputs for one view (the targets of the passes before them:
         shadow map, ambient occlusion, sky visibility, bound to units 3 to 7; the label pass's
-        crack coverage to 8) and their uniforms, in the crack variant too where the view shows
-        cracks."""
+        crack coverage to 8) and their uniforms, in every variant the view's parts draw by."""
         self.shadow_map.use(3)
         self.ao.use(4)
         for unit, target in enumerate(self.sky_targets, start=5):
             target.use(unit)
-        self._set_color_view_uniforms(self.programs["color"], camera, shadow, ao)
+        names = {"color"} | {item.draw.program("color", self._view_has_cracks)
+                             for item in placed}
+        for name in sorted(names):
+            prog = self.programs[name]
+            self._set_color_view_uniforms(prog, camera, shadow, ao)
+            if "_cracks" in name:
+                prog["u_crack"].value = 8
+            if "_spall" in name:
+                for sampler, unit in _SPALL_UNITS.items():
+                    prog[sampler].value = unit
         if self._view_has_cracks:
-            cracks = self.programs["color_cracks"]
-            self._set_color_view_uniforms(cracks, camera, shadow, ao)
-            cracks["u_crack"].value = 8
             self.crack_target.use(8)
 
     def _set_color_view_uniforms(self, prog: moderngl.Program, camera: Camera,
