@@ -13,6 +13,7 @@ from test_statistics import write_dataset
 
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.cli import main
+from glsynth.core.config import load_config
 from glsynth.core.labels import Damage
 from glsynth.data.statistics import (
     CRACK_WIDTH_EDGES_MM,
@@ -245,18 +246,25 @@ def test_stats_with_crack_widths_count_the_maps_and_the_lists(tmp_path):
 
 
 # --- generated datasets ---------------------------------------------------------------------
-MECHANICS = SMALL.replace("[damage]\n", '[damage]\nmodel = "mechanics"\n')
-"""conftest's tiny dataset under the mechanics damage model."""
+PAPER = SMALL.replace("[damage]\n", '[damage]\nmodel = "paper"\n')
+"""conftest's tiny dataset under the paper's damage model (the demo preset's is mechanics)."""
 
 
 @pytest.fixture(scope="module")
-def mechanics_dataset(tmp_path_factory):
-    """2 environments x 5 cameras at 1920x1080 under [damage] model = "mechanics" (seed 5)."""
-    root = tmp_path_factory.mktemp("mech")
-    (root / "mech.toml").write_text(MECHANICS)
-    assert main(["generate", "--preset", "demo", "--config", str(root / "mech.toml"),
+def paper_dataset(tmp_path_factory):
+    """2 environments x 5 cameras at 1920x1080 under [damage] model = "paper" (seed 5)."""
+    root = tmp_path_factory.mktemp("paper")
+    (root / "paper.toml").write_text(PAPER)
+    assert main(["generate", "--preset", "demo", "--config", str(root / "paper.toml"),
                  "--seed", "5", "--out", str(root / "ds")]) == 0
     return root / "ds"
+
+
+@pytest.fixture(scope="module")
+def mechanics_dataset(tiny_dataset):
+    """conftest's tiny dataset: the demo preset's damage model is mechanics."""
+    assert load_config("demo").damage.model == "mechanics"
+    return tiny_dataset
 
 
 def frames(root):
@@ -268,23 +276,22 @@ def frames(root):
                 row.damage, crack_width_path(row.damage))))
 
 
-def test_the_paper_model_writes_zero_crack_maps_and_no_crack_lists(tiny_dataset):
-    rows = list(frames(tiny_dataset))
+def test_the_paper_model_writes_zero_crack_maps_and_no_crack_lists(paper_dataset):
+    rows = list(frames(paper_dataset))
     assert rows
     for _, meta, _, code in rows:
         assert code.dtype == np.uint16 and code.shape == (360, 640) and not code.any()
         assert meta["cracks_in_view"] == []
-    assert not (tiny_dataset / "synthetic_puretex" / "crackwidth").exists()
+    assert not (paper_dataset / "synthetic_puretex" / "crackwidth").exists()
 
 
 def test_mechanics_crack_maps_agree_with_the_damage_labels_and_the_meta(mechanics_dataset):
     cracked = 0
     for row, meta, damage, code in frames(mechanics_dataset):
         assert code.dtype == np.uint16 and code.shape == damage.shape == (360, 640)
-        # Every pixel with a width is concrete damage (mechanics makes no exposed rebar yet),
-        # and under mechanics all concrete damage is cracks.
-        assert np.all(damage[code > 0] == Damage.CONCRETE)
-        assert np.array_equal(code > 0, damage == Damage.CONCRETE)
+        # Every pixel with a width is damage: concrete, or exposed rebar where a crack crosses
+        # a spalled hinge zone's bars (rebar stays rebar); spalling has no width.
+        assert np.all(np.isin(damage[code > 0], (Damage.CONCRETE, Damage.REBAR)))
         assert row.damage_in_rrdr == bool(code.any())
         listed = meta["cracks_in_view"]
         assert bool(listed) == bool(code.any())
@@ -320,4 +327,6 @@ def test_stats_and_oracle_assessment_of_a_mechanics_dataset(mechanics_dataset, t
     assert isinstance(truth, dict) and truth["all"]["pixels"] > 0 and truth["cracks"] > 0
     assert math.isfinite(truth["all"]["median_abs_error_mm"])
     assert math.isfinite(truth["crack_mean_median_abs_error_mm"])
-    assert truth["skeleton_pixels_without_truth"] == 0
+    # Measured skeleton pixels without a true width lie on spalled regions elongated enough
+    # to pass for cracks (docs/design.md, "Crack widths in the assessment"): a few only.
+    assert truth["skeleton_pixels_without_truth"] <= 0.05 * truth["all"]["pixels"]

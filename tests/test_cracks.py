@@ -242,12 +242,11 @@ def test_bad_crack_settings_are_one_clear_line(key, value, words):
     assert "\n" not in message and f"damage.{key} = " in message and words in message
 
 
-def test_every_preset_keeps_the_paper_model():
-    """All but the inspection preset, whose slight cracks are the mechanics model's."""
+def test_the_paper_preset_keeps_the_paper_model_and_the_others_use_mechanics():
     from glsynth.core.config import PRESETS, load_config
     models = {name: load_config(name).damage.model for name in PRESETS}
-    assert models.pop("inspection") == "mechanics"
-    assert set(models.values()) == {"paper"}
+    assert models.pop("paper") == "paper"
+    assert set(models.values()) == {"mechanics"}
 
 
 SMALL = dataclasses.replace(Config(), materials=MaterialsConfig(texture_size=32,

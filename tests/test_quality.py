@@ -67,7 +67,9 @@ def test_presets_set_every_knob():
 
 def test_bench_quality_on_real_renders(tmp_path, capsys):
     config = tmp_path / "c.toml"
-    config.write_text("[cameras]\nn_regular = 2\nn_closeup = 2\n")
+    # The paper's damage: the ray cast has no cracks (their labels are checked against numpy
+    # in test_crack_render), so under mechanics its damage agreement would measure them.
+    config.write_text("[cameras]\nn_regular = 2\nn_closeup = 2\n[damage]\nmodel = \"paper\"\n")
     out = tmp_path / "q"
     assert main(["bench", "quality", "--preset", "demo", "--config", str(config), "--cameras",
                  "2", "--presets", "preview,fast,reference", "--reference", "glsynth",

@@ -10,7 +10,7 @@ from PIL import Image
 
 from glsynth.cli import main
 from glsynth.core.config import Config
-from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS
+from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS, Damage
 from glsynth.data.filters import removal_reason
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import mask_lookup
@@ -101,10 +101,10 @@ def test_render_command_writes_the_documented_files(tmp_path):
     comp = np.array(Image.open(out / "component.png"))
     dmg = np.array(Image.open(out / "damage.png"))
     depth = np.load(out / "depth.npy")
-    # The paper's damage has no crack geometry: the crack-width map is there, all zeros.
+    # The demo preset's cracks (mechanics): a width only where the damage map says concrete.
     crack_width = np.load(out / "crack_width.npy")
     assert crack_width.dtype == np.float32 and crack_width.shape == (108, 192)
-    assert not crack_width.any()
+    assert np.all(dmg[crack_width > 0] == Damage.CONCRETE) and (crack_width >= 0).all()
     assert image.shape == (108, 192, 3) and image.dtype == np.uint8
     assert comp.shape == dmg.shape == (108, 192) and comp.dtype == np.uint8
     assert depth.shape == (108, 192) and depth.dtype == np.float32

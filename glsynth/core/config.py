@@ -547,11 +547,13 @@ class Config:
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
     "paper": {"damage": {"resolution": 2048}},
-    # A small but complete run for the README's main job and for tests.
+    # A small but complete run for the README's main job and for tests, with damage where
+    # mechanics puts it (docs/design.md, "Damage by mechanics"); the paper preset keeps
+    # Section 3.3's noise damage.
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
-             "damage": {"resolution": 512}},
+             "damage": {"resolution": 512, "model": "mechanics"}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
     # slight cracks of 0.05-1 mm by mechanics, the RRDR for cracks of 0.2 mm and more. No
