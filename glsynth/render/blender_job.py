@@ -15,6 +15,11 @@ job["mode"]:
   component id, 1 sample with a 0.01 px box filter (each pixel sees its centre), no bounces,
   written with the Z pass (distance along the optical axis).
 Raw outputs are float32 RGBA, bottom row first, as Debian's Blender has no numpy.
+
+job["cracks"] (both modes): per part with cracks, its coverage tiles (glsynth/render/
+crack_tiles.py) as images, each placed on a plane of the part's mesh frame. The part's surface
+shader becomes a mix of itself and black by contrast x coverage: its reflected light (sun and
+sky, diffuse and specular) darkened as GL's crack pass darkens it.
 """
 
 import json
@@ -74,12 +79,100 @@ def add_light(scene: bpy.types.Scene, light: dict) -> None:
     scene.world = world
 
 
+PLANE_TOLERANCE_M = 1e-3
+"""A point takes a tile's coverage within this distance of the tile's plane: well above the
+float32 precision of positions a kilometre from the origin (0.1 mm)."""
+
+
+def affine(tree: bpy.types.NodeTree, point: bpy.types.NodeSocket, axis: Vector,
+           offset: float) -> bpy.types.NodeSocket:
+    """A socket computing point . axis + offset."""
+    dot = tree.nodes.new("ShaderNodeVectorMath")
+    dot.operation = "DOT_PRODUCT"
+    tree.links.new(point, dot.inputs[0])
+    dot.inputs[1].default_value = axis
+    add = tree.nodes.new("ShaderNodeMath")
+    add.operation = "ADD"
+    tree.links.new(dot.outputs["Value"], add.inputs[0])
+    add.inputs[1].default_value = offset
+    return add.outputs[0]
+
+
+def math_node(tree: bpy.types.NodeTree, operation: str, *inputs) -> bpy.types.NodeSocket:
+    """A Math node of ``operation`` on sockets or constants."""
+    node = tree.nodes.new("ShaderNodeMath")
+    node.operation = operation
+    for socket, value in zip(node.inputs, inputs):
+        if isinstance(value, bpy.types.NodeSocket):
+            tree.links.new(value, socket)
+        else:
+            socket.default_value = value
+    return node.outputs[0]
+
+
+def tile_coverage(tree: bpy.types.NodeTree, point: bpy.types.NodeSocket,
+                  mesh_from_object: Matrix, tile: dict) -> bpy.types.NodeSocket:
+    """One tile's coverage at object-space ``point``: 0 off the tile's plane or rectangle
+    (the image clips), else its texel's value, decoded as R + G / 256."""
+    rotation, shift = mesh_from_object.to_3x3(), mesh_from_object.translation
+    to_corner = shift - Vector(tile["origin"])
+    size = [tile["texel_m"] * n for n in tile["size"]]
+    u, v, n = (Vector(tile[k]) for k in ("u_axis", "v_axis", "normal"))
+    texcoord = tree.nodes.new("ShaderNodeCombineXYZ")
+    for i, (axis, extent) in enumerate(((u, size[0]), (v, size[1]))):
+        tree.links.new(affine(tree, point, rotation.transposed() @ axis / extent,
+                              to_corner.dot(axis) / extent), texcoord.inputs[i])
+    image = tree.nodes.new("ShaderNodeTexImage")
+    image.image = bpy.data.images.load(tile["image"])
+    image.image.colorspace_settings.name = "Non-Color"
+    image.interpolation, image.extension = "Closest", "CLIP"
+    tree.links.new(texcoord.outputs[0], image.inputs["Vector"])
+    channels = tree.nodes.new("ShaderNodeSeparateColor")
+    tree.links.new(image.outputs["Color"], channels.inputs[0])
+    value = math_node(tree, "MULTIPLY_ADD", channels.outputs["Green"], 1 / 256,
+                      channels.outputs["Red"])
+    off_plane = math_node(tree, "ABSOLUTE", affine(tree, point, rotation.transposed() @ n,
+                                                   to_corner.dot(n)))
+    return math_node(tree, "MULTIPLY", value,
+                     math_node(tree, "LESS_THAN", off_plane, PLANE_TOLERANCE_M))
+
+
+def add_cracks(scene: bpy.types.Scene, cracks: list[dict]) -> None:
+    """Darken each cracked part's surface shader by contrast x coverage (module docstring)."""
+    for member in cracks:
+        obj = bpy.data.objects.get(member["part"])
+        if obj is None or obj.type != "MESH":
+            raise SystemExit(f"part {member['part']!r} with cracks is not a mesh of the scene")
+        material = obj.material_slots[0].material
+        if material.users > 1:  # shared with parts without these cracks
+            material = obj.material_slots[0].material = material.copy()
+        tree = material.node_tree
+        output = next(n for n in tree.nodes
+                      if n.type == "OUTPUT_MATERIAL" and n.is_active_output)
+        surface = output.inputs["Surface"].links[0].from_socket
+        point = tree.nodes.new("ShaderNodeTexCoord").outputs["Object"]
+        mesh_from_object = Matrix(member["pose"]).inverted() @ obj.matrix_world
+        coverage = None
+        for tile in member["tiles"]:
+            one = tile_coverage(tree, point, mesh_from_object, tile)
+            coverage = one if coverage is None else math_node(tree, "MAXIMUM", coverage, one)
+        black = tree.nodes.new("ShaderNodeBsdfDiffuse")
+        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        mix = tree.nodes.new("ShaderNodeMixShader")
+        tree.links.new(math_node(tree, "MULTIPLY", coverage, member["contrast"]),
+                       mix.inputs["Fac"])
+        tree.links.new(surface, mix.inputs[1])
+        tree.links.new(black.outputs[0], mix.inputs[2])
+        tree.links.new(mix.outputs[0], output.inputs["Surface"])
+
+
 def setup_scene(job: dict) -> bpy.types.Scene:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     patch_numpy_for_gltf_importer()
     bpy.ops.import_scene.gltf(filepath=job["glb"])
     scene = bpy.context.scene
     add_light(scene, job["lighting"])
+    add_cracks(scene, job.get("cracks", []))
     cam = job["cameras"][0]
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"

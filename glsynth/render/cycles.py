@@ -5,9 +5,11 @@ What is shared: the uploaded parts with their dressed materials (the full-materi
 glsynth.render.gltf), the camera and sensor, the environment's Lighting (sun, sky, exposure)
 and the tone map (glsynth.render.tonemap, applied here to Cycles' linear output). What Cycles
 adds: global illumination, exact soft shadows, occlusion and the sky seen by every surface.
-Labels and depth always come from the GL label pass, so a Cycles image and a glsynth image of
-one view share their ground truth byte for byte. Cycles runs on the CPU with a seed per view
-(Stream.CYCLES), so a view is reproduced exactly from its seeds.
+A part's cracks (Material.cracks) are baked into coverage tiles with texels fine enough for
+the cameras (glsynth.render.crack_tiles) and darken its surface by the GL crack pass's
+contrast. Labels and depth always come from the GL label pass, so a Cycles image and a glsynth
+image of one view share their ground truth byte for byte. Cycles runs on the CPU with a seed
+per view (Stream.CYCLES), so a view is reproduced exactly from its seeds.
 
 Blender is optional: ``blender`` on PATH (Debian's package, 3.4) or a path given by the caller.
 """
@@ -26,8 +28,10 @@ import numpy as np
 from glsynth.appearance.materials import Material
 from glsynth.core.children import run_child
 from glsynth.core.errors import UserError
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 from glsynth.core.seeding import Stream, make_seed
+from glsynth.render.crack_tiles import bake_tiles, encode, texel_sizes
+from glsynth.render.cracks_index import CRACK_CONTRAST
 from glsynth.render.export import describe_lighting
 from glsynth.render.gltf import gltf_binary
 from glsynth.render.tonemap import tone_map
@@ -124,6 +128,28 @@ def run_job(blender: str, job: dict, work: Path, timeout_s: float) -> dict:
     return json.loads(times.read_text())
 
 
+def crack_jobs(parts: Sequence[Part], materials: dict[str, Material],
+               cameras: Sequence[Camera], work: Path) -> list[dict]:
+    """The job's cracks: per part with cracks, its coverage tiles for ``cameras``, written as
+    images to ``work``."""
+    cracked = [p for p in parts if materials[p.name].cracks is not None
+               and len(materials[p.name].cracks.points)]
+    members = [(materials[p.name].cracks, p.mesh, p.pose) for p in cracked]
+    jobs = []
+    for i, (part, texel_m) in enumerate(zip(cracked, texel_sizes(members, cameras))):
+        tiles = []
+        for j, tile in enumerate(bake_tiles(materials[part.name].cracks, part.mesh, texel_m)):
+            path = work / f"cracks_{i}_{j}.png"
+            atomic_write_bytes(path, png_bytes(encode(tile.coverage)))
+            tiles.append({"image": str(path), "origin": tile.origin.tolist(),
+                          "u_axis": tile.u_axis.tolist(), "v_axis": tile.v_axis.tolist(),
+                          "normal": tile.normal.tolist(), "texel_m": tile.texel_m,
+                          "size": [tile.coverage.shape[1], tile.coverage.shape[0]]})
+        jobs.append({"part": part.name, "pose": part.pose.tolist(), "contrast": CRACK_CONTRAST,
+                     "tiles": tiles})
+    return jobs
+
+
 @dataclass(frozen=True)
 class CyclesResult:
     linear: list[np.ndarray]
@@ -148,7 +174,8 @@ def render_linear(parts: Sequence[Part], materials: dict[str, Material], lightin
     atomic_write_bytes(glb, gltf_binary(parts, materials))
     job = {"mode": "twin", "glb": str(glb), "out": str(work), "samples": [int(n) for n in counts],
            "seeds": [int(s) for s in seeds], "cameras": [camera_json(c) for c in cameras],
-           "lighting": describe_lighting(lighting)}
+           "lighting": describe_lighting(lighting),
+           "cracks": crack_jobs(parts, materials, cameras, work)}
     times = run_job(blender, job, work, timeout_s)
     images = []
     for i, size in enumerate(times["sizes"]):
