@@ -16,10 +16,10 @@ job["mode"]:
   written with the Z pass (distance along the optical axis).
 Raw outputs are float32 RGBA, bottom row first, as Debian's Blender has no numpy.
 
-job["cracks"] (both modes): per part with cracks, its coverage tiles (glsynth/render/
-crack_tiles.py) as images, each placed on a plane of the part's mesh frame. The part's surface
-shader becomes a mix of itself and black by contrast x coverage: its reflected light (sun and
-sky, diffuse and specular) darkened as GL's crack pass darkens it.
+job["cracks"] (both modes): per part with cracks, its crack texture (glsynth/render/
+crack_texture.py: an indirection image and an atlas over planes of the part's mesh frame). The
+part's surface shader becomes a mix of itself and black by contrast x coverage: its reflected
+light (sun and sky, diffuse and specular) darkened as GL's crack pass darkens it.
 """
 
 import json
@@ -79,25 +79,6 @@ def add_light(scene: bpy.types.Scene, light: dict) -> None:
     scene.world = world
 
 
-PLANE_TOLERANCE_M = 1e-3
-"""A point takes a tile's coverage within this distance of the tile's plane: well above the
-float32 precision of positions a kilometre from the origin (0.1 mm)."""
-
-
-def affine(tree: bpy.types.NodeTree, point: bpy.types.NodeSocket, axis: Vector,
-           offset: float) -> bpy.types.NodeSocket:
-    """A socket computing point . axis + offset."""
-    dot = tree.nodes.new("ShaderNodeVectorMath")
-    dot.operation = "DOT_PRODUCT"
-    tree.links.new(point, dot.inputs[0])
-    dot.inputs[1].default_value = axis
-    add = tree.nodes.new("ShaderNodeMath")
-    add.operation = "ADD"
-    tree.links.new(dot.outputs["Value"], add.inputs[0])
-    add.inputs[1].default_value = offset
-    return add.outputs[0]
-
-
 def math_node(tree: bpy.types.NodeTree, operation: str, *inputs) -> bpy.types.NodeSocket:
     """A Math node of ``operation`` on sockets or constants."""
     node = tree.nodes.new("ShaderNodeMath")
@@ -110,34 +91,83 @@ def math_node(tree: bpy.types.NodeTree, operation: str, *inputs) -> bpy.types.No
     return node.outputs[0]
 
 
-def tile_coverage(tree: bpy.types.NodeTree, point: bpy.types.NodeSocket,
-                  mesh_from_object: Matrix, tile: dict) -> bpy.types.NodeSocket:
-    """One tile's coverage at object-space ``point``: 0 off the tile's plane or rectangle
-    (the image clips), else its texel's value, decoded as R + G / 256."""
-    rotation, shift = mesh_from_object.to_3x3(), mesh_from_object.translation
-    to_corner = shift - Vector(tile["origin"])
-    size = [tile["texel_m"] * n for n in tile["size"]]
-    u, v, n = (Vector(tile[k]) for k in ("u_axis", "v_axis", "normal"))
+def dot(tree: bpy.types.NodeTree, vector: bpy.types.NodeSocket, axis: Vector,
+        offset: float) -> bpy.types.NodeSocket:
+    """vector . axis + offset."""
+    node = tree.nodes.new("ShaderNodeVectorMath")
+    node.operation = "DOT_PRODUCT"
+    tree.links.new(vector, node.inputs[0])
+    node.inputs[1].default_value = axis
+    return math_node(tree, "ADD", node.outputs["Value"], offset)
+
+
+def image_lookup(tree: bpy.types.NodeTree, path: str, u: bpy.types.NodeSocket,
+                 v: bpy.types.NodeSocket, scale: tuple[float, float]) -> bpy.types.NodeSocket:
+    """The texel of the image at ``path`` holding (u, v) x scale (nearest, 0 outside), its
+    two bytes as R + G / 256."""
     texcoord = tree.nodes.new("ShaderNodeCombineXYZ")
-    for i, (axis, extent) in enumerate(((u, size[0]), (v, size[1]))):
-        tree.links.new(affine(tree, point, rotation.transposed() @ axis / extent,
-                              to_corner.dot(axis) / extent), texcoord.inputs[i])
+    tree.links.new(math_node(tree, "MULTIPLY", u, scale[0]), texcoord.inputs[0])
+    tree.links.new(math_node(tree, "MULTIPLY", v, scale[1]), texcoord.inputs[1])
     image = tree.nodes.new("ShaderNodeTexImage")
-    image.image = bpy.data.images.load(tile["image"])
+    image.image = bpy.data.images.load(path)
     image.image.colorspace_settings.name = "Non-Color"
     image.interpolation, image.extension = "Closest", "CLIP"
     tree.links.new(texcoord.outputs[0], image.inputs["Vector"])
     channels = tree.nodes.new("ShaderNodeSeparateColor")
     tree.links.new(image.outputs["Color"], channels.inputs[0])
-    value = math_node(tree, "MULTIPLY_ADD", channels.outputs["Green"], 1 / 256,
-                      channels.outputs["Red"])
-    off_plane = math_node(tree, "ABSOLUTE", affine(tree, point, rotation.transposed() @ n,
-                                                   to_corner.dot(n)))
-    return math_node(tree, "MULTIPLY", value,
-                     math_node(tree, "LESS_THAN", off_plane, PLANE_TOLERANCE_M))
+    return math_node(tree, "MULTIPLY_ADD", channels.outputs["Green"], 1 / 256,
+                     channels.outputs["Red"])
 
 
-def add_cracks(scene: bpy.types.Scene, cracks: list[dict]) -> None:
+def plane_coordinates(tree: bpy.types.NodeTree, member: dict, mesh_from_object: Matrix
+                      ) -> tuple[bpy.types.NodeSocket, ...]:
+    """(u, v) in blocks of the indirection image at the shading point, and 1 where the point
+    lies on one of the member's planes with cracks (facing its way), else 0 (u = v = 0)."""
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    point, normal = coords.outputs["Object"], coords.outputs["Normal"]
+    rotation, shift = mesh_from_object.to_3x3(), mesh_from_object.translation
+    to_object = rotation.transposed()
+    block = member["block_m"]
+    u = v = on = 0.0
+    for g in member["planes"]:
+        n, eu, ev = (Vector(g[k]) for k in ("normal", "u_axis", "v_axis"))
+        near = math_node(tree, "LESS_THAN", math_node(
+            tree, "ABSOLUTE", dot(tree, point, to_object @ n, shift.dot(n) - g["offset"])),
+            member["tolerance_m"])
+        facing = math_node(tree, "GREATER_THAN", dot(tree, normal, to_object @ n, 0.0), 0.5)
+        mine = math_node(tree, "MULTIPLY", near, facing)
+        clamp = tree.nodes.new("ShaderNodeClamp")
+        tree.links.new(dot(tree, point, to_object @ eu / block,
+                           (shift.dot(eu) - g["corner"][0]) / block + g["column"]),
+                       clamp.inputs["Value"])
+        clamp.inputs["Min"].default_value = g["column"] - 0.5
+        clamp.inputs["Max"].default_value = g["column"] + g["blocks"][0] + 0.5
+        u = math_node(tree, "MULTIPLY_ADD", mine, clamp.outputs[0], u)
+        v = math_node(tree, "MULTIPLY_ADD", mine, dot(
+            tree, point, to_object @ ev / block, (shift.dot(ev) - g["corner"][1]) / block), v)
+        on = math_node(tree, "ADD", mine, on)
+    return u, v, on
+
+
+def crack_coverage(tree: bpy.types.NodeTree, member: dict, mesh_from_object: Matrix
+                   ) -> bpy.types.NodeSocket:
+    """The member's crack coverage at the shading point: the indirection image gives the
+    point's block in the atlas, the atlas its texel (glsynth/render/crack_texture.py)."""
+    u, v, on = plane_coordinates(tree, member, mesh_from_object)
+    columns, rows = member["indirection_size"]
+    # The block index 256 R + G (bytes) from R + G / 256 in 0..1 channel values.
+    k = math_node(tree, "ROUND", math_node(tree, "MULTIPLY", image_lookup(
+        tree, member["indirection"], u, v, (1 / columns, 1 / rows)), 255.0 * 256.0))
+    per_row = member["atlas_blocks"]
+    column = math_node(tree, "ADD", math_node(tree, "MODULO", k, per_row),
+                       math_node(tree, "FRACT", u))
+    row = math_node(tree, "ADD", math_node(tree, "FLOOR", math_node(tree, "DIVIDE", k, per_row)),
+                    math_node(tree, "FRACT", v))
+    coverage = image_lookup(tree, member["atlas"], column, row, (1 / per_row, 1 / per_row))
+    return math_node(tree, "MULTIPLY", coverage, on)
+
+
+def add_cracks(cracks: list[dict]) -> None:
     """Darken each cracked part's surface shader by contrast x coverage (module docstring)."""
     for member in cracks:
         obj = bpy.data.objects.get(member["part"])
@@ -150,12 +180,8 @@ def add_cracks(scene: bpy.types.Scene, cracks: list[dict]) -> None:
         output = next(n for n in tree.nodes
                       if n.type == "OUTPUT_MATERIAL" and n.is_active_output)
         surface = output.inputs["Surface"].links[0].from_socket
-        point = tree.nodes.new("ShaderNodeTexCoord").outputs["Object"]
-        mesh_from_object = Matrix(member["pose"]).inverted() @ obj.matrix_world
-        coverage = None
-        for tile in member["tiles"]:
-            one = tile_coverage(tree, point, mesh_from_object, tile)
-            coverage = one if coverage is None else math_node(tree, "MAXIMUM", coverage, one)
+        coverage = crack_coverage(tree, member,
+                                  Matrix(member["pose"]).inverted() @ obj.matrix_world)
         black = tree.nodes.new("ShaderNodeBsdfDiffuse")
         black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         mix = tree.nodes.new("ShaderNodeMixShader")
@@ -172,7 +198,7 @@ def setup_scene(job: dict) -> bpy.types.Scene:
     bpy.ops.import_scene.gltf(filepath=job["glb"])
     scene = bpy.context.scene
     add_light(scene, job["lighting"])
-    add_cracks(scene, job.get("cracks", []))
+    add_cracks(job.get("cracks", []))
     cam = job["cameras"][0]
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"

@@ -5,8 +5,8 @@ What is shared: the uploaded parts with their dressed materials (the full-materi
 glsynth.render.gltf), the camera and sensor, the environment's Lighting (sun, sky, exposure)
 and the tone map (glsynth.render.tonemap, applied here to Cycles' linear output). What Cycles
 adds: global illumination, exact soft shadows, occlusion and the sky seen by every surface.
-A part's cracks (Material.cracks) are baked into coverage tiles with texels fine enough for
-the cameras (glsynth.render.crack_tiles) and darken its surface by the GL crack pass's
+A part's cracks (Material.cracks) are baked into a coverage texture with texels fine enough
+for the cameras (glsynth.render.crack_texture) and darken its surface by the GL crack pass's
 contrast. Labels and depth always come from the GL label pass, so a Cycles image and a glsynth
 image of one view share their ground truth byte for byte. Cycles runs on the CPU with a seed
 per view (Stream.CYCLES), so a view is reproduced exactly from its seeds.
@@ -30,7 +30,7 @@ from glsynth.core.children import run_child
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 from glsynth.core.seeding import Stream, make_seed
-from glsynth.render.crack_tiles import bake_tiles, encode, texel_sizes
+from glsynth.render.crack_texture import BLOCK, LOOKUP_TOLERANCE_M, bake_for_views, encode
 from glsynth.render.cracks_index import CRACK_CONTRAST
 from glsynth.render.export import describe_lighting
 from glsynth.render.gltf import gltf_binary
@@ -130,23 +130,27 @@ def run_job(blender: str, job: dict, work: Path, timeout_s: float) -> dict:
 
 def crack_jobs(parts: Sequence[Part], materials: dict[str, Material],
                cameras: Sequence[Camera], work: Path) -> list[dict]:
-    """The job's cracks: per part with cracks, its coverage tiles for ``cameras``, written as
-    images to ``work``."""
+    """The job's cracks: per part with cracks, its crack texture for ``cameras`` (images
+    written to ``work``) and where it lies on the part."""
     cracked = [p for p in parts if materials[p.name].cracks is not None
                and len(materials[p.name].cracks.points)]
-    members = [(materials[p.name].cracks, p.mesh, p.pose) for p in cracked]
+    textures = bake_for_views([(materials[p.name].cracks, p.mesh, p.pose) for p in cracked],
+                              cameras)
     jobs = []
-    for i, (part, texel_m) in enumerate(zip(cracked, texel_sizes(members, cameras))):
-        tiles = []
-        for j, tile in enumerate(bake_tiles(materials[part.name].cracks, part.mesh, texel_m)):
-            path = work / f"cracks_{i}_{j}.png"
-            atomic_write_bytes(path, png_bytes(encode(tile.coverage)))
-            tiles.append({"image": str(path), "origin": tile.origin.tolist(),
-                          "u_axis": tile.u_axis.tolist(), "v_axis": tile.v_axis.tolist(),
-                          "normal": tile.normal.tolist(), "texel_m": tile.texel_m,
-                          "size": [tile.coverage.shape[1], tile.coverage.shape[0]]})
-        jobs.append({"part": part.name, "pose": part.pose.tolist(), "contrast": CRACK_CONTRAST,
-                     "tiles": tiles})
+    for i, (part, texture) in enumerate(zip(cracked, textures)):
+        images = {"indirection": encode(texture.indirection, 1), "atlas": encode(texture.atlas)}
+        for name, rgb in images.items():
+            atomic_write_bytes(work / f"cracks_{i}_{name}.png", png_bytes(rgb))
+        jobs.append({
+            "part": part.name, "pose": part.pose.tolist(), "contrast": CRACK_CONTRAST,
+            "tolerance_m": LOOKUP_TOLERANCE_M, "block_m": BLOCK * texture.texel_m,
+            **{name: str(work / f"cracks_{i}_{name}.png") for name in images},
+            "indirection_size": list(texture.indirection.shape[::-1]),
+            "atlas_blocks": texture.atlas.shape[0] // BLOCK,
+            "planes": [{"normal": g.normal.tolist(), "offset": g.offset,
+                        "u_axis": g.u_axis.tolist(), "v_axis": g.v_axis.tolist(),
+                        "corner": g.corner.tolist(), "blocks": list(g.blocks),
+                        "column": g.column} for g in texture.planes]})
     return jobs
 
 
@@ -177,6 +181,9 @@ def render_linear(parts: Sequence[Part], materials: dict[str, Material], lightin
            "lighting": describe_lighting(lighting),
            "cracks": crack_jobs(parts, materials, cameras, work)}
     times = run_job(blender, job, work, timeout_s)
+    for member in job["cracks"]:
+        Path(member["indirection"]).unlink()
+        Path(member["atlas"]).unlink()
     images = []
     for i, size in enumerate(times["sizes"]):
         path = work / f"cycles_{i}.f32"
