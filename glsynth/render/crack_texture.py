@@ -306,17 +306,27 @@ def bake_texture(network: CrackNetwork, mesh: trimesh.Trimesh, texel_m: float
     return CrackTexture(texel_m, tuple(planes), *_atlas(covered, rows, column))
 
 
-def _estimate(network: CrackNetwork, mesh: trimesh.Trimesh, texel_m: float) -> float:
-    """About the texels bake_texture makes at ``texel_m``: per segment, the blocks of a
-    band of its width and two texels, plus one; the planes' indirection images."""
-    size, total = BLOCK * texel_m, 0.0
+def _estimate(network: CrackNetwork, mesh: trimesh.Trimesh, texel_m: float) -> int:
+    """About the texels bake_texture makes at ``texel_m``: the blocks that points half a
+    block apart over each band (its width and two texels) fall in, and the indirection
+    images."""
+    size, total = BLOCK * texel_m, 0
     for plane in _plane_cracks(network, mesh):
-        length = np.linalg.norm(plane.uv[:, 1] - plane.uv[:, 0], axis=1)
-        band = plane.widths.max(1) + 4 * texel_m
-        total += np.sum((length / size + 1) * (band / size + 1)) * BLOCK ** 2
-        nu, nv = _grid(plane, texel_m)[1]
+        lo, (nu, nv) = _grid(plane, texel_m)
+        t_hat, n_hat, reach, n_along, n_across = _lattice(plane.uv, plane.widths, size)
+        reach -= 2 * size - 2 * texel_m  # the band, not _lattice's margin of two blocks
+        counts = n_along * n_across
+        owner = np.repeat(np.arange(len(plane.uv)), counts)
+        local = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        s = np.minimum((local // n_across[owner]) * size / 2 - reach[owner],
+                       np.linalg.norm(plane.uv[:, 1] - plane.uv[:, 0], axis=1)[owner]
+                       + reach[owner])
+        q = np.minimum((local % n_across[owner]) * size / 2 - reach[owner], reach[owner])
+        pts = plane.uv[owner, 0] + s[:, None] * t_hat[owner] + q[:, None] * n_hat[owner]
+        block = np.floor((pts - lo) / size).astype(np.int64)
+        total += len(np.unique(block[:, 1] * (nu + 1) + block[:, 0])) * BLOCK ** 2
         total += (nu + 1) * nv
-    return total
+    return total + BLOCK ** 2  # the empty block
 
 
 def bake_for_views(members: Sequence[tuple[CrackNetwork, trimesh.Trimesh, np.ndarray]],
