@@ -133,6 +133,12 @@ def test_texels_are_half_the_finest_pixel_footprint_within_the_bound():
         cam.pose[:3, 3] += pose[:3, 3]
     nearest = 3.0  # the +x face's first crack passes 3.002 m from the nearer camera
     assert finest_footprint(net, pose, cams) == pytest.approx(nearest / 1920, rel=0.02)
+    # A camera 0.5 m away that looks away from the cracks sets nothing, unless it is alone
+    away = _camera(0.5)
+    away.pose[:3, :3] = away.pose[:3, :3] @ np.diag([-1.0, 1.0, -1.0])
+    away.pose[:3, 3] += pose[:3, 3]
+    assert finest_footprint(net, pose, cams + [away]) == finest_footprint(net, pose, cams)
+    assert finest_footprint(net, pose, [away]) == pytest.approx(0.5 / 1920, rel=0.1)
     [texture] = bake_for_views([(net, box, pose)], cams)
     assert texture.texel_m == pytest.approx(nearest / 1920 / TEXELS_PER_FOOTPRINT, rel=0.02)
     assert texture.texels < 2e5  # the cracks' blocks only, not the faces

@@ -16,11 +16,11 @@ indirection image holds, per block of each plane's grid, the block's place in th
 empty block, elsewhere). Planes lie side by side in the indirection image, each between two
 empty columns, so a point clamped to its plane's columns never reads another plane.
 
-Texel size: half the finest pixel footprint of the views being rendered, taken at the crack
-point nearest each camera (``TEXELS_PER_FOOTPRINT``), grown by 25 % steps together for all of a
-job's members until their atlases and indirection images hold at most ``MAX_TEXELS``. Beyond
-the bound a crack is spread over texels wider than half a pixel, but its mean darkening stays
-exact.
+Texel size: half the finest pixel footprint of the views being rendered, taken at the
+nearest crack point each camera images (``TEXELS_PER_FOOTPRINT``), grown by 25 % steps
+together for all of a job's members until their atlases and indirection images hold at most
+``MAX_TEXELS``. Beyond the bound a crack is spread over texels wider than half a pixel, but its
+mean darkening stays exact.
 """
 
 from collections.abc import Sequence
@@ -164,16 +164,37 @@ def _plane_cracks(network: CrackNetwork, mesh: trimesh.Trimesh) -> list[_PlaneCr
     return found
 
 
+def _in_view(points: np.ndarray, cam: Camera) -> np.ndarray:
+    """Which world ``points`` (n, 3) ``cam`` images: in front of its near plane and inside its
+    frame."""
+    local = (points - cam.pose[:3, 3]) @ cam.pose[:3, :3]
+    depth = -local[:, 2]
+    k = cam.K
+    safe = np.where(depth > cam.znear, depth, 1.0)
+    x = k[0, 0] * local[:, 0] / safe + k[0, 2]
+    y = -k[1, 1] * local[:, 1] / safe + k[1, 2]
+    return ((depth > cam.znear) & (np.abs(x - k[0, 2]) <= cam.width / 2)
+            & (np.abs(y - k[1, 2]) <= cam.height / 2))
+
+
 def finest_footprint(network: CrackNetwork, pose: np.ndarray, cameras: Sequence[Camera]
                      ) -> float:
-    """The smallest pixel footprint (metres) of ``cameras`` at the crack point nearest each:
-    distance times the angle of a pixel at the image centre."""
+    """The smallest pixel footprint (metres) of ``cameras`` on the cracks: distance times the
+    angle of a pixel at the image centre, at the nearest end point each camera images (the
+    segments are a few centimetres long); the nearest point of any crack where none images
+    one (the cracks are then seen in reflections at most)."""
     world = network.points @ pose[:3, :3].T + pose[:3, 3]
-    best = np.inf
+    ends = world.reshape(-1, 3)
+    seen, anywhere = np.inf, np.inf
     for cam in cameras:
-        distance = segment_distance(cam.pose[:3, 3], world[:, 0], world[:, 1])[0].min()
-        best = min(best, distance * cam.sensor_mm / (cam.focal_mm * cam.width))
-    return float(best)
+        angle = cam.sensor_mm / (cam.focal_mm * cam.width)
+        anywhere = min(anywhere, angle * segment_distance(cam.pose[:3, 3], world[:, 0],
+                                                          world[:, 1])[0].min())
+        shown = _in_view(ends, cam)
+        if shown.any():
+            seen = min(seen, angle * np.linalg.norm(ends[shown] - cam.pose[:3, 3],
+                                                    axis=1).min())
+    return float(seen if np.isfinite(seen) else anywhere)
 
 
 def texel_coverage(d: np.ndarray, width: np.ndarray, a: np.ndarray, b: np.ndarray
