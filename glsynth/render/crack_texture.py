@@ -40,7 +40,7 @@ BLOCK = 16
 indirection image."""
 MAX_TEXELS = 1 << 24
 """Texels of all of a job's images: 64 MB in Blender's images and 64 MB in Cycles (4 bytes
-each)."""
+each); baking 14.7 M of them took 280 MB more in glsynth (and 14 s)."""
 PLANE_TOLERANCE_M = 1e-5
 """A segment lies on a plane of the mesh when both its ends are this close to it."""
 LOOKUP_TOLERANCE_M = 1e-3
@@ -99,8 +99,8 @@ class CrackTexture:
             scale = BLOCK * self.texel_m
             uu = np.clip((points @ g.u_axis - g.corner[0]) / scale + g.column, g.column - 0.5,
                          g.column + g.blocks[0] + 0.5)
-            u, v = np.where(mine, uu, u), np.where(mine, (points @ g.v_axis - g.corner[1]) / scale,
-                                                   v)
+            u = np.where(mine, uu, u)
+            v = np.where(mine, (points @ g.v_axis - g.corner[1]) / scale, v)
             on |= mine
         rows, cols = self.indirection.shape
         inside = (u >= 0) & (u < cols) & (v >= 0) & (v < rows)
