@@ -260,7 +260,9 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
     against Cycles at ``reference_samples`` when ``blender`` is given (else against the
     'reference' preset); labels and depth against an Embree ray cast of the reference
     preset's scene. With Blender, the reference is rendered twice with different seeds (its
-    noise floor) and Cycles at each of ``cycles_samples`` joins the time axis."""
+    noise floor) and Cycles at each of ``cycles_samples`` joins the time axis.
+    side_by_side.png: the first view under the 'default' preset (or the first preset run),
+    the reference and their difference x 4."""
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 
     presets = presets or list(QUALITY)
@@ -275,11 +277,12 @@ def bench_quality(config: Config, root_seed: int, env: int, cameras: list[int], 
                                       root_seed, env, out, blender, reference_samples,
                                       cycles_samples)
     rows = {}
+    shown = "default" if "default" in presets else presets[0]
     for name in presets:
         images = [area_resize(o.color, size) for o in runs[name].renders]
         rows[name] = _preset_row(runs[name], images, reference, components, scene["truths"],
                                  config.render.zfar_m)
-        if name == "default":
+        if name == shown:
             atomic_write_bytes(out / "side_by_side.png",
                                png_bytes(_side_by_side(images[0], reference.images[0])))
     result = {"command": " ".join(["glsynth", *sys.argv[1:]]), "root_seed": root_seed,

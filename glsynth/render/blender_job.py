@@ -15,6 +15,11 @@ job["mode"]:
   component id, 1 sample with a 0.01 px box filter (each pixel sees its centre), no bounces,
   written with the Z pass (distance along the optical axis).
 Raw outputs are float32 RGBA, bottom row first, as Debian's Blender has no numpy.
+
+job["cracks"] (both modes): per part with cracks, its crack texture (glsynth/render/
+crack_texture.py: an indirection image and an atlas over planes of the part's mesh frame). The
+part's surface shader becomes a mix of itself and black by contrast x coverage: its reflected
+light (sun and sky, diffuse and specular) darkened as GL's crack pass darkens it.
 """
 
 import json
@@ -74,12 +79,126 @@ def add_light(scene: bpy.types.Scene, light: dict) -> None:
     scene.world = world
 
 
+def math_node(tree: bpy.types.NodeTree, operation: str, *inputs) -> bpy.types.NodeSocket:
+    """A Math node of ``operation`` on sockets or constants."""
+    node = tree.nodes.new("ShaderNodeMath")
+    node.operation = operation
+    for socket, value in zip(node.inputs, inputs):
+        if isinstance(value, bpy.types.NodeSocket):
+            tree.links.new(value, socket)
+        else:
+            socket.default_value = value
+    return node.outputs[0]
+
+
+def dot(tree: bpy.types.NodeTree, vector: bpy.types.NodeSocket, axis: Vector,
+        offset: float) -> bpy.types.NodeSocket:
+    """vector . axis + offset."""
+    node = tree.nodes.new("ShaderNodeVectorMath")
+    node.operation = "DOT_PRODUCT"
+    tree.links.new(vector, node.inputs[0])
+    node.inputs[1].default_value = axis
+    return math_node(tree, "ADD", node.outputs["Value"], offset)
+
+
+def image_lookup(tree: bpy.types.NodeTree, path: str, u: bpy.types.NodeSocket,
+                 v: bpy.types.NodeSocket, scale: tuple[float, float]) -> bpy.types.NodeSocket:
+    """The texel of the image at ``path`` holding (u, v) x scale (nearest, 0 outside), its
+    two bytes as R + G / 256."""
+    texcoord = tree.nodes.new("ShaderNodeCombineXYZ")
+    tree.links.new(math_node(tree, "MULTIPLY", u, scale[0]), texcoord.inputs[0])
+    tree.links.new(math_node(tree, "MULTIPLY", v, scale[1]), texcoord.inputs[1])
+    image = tree.nodes.new("ShaderNodeTexImage")
+    image.image = bpy.data.images.load(path)
+    image.image.colorspace_settings.name = "Non-Color"
+    image.interpolation, image.extension = "Closest", "CLIP"
+    tree.links.new(texcoord.outputs[0], image.inputs["Vector"])
+    channels = tree.nodes.new("ShaderNodeSeparateColor")
+    tree.links.new(image.outputs["Color"], channels.inputs[0])
+    return math_node(tree, "MULTIPLY_ADD", channels.outputs["Green"], 1 / 256,
+                     channels.outputs["Red"])
+
+
+def plane_coordinates(tree: bpy.types.NodeTree, member: dict, mesh_from_object: Matrix
+                      ) -> tuple[bpy.types.NodeSocket, ...]:
+    """(u, v) in blocks of the indirection image at the shading point, and 1 where the point
+    lies on one of the member's planes with cracks (facing its way), else 0 (u = v = 0)."""
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    point, normal = coords.outputs["Object"], coords.outputs["Normal"]
+    rotation, shift = mesh_from_object.to_3x3(), mesh_from_object.translation
+    to_object = rotation.transposed()
+    block = member["block_m"]
+    u = v = on = 0.0
+    for g in member["planes"]:
+        n, eu, ev = (Vector(g[k]) for k in ("normal", "u_axis", "v_axis"))
+        near = math_node(tree, "LESS_THAN", math_node(
+            tree, "ABSOLUTE", dot(tree, point, to_object @ n, shift.dot(n) - g["offset"])),
+            member["tolerance_m"])
+        facing = math_node(tree, "GREATER_THAN", dot(tree, normal, to_object @ n, 0.0), 0.5)
+        mine = math_node(tree, "MULTIPLY", near, facing)
+        clamp = tree.nodes.new("ShaderNodeClamp")
+        tree.links.new(dot(tree, point, to_object @ eu / block,
+                           (shift.dot(eu) - g["corner"][0]) / block + g["column"]),
+                       clamp.inputs["Value"])
+        clamp.inputs["Min"].default_value = g["column"] - 0.5
+        clamp.inputs["Max"].default_value = g["column"] + g["blocks"][0] + 0.5
+        u = math_node(tree, "MULTIPLY_ADD", mine, clamp.outputs[0], u)
+        v = math_node(tree, "MULTIPLY_ADD", mine, dot(
+            tree, point, to_object @ ev / block, (shift.dot(ev) - g["corner"][1]) / block), v)
+        on = math_node(tree, "ADD", mine, on)
+    return u, v, on
+
+
+def crack_coverage(tree: bpy.types.NodeTree, member: dict, mesh_from_object: Matrix
+                   ) -> bpy.types.NodeSocket:
+    """The member's crack coverage at the shading point: the indirection image gives the
+    point's block in the atlas, the atlas its texel (glsynth/render/crack_texture.py)."""
+    u, v, on = plane_coordinates(tree, member, mesh_from_object)
+    columns, rows = member["indirection_size"]
+    # The block index 256 R + G (bytes) from R + G / 256 in 0..1 channel values.
+    k = math_node(tree, "ROUND", math_node(tree, "MULTIPLY", image_lookup(
+        tree, member["indirection"], u, v, (1 / columns, 1 / rows)), 255.0 * 256.0))
+    per_row = member["atlas_blocks"]
+    column = math_node(tree, "ADD", math_node(tree, "MODULO", k, per_row),
+                       math_node(tree, "FRACT", u))
+    row = math_node(tree, "ADD", math_node(tree, "FLOOR", math_node(tree, "DIVIDE", k, per_row)),
+                    math_node(tree, "FRACT", v))
+    coverage = image_lookup(tree, member["atlas"], column, row, (1 / per_row, 1 / per_row))
+    return math_node(tree, "MULTIPLY", coverage, on)
+
+
+def add_cracks(cracks: list[dict]) -> None:
+    """Darken each cracked part's surface shader by contrast x coverage (module docstring)."""
+    for member in cracks:
+        obj = bpy.data.objects.get(member["part"])
+        if obj is None or obj.type != "MESH":
+            raise SystemExit(f"part {member['part']!r} with cracks is not a mesh of the scene")
+        material = obj.material_slots[0].material
+        if material.users > 1:  # shared with parts without these cracks
+            material = obj.material_slots[0].material = material.copy()
+        tree = material.node_tree
+        output = next(n for n in tree.nodes
+                      if n.type == "OUTPUT_MATERIAL" and n.is_active_output)
+        surface = output.inputs["Surface"].links[0].from_socket
+        coverage = crack_coverage(tree, member,
+                                  Matrix(member["pose"]).inverted() @ obj.matrix_world)
+        black = tree.nodes.new("ShaderNodeBsdfDiffuse")
+        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        mix = tree.nodes.new("ShaderNodeMixShader")
+        tree.links.new(math_node(tree, "MULTIPLY", coverage, member["contrast"]),
+                       mix.inputs["Fac"])
+        tree.links.new(surface, mix.inputs[1])
+        tree.links.new(black.outputs[0], mix.inputs[2])
+        tree.links.new(mix.outputs[0], output.inputs["Surface"])
+
+
 def setup_scene(job: dict) -> bpy.types.Scene:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     patch_numpy_for_gltf_importer()
     bpy.ops.import_scene.gltf(filepath=job["glb"])
     scene = bpy.context.scene
     add_light(scene, job["lighting"])
+    add_cracks(job.get("cracks", []))
     cam = job["cameras"][0]
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"

@@ -5,9 +5,11 @@ What is shared: the uploaded parts with their dressed materials (the full-materi
 glsynth.render.gltf), the camera and sensor, the environment's Lighting (sun, sky, exposure)
 and the tone map (glsynth.render.tonemap, applied here to Cycles' linear output). What Cycles
 adds: global illumination, exact soft shadows, occlusion and the sky seen by every surface.
-Labels and depth always come from the GL label pass, so a Cycles image and a glsynth image of
-one view share their ground truth byte for byte. Cycles runs on the CPU with a seed per view
-(Stream.CYCLES), so a view is reproduced exactly from its seeds.
+A part's cracks (Material.cracks) are baked into a coverage texture with texels fine enough
+for the cameras (glsynth.render.crack_texture) and darken its surface by the GL crack pass's
+contrast. Labels and depth always come from the GL label pass, so a Cycles image and a glsynth
+image of one view share their ground truth byte for byte. Cycles runs on the CPU with a seed
+per view (Stream.CYCLES), so a view is reproduced exactly from its seeds.
 
 Blender is optional: ``blender`` on PATH (Debian's package, 3.4) or a path given by the caller.
 """
@@ -26,8 +28,10 @@ import numpy as np
 from glsynth.appearance.materials import Material
 from glsynth.core.children import run_child
 from glsynth.core.errors import UserError
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 from glsynth.core.seeding import Stream, make_seed
+from glsynth.render.crack_texture import BLOCK, LOOKUP_TOLERANCE_M, bake_for_views, encode
+from glsynth.render.cracks_index import CRACK_CONTRAST
 from glsynth.render.export import describe_lighting
 from glsynth.render.gltf import gltf_binary
 from glsynth.render.tonemap import tone_map
@@ -124,6 +128,32 @@ def run_job(blender: str, job: dict, work: Path, timeout_s: float) -> dict:
     return json.loads(times.read_text())
 
 
+def crack_jobs(parts: Sequence[Part], materials: dict[str, Material],
+               cameras: Sequence[Camera], work: Path) -> list[dict]:
+    """The job's cracks: per part with cracks, its crack texture for ``cameras`` (images
+    written to ``work``) and where it lies on the part."""
+    cracked = [p for p in parts if materials[p.name].cracks is not None
+               and len(materials[p.name].cracks.points)]
+    textures = bake_for_views([(materials[p.name].cracks, p.mesh, p.pose) for p in cracked],
+                              cameras)
+    jobs = []
+    for i, (part, texture) in enumerate(zip(cracked, textures)):
+        images = {"indirection": encode(texture.indirection, 1), "atlas": encode(texture.atlas)}
+        for name, rgb in images.items():
+            atomic_write_bytes(work / f"cracks_{i}_{name}.png", png_bytes(rgb))
+        jobs.append({
+            "part": part.name, "pose": part.pose.tolist(), "contrast": CRACK_CONTRAST,
+            "tolerance_m": LOOKUP_TOLERANCE_M, "block_m": BLOCK * texture.texel_m,
+            **{name: str(work / f"cracks_{i}_{name}.png") for name in images},
+            "indirection_size": list(texture.indirection.shape[::-1]),
+            "atlas_blocks": texture.atlas.shape[0] // BLOCK,
+            "planes": [{"normal": g.normal.tolist(), "offset": g.offset,
+                        "u_axis": g.u_axis.tolist(), "v_axis": g.v_axis.tolist(),
+                        "corner": g.corner.tolist(), "blocks": list(g.blocks),
+                        "column": g.column} for g in texture.planes]})
+    return jobs
+
+
 @dataclass(frozen=True)
 class CyclesResult:
     linear: list[np.ndarray]
@@ -148,8 +178,12 @@ def render_linear(parts: Sequence[Part], materials: dict[str, Material], lightin
     atomic_write_bytes(glb, gltf_binary(parts, materials))
     job = {"mode": "twin", "glb": str(glb), "out": str(work), "samples": [int(n) for n in counts],
            "seeds": [int(s) for s in seeds], "cameras": [camera_json(c) for c in cameras],
-           "lighting": describe_lighting(lighting)}
+           "lighting": describe_lighting(lighting),
+           "cracks": crack_jobs(parts, materials, cameras, work)}
     times = run_job(blender, job, work, timeout_s)
+    for member in job["cracks"]:
+        Path(member["indirection"]).unlink()
+        Path(member["atlas"]).unlink()
     images = []
     for i, size in enumerate(times["sizes"]):
         path = work / f"cycles_{i}.f32"
