@@ -4,6 +4,7 @@ GL stays in glsynth.render.gl; this module only orchestrates: environment -> mat
 renderer -> files. Every output is written atomically.
 """
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
-from glsynth.world.cameras import CameraPlacement, environment_camera
+from glsynth.world.cameras import Camera, CameraPlacement, environment_camera
 from glsynth.world.environment import Environment, build_environment, ground_parts
 from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
@@ -37,27 +38,33 @@ class EnvironmentView:
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
-             renderer: Renderer | None = None, cull: bool = True) -> "EnvironmentView":
+             renderer: Renderer | None = None, cull: bool = True,
+             cameras: Callable[[Environment], Sequence[Camera]] | None = None
+             ) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
         renders the same bytes alone or in a batch, and the same as with ``cull=False``
-        (everything uploaded; for measuring)."""
+        (everything uploaded; for measuring). ``cameras``, given the built environment, names
+        other cameras to cull by (a flight's) in place of its sampled ones; it runs before any
+        dressing or GL work, so it may refuse the environment."""
         if renderer is not None:
             # Free the previous environment's textures (and the arrays behind them) before
             # dressing this one: a worker then peaks at one environment, not two.
             renderer.release_scene()
         env = build_environment(config, root_seed, env_index)
-        n_cameras = config.cameras.total
-        cameras = [environment_camera(env.trajectory, config.cameras, config.render,
-                                      root_seed, env_index, i).camera for i in range(n_cameras)]
-        visible = visible_parts(env.parts, cameras)
+        if cameras is None:
+            seen = [environment_camera(env.trajectory, config.cameras, config.render, root_seed,
+                                       env_index, i).camera for i in range(config.cameras.total)]
+        else:
+            seen = list(cameras(env))
+        visible = visible_parts(env.parts, seen)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)
         ground = ground_parts(env.parts)
         lighting = environment_lighting(config.lighting, root_seed, env_index, ground_albedo=(
             surface_albedo(ground, dressing.materials) if ground else None))
-        needed = visible | shadowing_parts(env.parts, cameras, config.render, lighting)
+        needed = visible | shadowing_parts(env.parts, seen, config.render, lighting)
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts
         scene = build_scene(parts, dressing.materials)
         renderer = renderer or Renderer(config.render)
@@ -75,20 +82,25 @@ class EnvironmentView:
         return placement, self.renderer.render(placement.camera, passes)
 
 
-def write_render(out_dir: str | Path, placement: CameraPlacement, output: RenderOutput,
-                 meta: dict) -> None:
+def write_output(out_dir: str | Path, output: RenderOutput, camera_info: dict) -> None:
     """image.png, component.png, damage.png (uint8 ids), depth.npy (float32), camera.json."""
     out = Path(out_dir)
     atomic_write_bytes(out / "image.png", png_bytes(output.color))
     atomic_write_bytes(out / "component.png", png_bytes(output.component))
     atomic_write_bytes(out / "damage.png", png_bytes(output.damage))
     atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
+    atomic_write_json(out / "camera.json", camera_info)
+
+
+def write_render(out_dir: str | Path, placement: CameraPlacement, output: RenderOutput,
+                 meta: dict) -> None:
+    """write_output's files, with the sampled placement in camera.json."""
     info = placement.camera.to_json()
     info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,
                 side=placement.side, distance_m=placement.distance_m,
                 height_m=placement.height_m,
                 euler_xyz_rad=list(placement.euler_xyz_rad), **meta)
-    atomic_write_json(out / "camera.json", info)
+    write_output(out_dir, output, info)
 
 
 def preview_sheet(view: EnvironmentView, cameras: list[int]) -> np.ndarray:
