@@ -480,10 +480,10 @@ class FlightConfig:
     side: Literal["left", "right"] = "left"
     """Facade: the side of the track (walking along it) the drone flies."""
     standoff_m: float = 2.0
-    """Distance to the inspected surface: orbit, to the column's wider face; facade, to the
-    outermost column or girder face; underdeck, down from the slab's underside. The columns
-    of a row stand 6 m apart ([design] column_spacing_m), so an orbit much wider than 2 m
-    meets the other column of the pair and is refused."""
+    """Distance to the inspected surface: orbit, to the column's edges (its nearest points);
+    facade, across to the outermost column or girder face; underdeck, down from the slab's
+    underside. The columns of a row stand 6 m apart ([design] column_spacing_m), so an orbit
+    much wider than 2 m meets the other column of the pair and is refused."""
     heights_m: tuple[float, ...] = (1.5, 3.0)
     """Orbit: the rings' heights above the column's foot, flown in this order."""
     arc_deg: float = 360.0

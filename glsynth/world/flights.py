@@ -94,7 +94,7 @@ def _orbit(env: Environment, flight: FlightConfig, spacing: float) -> list[np.nd
         raise UserError(f"flight.column = {flight.column}: this environment has columns 0 to "
                         f"{len(columns) - 1}; fix it in the [flight] table")
     col = columns[flight.column]
-    radius = flight.standoff_m + min(col.section_m) / 2
+    radius = flight.standoff_m + math.hypot(*col.section_m) / 2  # the edges at the stand-off
     arc = math.radians(flight.arc_deg)
     closed = flight.arc_deg >= 360.0
     poses = []
@@ -222,7 +222,9 @@ def surface_distance(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def _world_mesh(part: Part) -> trimesh.Trimesh:
-    return trimesh.Trimesh(part.world_vertices(), part.mesh.faces, process=False)
+    """The part in world coordinates, its vertices merged (texture seams split them), so that
+    a closed part reads as watertight."""
+    return trimesh.Trimesh(part.world_vertices(), part.mesh.faces)
 
 
 def _where(owner: int) -> str:
