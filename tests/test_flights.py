@@ -248,7 +248,7 @@ def test_pycolmap_reprojects_points_onto_their_labels(flight, colmap_model):
     _, out = flight
     cloud = read_ply(out / "points.ply")
     assert len(colmap_model.images) == FRAMES and len(colmap_model.points3D) == len(cloud["xyz"])
-    agree = total = 0
+    total = 0
     for image_id, image in colmap_model.images.items():
         j = image_id - 1
         folder = out / "frames" / f"frame_{j:04d}"
@@ -264,9 +264,9 @@ def test_pycolmap_reprojects_points_onto_their_labels(flight, colmap_model):
         # each kind) every point lands on its own labels.
         interior = label_interior((comp, dmg), 1)[row, col]
         assert same[interior].all(), f"frame {j}: {np.sum(~same[interior])} interior misses"
-        assert interior.mean() > 0.5
-        agree, total = agree + same.sum(), total + len(same)
-    assert total > 10 * FRAMES and agree / total >= 0.999
+        assert interior.mean() > 0.5 and same.mean() >= 0.999, f"frame {j}: {same.mean()}"
+        total += len(same)
+    assert total > 1000 * FRAMES
 
 
 def test_transforms_json_and_colmap_give_the_same_rays(flight, colmap_model):
