@@ -503,6 +503,15 @@ class FlightConfig:
     """Camera pitch above the horizontal (90 looks straight up, -90 down)."""
     focal_mm: float = 24.0
     """Focal length (the sensor is [cameras] sensor_mm wide)."""
+    camera_model: Literal["PINHOLE", "SIMPLE_RADIAL", "OPENCV"] = "PINHOLE"
+    """COLMAP's camera model of the frames: a pinhole, or radial distortion (k1; OPENCV also
+    k2) applied to colour by resampling and to labels and depth by nearest lookup
+    (glsynth.world.lens)."""
+    k1: float = 0.0
+    """Radial distortion: x_d = x (1 + k1 r^2 + k2 r^4) on normalized coordinates (< 0:
+    barrel)."""
+    k2: float = 0.0
+    """OPENCV only."""
     clearance_m: float = 1.0
     """Least distance from the path to any mesh; a plan that comes closer is refused."""
     max_frames: int = 0
@@ -531,6 +540,13 @@ class FlightConfig:
         check_number(s, "frame_rate_hz", self.frame_rate_hz, 0.0, 1000.0, lo_open=True)
         check_number(s, "gimbal_pitch_deg", self.gimbal_pitch_deg, -90.0, 90.0)
         check_number(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
+        check_literal(s, FlightConfig, "camera_model", self.camera_model)
+        check_number(s, "k1", self.k1, -1.0, 1.0)
+        check_number(s, "k2", self.k2, -1.0, 1.0)
+        if self.camera_model != "OPENCV" and self.k2 != 0.0:
+            fail(s, "k2", self.k2, '0 unless camera_model = "OPENCV"')
+        if self.camera_model == "PINHOLE" and self.k1 != 0.0:
+            fail(s, "k1", self.k1, '0 unless camera_model is "SIMPLE_RADIAL" or "OPENCV"')
         check_number(s, "clearance_m", self.clearance_m, 0.01, 100.0)
         check_number(s, "max_frames", self.max_frames, 0, 10**6, integer=True)
         check_number(s, "point_stride_px", self.point_stride_px, 1, 1024, integer=True)

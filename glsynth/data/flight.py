@@ -19,6 +19,7 @@ files, so a resumed flight writes the same bytes as an uninterrupted one.
 import hashlib
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,10 +38,12 @@ from glsynth.data.flight_export import (
     write_transforms,
 )
 from glsynth.render.export import export_environment
+from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import EnvironmentView, write_output
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Environment
 from glsynth.world.flights import FlightPlan, plan_flight, validate_flight
+from glsynth.world.lens import Lens, resample, source_camera, source_pixels
 
 RUN_FILE = "flight_run.json"
 
@@ -67,9 +70,19 @@ def _prepare(out: Path, config: Config, root_seed: int, env: int) -> None:
     atomic_write_json(run_file, identity)
 
 
-def _frame_info(camera: Camera, plan: FlightPlan, index: int, meta: dict) -> dict:
-    return {**camera.to_json(), "frame": index, "time_s": float(plan.times_s[index]),
-            "plan": plan.plan, **meta}
+def _frame_info(camera: Camera, lens: Lens, plan: FlightPlan, index: int, meta: dict) -> dict:
+    return {**camera.to_json(), "lens": {"model": lens.model, "k1": lens.k1, "k2": lens.k2},
+            "frame": index, "time_s": float(plan.times_s[index]), "plan": plan.plan, **meta}
+
+
+def _distorted(output: RenderOutput, where: np.ndarray | None) -> RenderOutput:
+    """A source render resampled through the lens (glsynth.world.lens); as it is without."""
+    if where is None:
+        return output
+    return RenderOutput(color=resample(output.color, where, nearest=False),
+                        component=resample(output.component, where, nearest=True),
+                        damage=resample(output.damage, where, nearest=True),
+                        depth=resample(output.depth, where, nearest=True))
 
 
 def _read_frame(out: Path, index: int) -> Frame:
@@ -77,7 +90,8 @@ def _read_frame(out: Path, index: int) -> Frame:
     info = json.loads((folder / "camera.json").read_text())
     camera = Camera(info["width"], info["height"], info["focal_mm"], info["sensor_mm"],
                     np.array(info["pose"]), info["znear"], info["zfar"])
-    return Frame(f"frames/{frame_name(index)}/image.png", camera, info["time_s"],
+    lens = Lens(info["lens"]["model"], info["lens"]["k1"], info["lens"]["k2"])
+    return Frame(f"frames/{frame_name(index)}/image.png", camera, lens, info["time_s"],
                  np.asarray(Image.open(folder / "image.png").convert("RGB")),
                  np.asarray(Image.open(folder / "component.png")),
                  np.asarray(Image.open(folder / "damage.png")), np.load(folder / "depth.npy"))
@@ -111,27 +125,36 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     folder's run lock. Returns the flight's summary (flight.json) and timings."""
     _check_renderer(config)
     _prepare(out, config, root_seed, env_index)
+    fc = config.flight
+    lens = Lens(fc.camera_model, fc.k1, fc.k2)
     flight: dict[str, FlightPlan] = {}
 
-    def cameras(env: Environment) -> list[Camera]:
+    def sources(env: Environment) -> list[Camera]:
         plan = plan_flight(env, config)
-        validate_flight(env, plan, config.flight.clearance_m)  # before any dressing or GL
+        validate_flight(env, plan, fc.clearance_m)  # before any dressing or GL
         flight["plan"] = plan
-        return plan.cameras(config)
+        return [source_camera(c, lens) for c in plan.cameras(config)]
 
     t0 = time.perf_counter()
-    view = EnvironmentView.open(config, root_seed, env_index, cameras=cameras)
+    r = config.render  # the lens's canvas depends on the intrinsics alone, not on a pose
+    size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
+                                np.eye(4), r.znear_m, r.zfar_m), lens)
+    source_config = replace(config, render=replace(config.render, width=size.width,
+                                                   height=size.height))
+    view = EnvironmentView.open(source_config, root_seed, env_index, cameras=sources)
     opened, plan = time.perf_counter() - t0, flight["plan"]
+    cameras = plan.cameras(config)
+    where = None if lens.pinhole else source_pixels(cameras[0], lens, size)
     meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl"}
     rendered, t1 = 0, time.perf_counter()
     with view.renderer:
-        for index, camera in enumerate(plan.cameras(config)):
+        for index, camera in enumerate(cameras):
             marker = out / "progress" / f"{frame_name(index)}.done"
             if marker.exists():
                 continue
-            output = view.renderer.render(camera)
+            output = _distorted(view.renderer.render(source_camera(camera, lens)), where)
             write_output(out / "frames" / frame_name(index), output,
-                         _frame_info(camera, plan, index, meta))
+                         _frame_info(camera, lens, plan, index, meta))
             atomic_write_bytes(marker, b"")
             rendered += 1
     render_s = time.perf_counter() - t1

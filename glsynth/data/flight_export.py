@@ -25,6 +25,7 @@ import numpy as np
 
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.world.cameras import Camera
+from glsynth.world.lens import Lens, label_rays, normalized_to_pixel
 
 EDGE_MARGIN_PX = 2
 """Points are sampled at least this many pixels (in x and y) from a label's edge."""
@@ -58,17 +59,15 @@ def colmap_pose(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rotation, -rotation @ pose[:3, 3]
 
 
-def project(camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def project(camera: Camera, lens: Lens, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """glsynth pixel coordinates (N, 2: col, row; centres at integers) and depth along the
     optical axis (N,) of world points."""
     view = camera.view()
     cam = points @ view[:3, :3].T + view[:3, 3]
     depth = -cam[:, 2]
-    k = camera.K
     with np.errstate(divide="ignore", invalid="ignore"):
-        uv = np.stack([k[0, 0] * cam[:, 0] / depth + k[0, 2],
-                       -k[1, 1] * cam[:, 1] / depth + k[1, 2]], axis=1)
-    return uv, depth
+        xy = np.stack([cam[:, 0] / depth, -cam[:, 1] / depth], axis=1)  # COLMAP's axes
+    return normalized_to_pixel(camera, lens, xy), depth
 
 
 def depth_tolerance(depth: np.ndarray) -> np.ndarray:
@@ -84,10 +83,10 @@ def depth_tolerance(depth: np.ndarray) -> np.ndarray:
     return g
 
 
-def seen(camera: Camera, depth_map: np.ndarray, points: np.ndarray
+def seen(camera: Camera, lens: Lens, depth_map: np.ndarray, points: np.ndarray
          ) -> tuple[np.ndarray, np.ndarray]:
     """Which points the frame sees (N,) and their glsynth pixel coordinates (N, 2)."""
-    uv, z = project(camera, points)
+    uv, z = project(camera, lens, points)
     col, row = np.floor(uv[:, 0] + 0.5), np.floor(uv[:, 1] + 0.5)
     inside = (z > camera.znear) & (col >= 0) & (col < camera.width) & (row >= 0) & \
         (row < camera.height)
@@ -106,6 +105,7 @@ class Frame:
     name: str
     """Path of its image.png, relative to the flight folder."""
     camera: Camera
+    lens: Lens
     time_s: float
     color: np.ndarray
     component: np.ndarray
@@ -142,8 +142,8 @@ def sample_points(frames: Sequence[Frame], stride: int, spacing_m: float) -> dic
         z = f.depth[rows, cols].astype(np.float64)
         keep = (z < f.camera.zfar) & label_interior((f.component, f.damage))[rows, cols]
         rows, cols, z = rows[keep], cols[keep], z[keep]
-        k = f.camera.K
-        cam = np.stack([(cols - k[0, 2]) / k[0, 0] * z, -(rows - k[1, 2]) / k[1, 1] * z, -z], 1)
+        xy = label_rays(f.camera, f.lens, cols, rows)
+        cam = np.stack([xy[:, 0] * z, -xy[:, 1] * z, -z], 1)  # glsynth's axes
         xyz = cam @ f.camera.pose[:3, :3].T + f.camera.pose[:3, 3]
         parts.append((xyz, f.color[rows, cols], f.component[rows, cols], f.damage[rows, cols],
                       np.full(len(z), index)))
@@ -159,7 +159,7 @@ def visibility(frames: Sequence[Frame], xyz: np.ndarray
     """Per frame: the ids of the points it sees (ascending) and their glsynth pixels."""
     ids, pixels = [], []
     for f in frames:
-        ok, uv = seen(f.camera, f.depth, xyz)
+        ok, uv = seen(f.camera, f.lens, f.depth, xyz)
         ids.append(np.flatnonzero(ok))
         pixels.append(uv[ok])
     return ids, pixels
@@ -174,11 +174,10 @@ def write_colmap(folder: Path, frames: Sequence[Frame], xyz: np.ndarray, rgb: np
     """cameras.txt (one PINHOLE camera), images.txt (poses and, per image, the points it sees
     at their exact pixels), points3D.txt (each point with its true track, error 0)."""
     cam = frames[0].camera
-    k = cam.K
+    model, params = frames[0].lens.colmap_params(cam)
     atomic_write_bytes(folder / "cameras.txt", (
-        "# CAMERA_ID MODEL WIDTH HEIGHT fx fy cx cy (pixel centres at +0.5)\n"
-        f"1 PINHOLE {cam.width} {cam.height} " +
-        " ".join(repr(float(v)) for v in (k[0, 0], k[1, 1], k[0, 2] + 0.5, k[1, 2] + 0.5)) +
+        "# CAMERA_ID MODEL WIDTH HEIGHT PARAMS[] (pixel centres at +0.5)\n"
+        f"1 {model} {cam.width} {cam.height} " + " ".join(repr(float(v)) for v in params) +
         "\n").encode())
     lines = ["# IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME\n# POINTS2D[] as (X, Y, "
              "POINT3D_ID)\n"]
@@ -202,14 +201,15 @@ def write_colmap(folder: Path, frames: Sequence[Frame], xyz: np.ndarray, rgb: np
 
 
 def write_transforms(path: Path, frames: Sequence[Frame]) -> None:
-    """nerfstudio / instant-ngp: shared intrinsics (pixel centres at +0.5), camera-to-world
-    in OpenGL axes per frame (glsynth's pose as it is)."""
-    cam = frames[0].camera
+    """nerfstudio / instant-ngp: shared intrinsics (pixel centres at +0.5) and radial
+    distortion (OPENCV's k1, k2: the same formula as COLMAP's), camera-to-world in OpenGL axes
+    per frame (glsynth's pose as it is)."""
+    cam, lens = frames[0].camera, frames[0].lens
     k = cam.K
     atomic_write_json(path, {
         "camera_model": "OPENCV", "fl_x": k[0, 0], "fl_y": k[1, 1], "cx": k[0, 2] + 0.5,
         "cy": k[1, 2] + 0.5, "w": cam.width, "h": cam.height,
-        "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
+        "k1": lens.k1, "k2": lens.k2, "p1": 0.0, "p2": 0.0,
         "frames": [{"file_path": f.name, "transform_matrix": f.camera.pose.tolist(),
                     "time_s": f.time_s, "colmap_im_id": j + 1}
                    for j, f in enumerate(frames)]})
