@@ -125,6 +125,9 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     folder's run lock. Returns the flight's summary (flight.json) and timings."""
     _check_renderer(config)
     _prepare(out, config, root_seed, env_index)
+    if (out / "flight.json").exists():  # written last: the flight is complete
+        return {**json.loads((out / "flight.json").read_text()), "open_s": 0.0, "rendered": 0,
+                "render_s_per_frame": None}
     fc = config.flight
     lens = Lens(fc.camera_model, fc.k1, fc.k2)
     flight: dict[str, FlightPlan] = {}
