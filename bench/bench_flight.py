@@ -48,7 +48,9 @@ from glsynth.world.lens import Lens  # noqa: E402
 def fly(args: argparse.Namespace, out: Path) -> Path:
     width, height = (int(v) for v in args.size.split("x"))
     toml = out.parent / f"{out.name}.toml"
-    toml.write_text(f"[render]\nwidth = {width}\nheight = {height}\n[flight]\nplan = \"orbit\"\n"
+    toml.write_text(f"[render]\nwidth = {width}\nheight = {height}\n[materials]\n"
+                    f"texture_size = {args.texture_size}\nbuiltin_size = {args.texture_size}\n"
+                    "[flight]\nplan = \"orbit\"\n"
                     f"column = {args.column}\nstandoff_m = {args.standoff}\n"
                     f"heights_m = [1.5, 3.0]\nfocal_mm = {args.focal}\n"
                     "forward_overlap_pct = 80.0\n")
@@ -163,23 +165,23 @@ def mapping(pycolmap, out: Path, work: Path, database: Path, n_frames: int) -> d
 
 
 def cloud_view(cloud: dict, camera: Camera, background: int = 255) -> np.ndarray:
-    """The points splatted as 2x2 squares coloured by component, far ones first."""
+    """The points splatted as 3x3 squares coloured by component, far ones first."""
     image = np.full((camera.height, camera.width, 3), background, np.uint8)
     uv, z = project(camera, Lens("PINHOLE"), cloud["xyz"])
     order = np.argsort(-z)
     uv, z, ids = uv[order], z[order], cloud["component"][order]
     col, row = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
-    keep = (z > camera.znear) & (col >= 0) & (col < camera.width - 1) & (row >= 0) & \
+    keep = (z > camera.znear) & (col >= 1) & (col < camera.width - 1) & (row >= 1) & \
         (row < camera.height - 1)
-    for dy in (0, 1):
-        for dx in (0, 1):
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
             image[row[keep] + dy, col[keep] + dx] = COMPONENT_RGB[ids[keep]]
     return image
 
 
 def flight_sheet(out: Path, env, column: int, frames: int) -> np.ndarray:
-    """Three frames (colour, components, damage) over the point cloud seen from outside the
-    orbit, coloured by component."""
+    """Three frames (colour, components, damage) over the point cloud within 8 m of the
+    column, seen from above the orbit, coloured by component."""
     rows = []
     for j in np.linspace(0, frames // 2 - 1, 3).round().astype(int):
         folder = out / "frames" / f"frame_{j:04d}"
@@ -191,13 +193,16 @@ def flight_sheet(out: Path, env, column: int, frames: int) -> np.ndarray:
     sheet = np.concatenate(rows, axis=0)
     col = [c for v in env.viaducts for c in v.columns][column]
     h, w = sheet.shape[:2]
-    eye = np.array([col.center_xy[0] + 7.0, col.center_xy[1] + 7.0, col.bottom_z + 6.0])
-    target = np.array([*col.center_xy, col.bottom_z + 2.0])
+    eye = np.array([col.center_xy[0] + 4.0, col.center_xy[1] + 4.0, col.bottom_z + 5.0])
+    target = np.array([*col.center_xy, col.bottom_z + 1.5])
     look = target - eye
     pose = look_pose(eye, float(np.arctan2(look[1], look[0])),
                      float(np.arctan2(look[2], np.hypot(look[0], look[1]))))
     camera = Camera(w, h // 2, 24.0, 36.0, pose, 0.1, 500.0)
-    return np.concatenate([sheet, cloud_view(read_ply(out / "points.ply"), camera)], axis=0)
+    cloud = read_ply(out / "points.ply")
+    near = np.hypot(*(cloud["xyz"][:, :2] - col.center_xy).T) < 8.0  # the column's surroundings
+    cloud = {k: cloud[k][near] for k in ("xyz", "component")}
+    return np.concatenate([sheet, cloud_view(cloud, camera)], axis=0)
 
 
 def main() -> int:
@@ -210,6 +215,9 @@ def main() -> int:
     p.add_argument("--focal", type=float, default=50.0)
     p.add_argument("--overlap", type=int, default=10, help="sequential matching neighbours")
     p.add_argument("--margin", type=float, default=0.5, help="outlier distance [m]")
+    p.add_argument("--texture-size", type=int, default=1024,
+                   help="[materials] texture_size and builtin_size (paper preset: 512, 1024)")
+    p.add_argument("--label", default="", help="results file bench_flight_<label>.json")
     p.add_argument("--out", default="/tmp/glsynth-bench-flight")
     args = p.parse_args()
     try:
@@ -230,13 +238,14 @@ def main() -> int:
     database = features(pycolmap, out, work, names, args.overlap)
     matched = time.perf_counter() - t0 - flown
     env = build_environment(load_config("paper", toml), args.seed, args.env)
-    atomic_write_bytes(RESULTS / "flight" / "flight.png",
+    atomic_write_bytes(RESULTS / "flight" / f"flight{'_' + args.label if args.label else ''}.png",
                        png_bytes(flight_sheet(out, env, args.column, summary["frames"])))
     tri = triangulation(pycolmap, env, out, work, database, args.margin)
     mapper = mapping(pycolmap, out, work, database, summary["frames"])
-    write_results("bench_flight", {
+    write_results("bench_flight" + (f"_{args.label}" if args.label else ""), {
         "setting": {k: getattr(args, k) for k in ("seed", "env", "column", "size", "standoff",
-                                                   "focal", "overlap", "margin")},
+                                                   "focal", "overlap", "margin",
+                                                   "texture_size")},
         "frames": summary["frames"], "spacing_m": summary["spacing_m"],
         "fly_s": flown, "features_and_matching_s": matched,
         "triangulation_with_true_poses": tri, "mapper": mapper})

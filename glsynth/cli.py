@@ -375,9 +375,11 @@ def cmd_fly(args: argparse.Namespace) -> None:
         config = config_from_dict({"flight": {"plan": args.plan}}, config)
     with RunLock(args.out):
         done = run_flight(config, args.seed, args.env, Path(args.out))
+    each = f", {done['render_s_per_frame']:.2f} s each" if done["rendered"] else ""
     print(f"{done['plan']}: {done['frames']} frames {done['spacing_m']:.2f} m apart "
-          f"({done['rendered']} rendered now), {done['parts_built']} of {done['parts']} parts "
-          f"built, opened in {done['open_s']:.2f} s; {done['points']} points -> {args.out}")
+          f"({done['rendered']} rendered now{each}), {done['parts_built']} of {done['parts']} "
+          f"parts built, opened in {done['open_s']:.2f} s; {done['points']} points -> "
+          f"{args.out}")
 
 
 def add_stats_parser(sub: Commands) -> None:
