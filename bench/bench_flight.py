@@ -50,6 +50,7 @@ def fly(args: argparse.Namespace, out: Path) -> Path:
     toml = out.parent / f"{out.name}.toml"
     toml.write_text(f"[render]\nwidth = {width}\nheight = {height}\n[materials]\n"
                     f"texture_size = {args.texture_size}\nbuiltin_size = {args.texture_size}\n"
+                    f"concrete_scale = [{args.concrete_scale}]\n"
                     "[flight]\nplan = \"orbit\"\n"
                     f"column = {args.column}\nstandoff_m = {args.standoff}\n"
                     f"heights_m = [1.5, 3.0]\nfocal_mm = {args.focal}\n"
@@ -147,10 +148,12 @@ def mapping(pycolmap, out: Path, work: Path, database: Path, n_frames: int) -> d
     truth = pycolmap.Reconstruction(str(out / "sparse" / "0"))
     by_name = {im.name: im for im in truth.images.values()}
     pairs = [(im, by_name[im.name]) for im in model.images.values() if im.has_pose]
+    result = {"registered_share": len(pairs) / n_frames, "models": len(models)}
+    if len(pairs) < 3:  # too few to align
+        return result
     src = np.array([a.projection_center() for a, _ in pairs])
     tgt = np.array([b.projection_center() for _, b in pairs])
     sim = pycolmap.estimate_sim3d(src, tgt)
-    result = {"registered_share": len(pairs) / n_frames, "models": len(models)}
     if sim is None:
         return result
     rot = sim.rotation.matrix()
@@ -217,6 +220,8 @@ def main() -> int:
     p.add_argument("--margin", type=float, default=0.5, help="outlier distance [m]")
     p.add_argument("--texture-size", type=int, default=1024,
                    help="[materials] texture_size and builtin_size (paper preset: 512, 1024)")
+    p.add_argument("--concrete-scale", default="0.1,1.0",
+                   help="[materials] concrete_scale: repeats per metre (paper preset 0.1,1.0)")
     p.add_argument("--label", default="", help="results file bench_flight_<label>.json")
     p.add_argument("--out", default="/tmp/glsynth-bench-flight")
     args = p.parse_args()
@@ -245,7 +250,7 @@ def main() -> int:
     write_results("bench_flight" + (f"_{args.label}" if args.label else ""), {
         "setting": {k: getattr(args, k) for k in ("seed", "env", "column", "size", "standoff",
                                                    "focal", "overlap", "margin",
-                                                   "texture_size")},
+                                                   "texture_size", "concrete_scale")},
         "frames": summary["frames"], "spacing_m": summary["spacing_m"],
         "fly_s": flown, "features_and_matching_s": matched,
         "triangulation_with_true_poses": tri, "mapper": mapper})
