@@ -12,7 +12,9 @@ its colour images alone: SIFT features, sequential matching (each frame with the
   errors.
 
     .venv/bin/python bench/bench_flight.py [--size 960x540] [--standoff 2] [--focal 50]
-                                           [--overlap 10] [--out /tmp/glsynth-bench-flight]
+                                           [--overlap 10] [--texture-size 512]
+                                           [--concrete-scale 0.1,1.0] [--label L]
+                                           [--out /tmp/glsynth-bench-flight]
 
 It also draws bench/results/flight/flight.png: three frames with their labels, and the point
 cloud seen from outside the orbit, coloured by component. The issue's setting, a 5 m orbit,
@@ -27,6 +29,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 from PIL import Image
 
@@ -49,7 +52,8 @@ def fly(args: argparse.Namespace, out: Path) -> Path:
     width, height = (int(v) for v in args.size.split("x"))
     toml = out.parent / f"{out.name}.toml"
     toml.write_text(f"[render]\nwidth = {width}\nheight = {height}\n[materials]\n"
-                    f"texture_size = {args.texture_size}\nbuiltin_size = {args.texture_size}\n"
+                    f"texture_size = {args.texture_size}\n"
+                    f"builtin_size = {max(1024, args.texture_size)}\n"
                     f"concrete_scale = [{args.concrete_scale}]\n"
                     "[flight]\nplan = \"orbit\"\n"
                     f"column = {args.column}\nstandoff_m = {args.standoff}\n"
@@ -184,7 +188,7 @@ def cloud_view(cloud: dict, camera: Camera, background: int = 255) -> np.ndarray
 
 def flight_sheet(out: Path, env, column: int, frames: int) -> np.ndarray:
     """Three frames (colour, components, damage) over the point cloud within 8 m of the
-    column, seen from above the orbit, coloured by component."""
+    column, seen from above the orbit, coloured by component; at half size."""
     rows = []
     for j in np.linspace(0, frames // 2 - 1, 3).round().astype(int):
         folder = out / "frames" / f"frame_{j:04d}"
@@ -205,7 +209,8 @@ def flight_sheet(out: Path, env, column: int, frames: int) -> np.ndarray:
     cloud = read_ply(out / "points.ply")
     near = np.hypot(*(cloud["xyz"][:, :2] - col.center_xy).T) < 8.0  # the column's surroundings
     cloud = {k: cloud[k][near] for k in ("xyz", "component")}
-    return np.concatenate([sheet, cloud_view(cloud, camera)], axis=0)
+    full = np.concatenate([sheet, cloud_view(cloud, camera)], axis=0)
+    return cv2.resize(full, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
 
 
 def main() -> int:
@@ -218,8 +223,9 @@ def main() -> int:
     p.add_argument("--focal", type=float, default=50.0)
     p.add_argument("--overlap", type=int, default=10, help="sequential matching neighbours")
     p.add_argument("--margin", type=float, default=0.5, help="outlier distance [m]")
-    p.add_argument("--texture-size", type=int, default=1024,
-                   help="[materials] texture_size and builtin_size (paper preset: 512, 1024)")
+    p.add_argument("--texture-size", type=int, default=512,
+                   help="[materials] texture_size (paper preset: 512), generated at "
+                        "max(1024, this)")
     p.add_argument("--concrete-scale", default="0.1,1.0",
                    help="[materials] concrete_scale: repeats per metre (paper preset 0.1,1.0)")
     p.add_argument("--label", default="", help="results file bench_flight_<label>.json")

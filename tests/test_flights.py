@@ -326,6 +326,13 @@ def test_single_frame_flight(tmp_path):
     assert all(f.tolist() == [0] for f in read_ply(out / "points.ply")["frames"])
 
 
+def test_a_complete_flight_is_left_as_it_is(flight, capsys):
+    cfg, out = flight
+    before = _digests(out)
+    assert main(_fly_args(cfg, out)) == 0
+    assert "(0 rendered now)" in capsys.readouterr().out and _digests(out) == before
+
+
 def test_a_killed_flight_resumes_to_the_same_bytes(flight, tmp_path):
     cfg, complete = flight
     out = tmp_path / "killed"
