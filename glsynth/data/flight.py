@@ -41,8 +41,8 @@ from glsynth.render.export import export_environment
 from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import EnvironmentView, write_output
 from glsynth.world.cameras import Camera
-from glsynth.world.environment import Environment
-from glsynth.world.flights import FlightPlan, plan_flight, validate_flight
+from glsynth.world.environment import build_environment
+from glsynth.world.flights import FlightPlan, plan_flight
 from glsynth.world.lens import Lens, resample, source_camera, source_pixels
 
 RUN_FILE = "flight_run.json"
@@ -124,28 +124,22 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     """Plan, validate, render the frames not yet written, then export; the caller holds the
     folder's run lock. Returns the flight's summary (flight.json) and timings."""
     _check_renderer(config)
-    _prepare(out, config, root_seed, env_index)
+    plan = plan_flight(build_environment(config, root_seed, env_index), config, validate=True)
+    _prepare(out, config, root_seed, env_index)  # after the checks: a refused plan writes nothing
     if (out / "flight.json").exists():  # written last: the flight is complete
         return {**json.loads((out / "flight.json").read_text()), "open_s": 0.0, "rendered": 0,
                 "render_s_per_frame": None}
     fc = config.flight
     lens = Lens(fc.camera_model, fc.k1, fc.k2)
-    flight: dict[str, FlightPlan] = {}
-
-    def sources(env: Environment) -> list[Camera]:
-        plan = plan_flight(env, config)
-        validate_flight(env, plan, fc.clearance_m)  # before any dressing or GL
-        flight["plan"] = plan
-        return [source_camera(c, lens) for c in plan.cameras(config)]
-
     t0 = time.perf_counter()
     r = config.render  # the lens's canvas depends on the intrinsics alone, not on a pose
     size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
                                 np.eye(4), r.znear_m, r.zfar_m), lens)
     source_config = replace(config, render=replace(config.render, width=size.width,
                                                    height=size.height))
-    view = EnvironmentView.open(source_config, root_seed, env_index, cameras=sources)
-    opened, plan = time.perf_counter() - t0, flight["plan"]
+    view = EnvironmentView.open(source_config, root_seed, env_index, cameras=[
+        source_camera(c, lens) for c in plan.cameras(config)])
+    opened = time.perf_counter() - t0
     cameras = plan.cameras(config)
     where = None if lens.pinhole else source_pixels(cameras[0], lens, size)
     meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl"}

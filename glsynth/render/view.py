@@ -4,7 +4,7 @@ GL stays in glsynth.render.gl; this module only orchestrates: environment -> mat
 renderer -> files. Every output is written atomically.
 """
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -39,15 +39,13 @@ class EnvironmentView:
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
              renderer: Renderer | None = None, cull: bool = True,
-             cameras: Callable[[Environment], Sequence[Camera]] | None = None
-             ) -> "EnvironmentView":
+             cameras: Sequence[Camera] | None = None) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
         renders the same bytes alone or in a batch, and the same as with ``cull=False``
-        (everything uploaded; for measuring). ``cameras``, given the built environment, names
-        other cameras to cull by (a flight's) in place of its sampled ones; it runs before any
-        dressing or GL work, so it may refuse the environment."""
+        (everything uploaded; for measuring). ``cameras`` (a flight's) are culled by in place
+        of the environment's sampled ones."""
         if renderer is not None:
             # Free the previous environment's textures (and the arrays behind them) before
             # dressing this one: a worker then peaks at one environment, not two.
@@ -57,7 +55,7 @@ class EnvironmentView:
             seen = [environment_camera(env.trajectory, config.cameras, config.render, root_seed,
                                        env_index, i).camera for i in range(config.cameras.total)]
         else:
-            seen = list(cameras(env))
+            seen = list(cameras)
         visible = visible_parts(env.parts, seen)
         dressing = dress(env, config, open_repository(config),
                          DamageBank(config.damage, root_seed), visible)

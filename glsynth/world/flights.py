@@ -162,8 +162,9 @@ def _underdeck(env: Environment, flight: FlightConfig, spacing: float) -> list[n
     return _track_poses(env, s, 0.0, z, math.pi / 2, math.radians(flight.gimbal_pitch_deg))
 
 
-def plan_flight(env: Environment, config: Config) -> FlightPlan:
-    """The flight [flight] describes in ``env``: poses in order and their times."""
+def plan_flight(env: Environment, config: Config, validate: bool = False) -> FlightPlan:
+    """The flight [flight] describes in ``env``: poses in order and their times; with
+    ``validate``, refused (validate_flight) where it collides or leaves the ground."""
     flight, sensor = config.flight, config.cameras.sensor_mm
     spacing = frame_spacing_m(flight, sensor)
     if spacing / flight.speed_mps < 1 / flight.frame_rate_hz:
@@ -182,7 +183,10 @@ def plan_flight(env: Environment, config: Config) -> FlightPlan:
     stacked = np.stack(poses)
     steps = np.linalg.norm(np.diff(stacked[:, :3, 3], axis=0), axis=1)
     times = np.concatenate([[0.0], np.cumsum(steps)]) / flight.speed_mps
-    return FlightPlan(flight.plan, stacked, times, spacing, flight.focal_mm)
+    plan = FlightPlan(flight.plan, stacked, times, spacing, flight.focal_mm)
+    if validate:
+        validate_flight(env, plan, flight.clearance_m)
+    return plan
 
 
 def _path_samples(positions: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
