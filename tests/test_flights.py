@@ -3,7 +3,6 @@
 
 import hashlib
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -195,14 +194,13 @@ def test_quaternion_matches_scipy_on_every_branch():
         assert np.allclose(q, expected * np.sign(expected[0] or 1.0), atol=1e-12)
 
 
-def test_ply_round_trip():
+def test_ply_round_trip(tmp_path):
     xyz = np.array([[1.0, 2.0, 3.0], [-4.5, 0.25, 1e-9], [7.0, 8.0, 9.0]])
     rgb = np.array([[1, 2, 3], [4, 5, 6], [255, 0, 7]], np.uint8)
     frames = [np.array([0, 5]), np.array([], np.int64), np.array([70000])]
-    path = Path(os.environ.get("TMPDIR", "/tmp")) / f"glsynth-ply-{os.getpid()}.ply"
+    path = tmp_path / "points.ply"
     path.write_bytes(ply_bytes(xyz, rgb, np.array([4, 3, 1]), np.array([1, 2, 3]), frames))
     back = read_ply(path)
-    path.unlink()
     assert np.array_equal(back["xyz"], xyz) and np.array_equal(back["rgb"], rgb)
     assert back["component"].tolist() == [4, 3, 1] and back["damage"].tolist() == [1, 2, 3]
     assert [f.tolist() for f in back["frames"]] == [[0, 5], [], [70000]]
