@@ -11,7 +11,14 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.assess.condition import AssessSettings
-from glsynth.core.config import PRESETS, Config, RenderConfig, config_from_dict, load_config
+from glsynth.core.config import (
+    PRESETS,
+    Config,
+    FlightConfig,
+    RenderConfig,
+    config_from_dict,
+    load_config,
+)
 from glsynth.core.errors import UserError
 from glsynth.core.options import (
     add_options,
@@ -417,6 +424,33 @@ def _generated(report: dict, out: Path) -> str:
             "the table beside the paper's)")
 
 
+def add_fly_parser(sub: Commands) -> None:
+    p = sub.add_parser("fly", help="render an inspection flight ([flight]) with COLMAP, "
+                                   "nerfstudio and point-cloud exports")
+    _add_config_args(p)
+    _add_env_args(p)
+    p.add_argument("--plan", choices=field_choices(FlightConfig, "plan"), default=None,
+                   help="flight plan (default: [flight] plan)")
+    p.add_argument("--out", required=True, help="flight folder (new, or a flight to resume)")
+    p.set_defaults(func=cmd_fly)
+
+
+def cmd_fly(args: argparse.Namespace) -> None:
+    from glsynth.core.runlock import RunLock
+    from glsynth.data.flight import run_flight
+
+    config = _config(args)
+    if args.plan:
+        config = config_from_dict({"flight": {"plan": args.plan}}, config)
+    with RunLock(args.out):
+        done = run_flight(config, args.seed, args.env, Path(args.out))
+    each = f", {done['render_s_per_frame']:.2f} s each" if done["rendered"] else ""
+    print(f"{done['plan']}: {done['frames']} frames {done['spacing_m']:.2f} m apart "
+          f"({done['rendered']} rendered now{each}), {done['parts_built']} of {done['parts']} "
+          f"parts built, opened in {done['open_s']:.2f} s; {done['points']} points -> "
+          f"{args.out}")
+
+
 def add_stats_parser(sub: Commands) -> None:
     p = sub.add_parser("stats", help="a dataset's statistics beside the paper's (glsynth's or "
                                      "the released Tokaido dataset)")
@@ -683,9 +717,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="show the traceback of every error, user errors too")
     sub = parser.add_subparsers(dest="command", required=True)
     for add in (add_export_parser, add_histograms_parser, add_render_parser, add_preview_parser,
-                add_generate_parser, add_stats_parser, add_train_parser, add_evaluate_parser,
-                add_predict_parser, add_assess_parser, add_bench_parser, add_textures_parser,
-                add_view_parser):
+                add_generate_parser, add_fly_parser, add_stats_parser, add_train_parser,
+                add_evaluate_parser, add_predict_parser, add_assess_parser, add_bench_parser,
+                add_textures_parser, add_view_parser):
         add(sub)
     return parser
 

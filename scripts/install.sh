@@ -50,7 +50,7 @@ fi
 pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
 # torch first and pinned: a looser requirement would pull several GB of CUDA packages.
 "${pip[@]}" "torch==2.13.0"
-"${pip[@]}" -e ".[model,test,ray,bench,view]"
+"${pip[@]}" -e ".[model,test,ray,bench,view,flights]"
 
 # The Khronos glTF validator (a test checks exported scenes with it), when npm is available.
 if command -v npm >/dev/null; then

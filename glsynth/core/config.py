@@ -525,6 +525,95 @@ class FiltersConfig:
 
 
 @dataclass(frozen=True)
+class FlightConfig:
+    """An inspection flight (glsynth fly; glsynth.world.flights): the path, its overlap and
+    the camera. The image size is [render]'s, the sensor width [cameras]'."""
+
+    plan: Literal["orbit", "facade", "underdeck"] = "orbit"
+    """"orbit": rings around one column; "facade": a lawnmower along one side of a viaduct,
+    columns and beams; "underdeck": along the centre line under the deck."""
+    column: int = 0
+    """Orbit: the column, counted over the environment in build order (viaduct by viaduct,
+    row by row, left then right)."""
+    viaduct: int = 0
+    """Facade and underdeck: the viaduct flown along."""
+    side: Literal["left", "right"] = "left"
+    """Facade: the side of the track (walking along it) the drone flies."""
+    standoff_m: float = 2.0
+    """Distance to the inspected surface: orbit, to the column's edges (its nearest points);
+    facade, across to the outermost column or girder face; underdeck, down from the slab's
+    underside. The columns of a row stand 6 m apart ([design] column_spacing_m), so an orbit
+    much wider than 2 m meets the other column of the pair and is refused."""
+    heights_m: tuple[float, ...] = (1.5, 3.0)
+    """Orbit: the rings' heights above the column's foot, flown in this order."""
+    arc_deg: float = 360.0
+    """Orbit: the angle each ring sweeps (360: a closed ring; 0: one frame per ring)."""
+    length_m: float = math.inf
+    """Facade and underdeck: distance flown along the track from the viaduct's start, cut at
+    its end (0: one frame per row)."""
+    forward_overlap_pct: float = 80.0
+    """Overlap of consecutive frames along the path, at the stand-off."""
+    side_overlap_pct: float = 60.0
+    """Facade: overlap of neighbouring rows, at the stand-off."""
+    speed_mps: float = 2.0
+    """Flight speed; a frame's time is its distance along the path over this."""
+    frame_rate_hz: float = 30.0
+    """The camera's highest frame rate: the spacing over the speed may not be shorter."""
+    gimbal_pitch_deg: float = 0.0
+    """Camera pitch above the horizontal (90 looks straight up, -90 down)."""
+    focal_mm: float = 24.0
+    """Focal length (the sensor is [cameras] sensor_mm wide)."""
+    camera_model: Literal["PINHOLE", "SIMPLE_RADIAL", "OPENCV"] = "PINHOLE"
+    """COLMAP's camera model of the frames: a pinhole, or radial distortion (k1; OPENCV also
+    k2) applied to colour by resampling and to labels and depth by nearest lookup
+    (glsynth.world.lens)."""
+    k1: float = 0.0
+    """Radial distortion: x_d = x (1 + k1 r^2 + k2 r^4) on normalized coordinates (< 0:
+    barrel)."""
+    k2: float = 0.0
+    """OPENCV only."""
+    clearance_m: float = 1.0
+    """Least distance from the path to any mesh; a plan that comes closer is refused."""
+    max_frames: int = 0
+    """Stop after this many frames (0: fly the whole plan)."""
+    point_stride_px: int = 4
+    """points.ply: every point_stride_px-th pixel of each frame, in both directions."""
+    point_spacing_m: float = 0.05
+    """points.ply: at most one point per cube of this side (the first frame's, in order)."""
+
+    def __post_init__(self) -> None:
+        s = "flight"
+        check_literal(s, FlightConfig, "plan", self.plan)
+        check_number(s, "column", self.column, 0, 100000, integer=True)
+        check_number(s, "viaduct", self.viaduct, 0, 1000, integer=True)
+        check_literal(s, FlightConfig, "side", self.side)
+        check_number(s, "standoff_m", self.standoff_m, 0.0, 1000.0, lo_open=True)
+        if not isinstance(self.heights_m, tuple) or not self.heights_m:
+            fail(s, "heights_m", self.heights_m, "a non-empty list of heights in metres")
+        for h in self.heights_m:
+            check_number(s, "heights_m", h, 0.0, 1000.0)
+        check_number(s, "arc_deg", self.arc_deg, 0.0, 360.0)
+        check_number(s, "length_m", self.length_m, 0.0, math.inf)
+        check_number(s, "forward_overlap_pct", self.forward_overlap_pct, 0.0, 99.0)
+        check_number(s, "side_overlap_pct", self.side_overlap_pct, 0.0, 99.0)
+        check_number(s, "speed_mps", self.speed_mps, 0.0, 100.0, lo_open=True)
+        check_number(s, "frame_rate_hz", self.frame_rate_hz, 0.0, 1000.0, lo_open=True)
+        check_number(s, "gimbal_pitch_deg", self.gimbal_pitch_deg, -90.0, 90.0)
+        check_number(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
+        check_literal(s, FlightConfig, "camera_model", self.camera_model)
+        check_number(s, "k1", self.k1, -1.0, 1.0)
+        check_number(s, "k2", self.k2, -1.0, 1.0)
+        if self.camera_model != "OPENCV" and self.k2 != 0.0:
+            fail(s, "k2", self.k2, '0 unless camera_model = "OPENCV"')
+        if self.camera_model == "PINHOLE" and self.k1 != 0.0:
+            fail(s, "k1", self.k1, '0 unless camera_model is "SIMPLE_RADIAL" or "OPENCV"')
+        check_number(s, "clearance_m", self.clearance_m, 0.01, 100.0)
+        check_number(s, "max_frames", self.max_frames, 0, 10**6, integer=True)
+        check_number(s, "point_stride_px", self.point_stride_px, 1, 1024, integer=True)
+        check_number(s, "point_spacing_m", self.point_spacing_m, 1e-4, 100.0)
+
+
+@dataclass(frozen=True)
 class Config:
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     design: StandardDesign = field(default_factory=StandardDesign)
@@ -536,6 +625,7 @@ class Config:
     damage: DamageConfig = field(default_factory=DamageConfig)
     materials: MaterialsConfig = field(default_factory=MaterialsConfig)
     filters: FiltersConfig = field(default_factory=FiltersConfig)
+    flight: FlightConfig = field(default_factory=FlightConfig)
 
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
@@ -573,7 +663,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
 _SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
              "cameras": CameraConfig, "render": RenderConfig, "lighting": LightingConfig,
              "cycles": CyclesConfig, "damage": DamageConfig, "materials": MaterialsConfig,
-             "filters": FiltersConfig}
+             "filters": FiltersConfig,
+             "flight": FlightConfig}
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:

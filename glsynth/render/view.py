@@ -4,7 +4,7 @@ GL stays in glsynth.render.gl; this module only orchestrates: environment -> mat
 renderer -> files. Every output is written atomically.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -40,13 +40,15 @@ class EnvironmentView:
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
              renderer: Renderer | None = None, cull: bool = True, anywhere: bool = False,
-             progress: Callable[[str, float], None] | None = None) -> "EnvironmentView":
+             progress: Callable[[str, float], None] | None = None,
+             cameras: Sequence[Camera] | None = None) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
         renders the same bytes alone or in a batch, and the same as with ``cull=False``
         (everything uploaded; for measuring). ``anywhere`` uploads every part and damages
         every column, for cameras placed anywhere (glsynth view, render --camera-json).
+        ``cameras`` (a flight's) are culled by in place of the environment's sampled ones.
         ``progress(stage, fraction)`` hears of each stage."""
         report = progress or (lambda stage, fraction: None)
         if renderer is not None:
@@ -55,9 +57,10 @@ class EnvironmentView:
             renderer.release_scene()
         report("building the environment", 0.0)
         env = build_environment(config, root_seed, env_index)
-        n_cameras = config.cameras.total
-        cameras = [p.camera for p in place_cameras(env, config.cameras, config.render,
-                                                     range(n_cameras))]
+        if cameras is None:
+            cameras = [p.camera for p in place_cameras(env, config.cameras, config.render,
+                                                         range(config.cameras.total))]
+        cameras = list(cameras)
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)
         dressing = dress(env, config, open_repository(config),
@@ -88,7 +91,8 @@ def write_render(out_dir: str | Path, placement: CameraPlacement | Camera,
                  output: RenderOutput, meta: dict) -> None:
     """image.png, component.png, damage.png (uint8 ids), crack_width.npy (float32 mm, 0
     where no crack is: RenderOutput.crack_width), depth.npy (float32), camera.json. A bare
-    Camera (placed by hand, not sampled) records kind "free" and no sampled values."""
+    Camera (placed by hand or flown, not sampled) records kind "free" unless ``meta`` names
+    another, and no sampled values."""
     out = Path(out_dir)
     atomic_write_bytes(out / "image.png", png_bytes(output.color))
     atomic_write_bytes(out / "component.png", png_bytes(output.component))

@@ -1,0 +1,169 @@
+"""glsynth fly: render an inspection flight ([flight]; glsynth.world.flights) and export it.
+
+Layout of the output folder:
+
+    frames/frame_NNNN/   image.png component.png damage.png depth.npy camera.json (as render)
+    progress/frame_NNNN.done   a frame's marker, written after its files
+    sparse/0/            COLMAP text model (cameras.txt, images.txt, points3D.txt)
+    transforms.json      nerfstudio / instant-ngp
+    points.ply           labelled point cloud
+    environment.glb, scene.json   the environment (glsynth export, dressed as the flight saw it)
+    flight.json          the flight's plan and counts, written last
+    flight_run.json      the run's identity (seed, environment, settings)
+
+The environment is built and uploaded once, culled to what the flight's cameras can see. A
+killed run resumes at the first frame without a marker; the exports are made from the frames'
+files, so a resumed flight writes the same bytes as an uninterrupted one.
+"""
+
+import hashlib
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from glsynth.core.config import Config, config_to_dict
+from glsynth.core.errors import UserError
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
+from glsynth.data.flight_export import (
+    Frame,
+    ply_bytes,
+    sample_points,
+    visibility,
+    write_colmap,
+    write_transforms,
+)
+from glsynth.render.export import export_environment
+from glsynth.render.gl.renderer import RenderOutput
+from glsynth.render.view import EnvironmentView, write_render
+from glsynth.world.cameras import Camera
+from glsynth.world.environment import build_environment
+from glsynth.world.flights import FlightPlan, plan_flight
+from glsynth.world.lens import Lens, resample, source_camera, source_pixels
+
+RUN_FILE = "flight_run.json"
+
+
+def frame_name(index: int) -> str:
+    return f"frame_{index:04d}"
+
+
+def _prepare(out: Path, config: Config, root_seed: int, env: int) -> None:
+    """Create or reopen ``out``; refuse a folder that holds another run or other files."""
+    settings = {"root_seed": root_seed, "env": env, "config": config_to_dict(config)}
+    digest = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
+    identity = {"root_seed": root_seed, "env": env, "config_sha256": digest.hexdigest()}
+    run_file = out / RUN_FILE
+    if run_file.exists():
+        if json.loads(run_file.read_text()) != identity:
+            raise UserError(f"--out {str(out)!r} holds a flight with other settings; use a new "
+                            "folder, or the same preset, config, seed and env to resume it")
+        for stale in out.rglob(".*.tmp"):  # interrupted atomic writes of a killed run
+            stale.unlink()
+    elif any(p.name not in (DRIVER_LOCK, WORKERS_LOCK) for p in out.iterdir()):
+        raise UserError(f"--out {str(out)!r} is not empty and holds no glsynth flight; use a "
+                        "new or empty folder")
+    atomic_write_json(run_file, identity)
+
+
+def _frame_meta(lens: Lens, plan: FlightPlan, index: int, meta: dict) -> dict:
+    """What a frame's camera.json holds beside the camera itself."""
+    return {"kind": "flight", "lens": {"model": lens.model, "k1": lens.k1, "k2": lens.k2},
+            "frame": index, "time_s": float(plan.times_s[index]), "plan": plan.plan, **meta}
+
+
+def _distorted(output: RenderOutput, where: np.ndarray | None) -> RenderOutput:
+    """A source render resampled through the lens (glsynth.world.lens); as it is without."""
+    if where is None:
+        return output
+    return RenderOutput(color=resample(output.color, where, nearest=False),
+                        component=resample(output.component, where, nearest=True),
+                        damage=resample(output.damage, where, nearest=True),
+                        depth=resample(output.depth, where, nearest=True),
+                        crack_width=resample(output.crack_width, where, nearest=True))
+
+
+def _read_frame(out: Path, index: int) -> Frame:
+    folder = out / "frames" / frame_name(index)
+    info = json.loads((folder / "camera.json").read_text())
+    camera = Camera(info["width"], info["height"], info["focal_mm"], info["sensor_mm"],
+                    np.array(info["pose"]), info["znear"], info["zfar"])
+    lens = Lens(info["lens"]["model"], info["lens"]["k1"], info["lens"]["k2"])
+    return Frame(f"frames/{frame_name(index)}/image.png", camera, lens, info["time_s"],
+                 np.asarray(Image.open(folder / "image.png").convert("RGB")),
+                 np.asarray(Image.open(folder / "component.png")),
+                 np.asarray(Image.open(folder / "damage.png")), np.load(folder / "depth.npy"))
+
+
+def export_flight(out: Path, n_frames: int, config: Config) -> dict:
+    """sparse/0, transforms.json and points.ply from the frames' files; their counts."""
+    frames = [_read_frame(out, i) for i in range(n_frames)]
+    points = sample_points(frames, config.flight.point_stride_px, config.flight.point_spacing_m)
+    ids, pixels = visibility(frames, points["xyz"])
+    seen_by: list[list[int]] = [[] for _ in range(len(points["xyz"]))]
+    for j, frame_ids in enumerate(ids):
+        for p in frame_ids:
+            seen_by[p].append(j)
+    write_colmap(out / "sparse" / "0", frames, points["xyz"], points["rgb"], ids, pixels)
+    write_transforms(out / "transforms.json", frames)
+    atomic_write_bytes(out / "points.ply", ply_bytes(
+        points["xyz"], points["rgb"], points["component"], points["damage"],
+        [np.array(s, np.int64) for s in seen_by]))
+    return {"points": len(points["xyz"]), "observations": int(sum(len(i) for i in ids))}
+
+
+def _check_renderer(config: Config) -> None:
+    if config.render.renderer != "gl":
+        raise UserError(f"[render] renderer = {config.render.renderer!r}: glsynth fly renders "
+                        'with GL; set renderer = "gl" in --config')
+
+
+def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dict:
+    """Plan, validate, render the frames not yet written, then export; the caller holds the
+    folder's run lock. Returns the flight's summary (flight.json) and timings."""
+    _check_renderer(config)
+    plan = plan_flight(build_environment(config, root_seed, env_index), config, validate=True)
+    _prepare(out, config, root_seed, env_index)  # after the checks: a refused plan writes nothing
+    if (out / "flight.json").exists():  # written last: the flight is complete
+        return {**json.loads((out / "flight.json").read_text()), "open_s": 0.0, "rendered": 0,
+                "render_s_per_frame": None}
+    fc = config.flight
+    lens = Lens(fc.camera_model, fc.k1, fc.k2)
+    t0 = time.perf_counter()
+    r = config.render  # the lens's canvas depends on the intrinsics alone, not on a pose
+    size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
+                                np.eye(4), r.znear_m, r.zfar_m), lens)
+    source_config = replace(config, render=replace(config.render, width=size.width,
+                                                   height=size.height))
+    view = EnvironmentView.open(source_config, root_seed, env_index, cameras=[
+        source_camera(c, lens) for c in plan.cameras(config)])
+    opened = time.perf_counter() - t0
+    cameras = plan.cameras(config)
+    where = None if lens.pinhole else source_pixels(cameras[0], lens, size)
+    meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl"}
+    rendered, t1 = 0, time.perf_counter()
+    with view.renderer:
+        for index, camera in enumerate(cameras):
+            marker = out / "progress" / f"{frame_name(index)}.done"
+            if marker.exists():
+                continue
+            output = _distorted(view.renderer.render(source_camera(camera, lens)), where)
+            write_render(out / "frames" / frame_name(index), camera, output,
+                         _frame_meta(lens, plan, index, meta))
+            atomic_write_bytes(marker, b"")
+            rendered += 1
+    render_s = time.perf_counter() - t1
+    export_environment(view.environment, out / "environment.glb", view.dressing.materials,
+                       view.lighting)
+    summary = {"plan": plan.plan, "frames": len(plan), "spacing_m": plan.spacing_m,
+               "duration_s": float(plan.times_s[-1]), "parts_built": len(view.scene.parts),
+               "parts": len(view.environment.parts),
+               **export_flight(out, len(plan), config),
+               "flight": config_to_dict(config)["flight"]}
+    atomic_write_json(out / "flight.json", summary)
+    return {**summary, "open_s": opened, "rendered": rendered,
+            "render_s_per_frame": render_s / rendered if rendered else None}
