@@ -31,6 +31,10 @@ from glsynth.world.flights import (
 )
 from glsynth.world.lens import Lens, resample, source_camera, source_pixels
 
+# The paper's damage model: its labels come from textures and are the same from every view.
+# The mechanics model labels a pixel that a crack's centreline crosses however thin the crack
+# (docs/design.md, "Cracks"), so near a crack the labels depend on the view's pixel size, and a
+# point's damage id may differ between frames by design.
 SMALL = """[render]
 width = 192
 height = 108
@@ -39,6 +43,7 @@ shadow_map_px = 256
 sky_visibility_px = 128
 [damage]
 resolution = 64
+model = "paper"
 [materials]
 texture_size = 64
 builtin_size = 64
