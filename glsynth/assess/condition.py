@@ -30,7 +30,7 @@ from glsynth.assess.cracks import (
     width_errors,
 )
 from glsynth.core.errors import UserError
-from glsynth.core.images import nearest_resize
+from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, overlay
 from glsynth.data.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
@@ -329,20 +329,6 @@ def _settings_json(settings: AssessSettings) -> dict:
             "crack_elongation": settings.crack_elongation}
 
 
-def read_rgb(path: Path) -> np.ndarray:
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as im:
-            return np.asarray(im.convert("RGB"))
-    except FileNotFoundError:
-        raise UserError(f"{str(path)!r} does not exist") from None
-    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError) as err:
-        # OSError: truncated data; SyntaxError: PIL's word for a malformed header.
-        raise UserError(f"{str(path)!r} is not a readable image ({type(err).__name__}: "
-                        f"{err})") from err
-
-
 def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
                   limit: int | None = None) -> list[Photo]:
     """Ground-truth maps of a Tokaido-layout split in place of the networks, to check the
@@ -363,7 +349,7 @@ def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
 
             component, damage = ids(row.component), ids(row.damage)
             depth = decode_depth(ids(row.depth))
-            rgb = read_rgb(root / row.image)
+            rgb = read_photo(root / row.image)
             focal_px = None if row.focal_mm is None else row.focal_mm / sensor_mm * rgb.shape[1]
             truth, note = crack_truth(root, row.damage)
             return rgb, Maps(component, damage, depth, focal_px, rgb.shape[1] / component.shape[1],
