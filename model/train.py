@@ -337,8 +337,11 @@ def _save_model(state: _Run) -> None:
 
 def train(settings: TrainSettings, run: str | Path, log: Callable[[str], None] = print) -> dict:
     """Train (or resume) a run; returns the final history entry. Rank 0 holds the run
-    folder's lock for the whole run."""
+    folder's lock for the whole run. The device and the data are checked before the run
+    folder is created, so a refused command leaves nothing behind."""
     run = Path(run)
+    pick_device(settings.device)
+    datasets = training_sets(settings)
     rank, world = _distributed()
     lock = RunLock(run).acquire() if rank == 0 else None
     try:
@@ -348,15 +351,15 @@ def train(settings: TrainSettings, run: str | Path, log: Callable[[str], None] =
             if rank:
                 path = run / "checkpoint.pt"
                 checkpoint = load_torch(path) if path.exists() else None
-        return _train(settings, run, rank, world, checkpoint, log)
+        return _train(settings, run, rank, world, checkpoint, datasets, log)
     finally:
         if lock is not None:
             lock.release()
 
 
-def _train(settings: TrainSettings, run: Path, rank: int, world: int,
-           checkpoint: dict | None, log: Callable[[str], None]) -> dict:
-    train_set, val_set = training_sets(settings)
+def _train(settings: TrainSettings, run: Path, rank: int, world: int, checkpoint: dict | None,
+           datasets: tuple[Dataset, Dataset], log: Callable[[str], None]) -> dict:
+    train_set, val_set = datasets
     state, start_epoch = _start(settings, run, train_set, rank, world, checkpoint)
     loader_options = dict(batch_size=settings.batch_size, num_workers=settings.loader_workers,
                           pin_memory=state.device.type == "cuda",
