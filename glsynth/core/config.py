@@ -539,8 +539,11 @@ def _check_keys(section: str, values: dict[str, Any], cls: type) -> None:
     allowed = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(values) - allowed)
     if unknown:
-        raise UserError(f"unknown key(s) {unknown} in [{section}]: "
-                        f"allowed keys are {sorted(allowed)}")
+        # A file can hold any number of keys of any length: name the first few, shortened.
+        listed = [k if len(k) <= 30 else f"{k[:24]}..." for k in unknown[:2]]
+        more = f" and {len(unknown) - 2} more" if len(unknown) > 2 else ""
+        raise UserError(f"unknown key(s) {listed}{more} in [{section}]: "
+                        f"allowed keys are {', '.join(sorted(allowed))}")
 
 
 def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
@@ -549,7 +552,8 @@ def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config
     sections = {}
     for section, values in data.items():
         if section not in _SECTIONS:
-            raise UserError(f"unknown config section [{section}]: "
+            name = section if len(section) <= 40 else f"{section[:30]}..."
+            raise UserError(f"unknown config section [{name}]: "
                             f"allowed sections are {sorted(_SECTIONS)}")
         cls = _SECTIONS[section]
         if not isinstance(values, dict):
