@@ -620,6 +620,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line(err: BaseException) -> str:
+    """An error's message on one line. torch's DataLoader raises a worker's error again with
+    the worker's traceback in its message; the line keeps the original message alone."""
+    text = str(err)
+    if "\nOriginal Traceback" in text:
+        last = text.rstrip().splitlines()[-1]
+        text = last.partition(": ")[2] or last
+    return " ".join(text.split())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs one command. Bad input (UserError) and operating-system errors (permissions, full
     disks, missing files) print one line and return 2; anything else is a programming error
@@ -630,8 +640,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UserError, OSError) as err:
         if args.debug:
             raise
-        message = " ".join(str(err).split())
-        print(f"glsynth {args.command}: error: {message}", file=sys.stderr)
+        print(f"glsynth {args.command}: error: {one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"glsynth {args.command}: interrupted; run the same command again to resume",

@@ -11,13 +11,14 @@ Definitions (docs/design.md):
 - images for damage recognition are those frames plus the plates (paper: 4,990 + 3,000).
 """
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from glsynth.core.errors import UserError, shown
 from glsynth.core.labels import Component, Damage
+from glsynth.data.readers import map_size, read_depth_map, read_json, read_label_map
 from glsynth.data.tokaido import DEPTH_FAR_M, DEPTH_MAX_CODE, DEPTH_NEAR_M, read_manifest
 
 DEPTH_EDGES_M = tuple(float(e) for e in np.arange(0.5, 30.5, 2.0))
@@ -81,26 +82,23 @@ def image_counts(kind: str, split: str, component: np.ndarray | None, damage: np
 
 
 def read_image_counts(root: str | Path) -> list[ImageCounts]:
-    """Counts of every image a Tokaido-layout dataset lists, read from its files."""
-    from PIL import Image
-
+    """Counts of every image a Tokaido-layout dataset lists, read from its files (each map
+    checked by glsynth.data.readers: mode, size a third of its image's, id range)."""
     root = Path(root)
-
-    def ids(rel: str) -> np.ndarray:
-        with Image.open(root / rel) as im:
-            return np.asarray(im)
-
     counts = []
     for split in ("train", "test"):
         for row in read_manifest(root, f"files_{split}.csv"):
-            counts.append(image_counts("regular" if row.regular else "closeup", split,
-                                       ids(row.component), ids(row.damage), ids(row.depth),
-                                       row.focal_mm, row.damage_in_rrdr))
+            size = map_size(root / row.image)
+            counts.append(image_counts(
+                "regular" if row.regular else "closeup", split,
+                read_label_map(root / row.component, "component", size),
+                read_label_map(root / row.damage, "damage", size),
+                read_depth_map(root / row.depth, size), row.focal_mm, row.damage_in_rrdr))
         puretex = root / f"files_puretex_{split}.csv"
         if puretex.is_file():
             for row in read_manifest(root, puretex.name):
-                counts.append(image_counts("plate", split, None, ids(row.damage), None, None,
-                                           True))
+                damage = read_label_map(root / row.damage, "damage", map_size(root / row.image))
+                counts.append(image_counts("plate", split, None, damage, None, None, True))
     return counts
 
 
@@ -112,9 +110,14 @@ def read_removals(root: str | Path) -> dict[str, dict[str, int]] | None:
         return None
     removed: dict[str, dict[str, int]] = {"regular": {}, "closeup": {}}
     for marker in markers:
-        by_kind = json.loads(marker.read_text())["removed"]
+        fix = "remove it and run generate again to redo its unit"
+        by_kind = read_json(marker, {"removed": dict}, fix)["removed"]
         if not all(isinstance(v, dict) for v in by_kind.values()):
             return None  # a run from before removals were recorded by camera kind
+        if not all(k in removed and all(type(n) is int for n in v.values())
+                   for k, v in by_kind.items()):
+            raise UserError(f"{str(marker)!r}: removed = {shown(by_kind, 40)} is not counts "
+                            f"by camera kind and reason; {fix}")
         for kind, reasons in by_kind.items():
             for reason, n in reasons.items():
                 removed[kind][reason] = removed[kind].get(reason, 0) + n
