@@ -3,6 +3,7 @@
 import argparse
 import dataclasses
 import functools
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -453,6 +454,10 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
     settings = from_options(AssessSettings, args)
     out = Path(args.out)
+    for name, value in (("--sensor-mm", args.sensor_mm), ("--focal-mm", args.focal_mm)):
+        if value is not None and not 0 < value < math.inf:
+            raise UserError(f"{name} {value}: give a length in millimetres > 0 (a full-frame "
+                            "sensor is 36 mm wide)")
     if (args.runs is None) == (args.oracle is None):
         raise UserError("give either --runs component=R1,damage=R2,depth=R3 or --oracle DATA")
     if args.oracle is not None:

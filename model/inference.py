@@ -2,7 +2,6 @@
 (paper Sections 4.4-4.6). Works on glsynth's data and on the released Tokaido dataset.
 """
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from glsynth.core.fileio import (
 )
 from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.data.readers import read_json
 from glsynth.data.tokaido import encode_depth
 
 
@@ -71,7 +71,8 @@ def load_predictor(run: str | Path, device: str = "auto") -> Predictor:
                         f"task {data.get('task')!r}); train again into a new --out folder")
     settings = Path(run) / "settings.json"
     if settings.is_file():
-        task = json.loads(settings.read_text()).get("task")
+        task = read_json(settings, {"task": str}, "the run folder is damaged: train again "
+                         "into a new --out folder")["task"]
         if task != data["task"]:
             raise UserError(f"run {str(run)!r}: model.pt is a {data['task']} network but "
                             f"settings.json says {task}; the folder mixes two runs: train "

@@ -55,6 +55,7 @@ from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_json
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK, RunLock
 from glsynth.core.seeding import Stream, make_rng, make_seed
+from glsynth.data.readers import read_class_weights, read_json
 from glsynth.data.tokaido import FrameRecord
 
 # Items of the training stream (glsynth.core.seeding.Stream.TRAINING).
@@ -196,11 +197,25 @@ def _all_agree(flag: bool, world: int, device: torch.device) -> bool:
     return bool(value.item())
 
 
+def stored_settings(path: Path) -> TrainSettings:
+    """A run folder's settings.json, checked as the command line checks its options."""
+    fix = "it is damaged or not a glsynth run's: train into a new --out folder"
+    data = read_json(path, {"task": str, "data": str, "image_size": list, "schedule": list},
+                     fix)
+    try:
+        return settings_from_json(data)
+    except UserError as err:
+        raise UserError(f"{str(path)!r}: {err}; {fix}") from None
+    except (TypeError, ValueError, KeyError) as err:
+        raise UserError(f"{str(path)!r} does not hold valid training settings "
+                        f"({type(err).__name__}); {fix}") from None
+
+
 def open_run(run: Path, settings: TrainSettings) -> dict | None:
     """Create a run folder, or reopen one with the same settings; returns its checkpoint."""
     stored = run / "settings.json"
     if stored.exists():
-        previous = settings_from_json(json.loads(stored.read_text()))
+        previous = stored_settings(stored)
         if previous != settings:
             raise UserError(f"--out {str(run)!r} holds a run with other settings; use a new "
                             "folder, or the same options to resume it")
@@ -240,7 +255,7 @@ def _class_weights(settings: TrainSettings, run: Path, train_set: Dataset, rank:
         return None
     stats_file = run / "class_weights.json"
     if stats_file.exists():
-        stats = json.loads(stats_file.read_text())
+        stats = {"weights": read_class_weights(stats_file, N_OUTPUTS[settings.task])}
     else:
         stats = class_statistics(train_set, N_OUTPUTS[settings.task])
         if rank == 0:

@@ -335,21 +335,18 @@ def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
     post-processing on its own. The focal length comes from the manifest (mm, on a sensor
     ``sensor_mm`` wide; glsynth's cameras use 36 mm). Ground-truth crack widths come from
     ``synthetic/{split}/crackwidth/`` where the dataset has it."""
-    from PIL import Image
-
+    from glsynth.data.readers import map_size, read_depth_map, read_label_map
     from glsynth.data.tokaido import decode_depth, read_manifest
 
     rows = read_manifest(root, f"files_{split}.csv")[:limit]
 
     def loader(row) -> Callable[[], tuple[np.ndarray, Maps]]:
         def load() -> tuple[np.ndarray, Maps]:
-            def ids(rel: str) -> np.ndarray:
-                with Image.open(root / rel) as im:
-                    return np.asarray(im)
-
-            component, damage = ids(row.component), ids(row.damage)
-            depth = decode_depth(ids(row.depth))
             rgb = read_photo(root / row.image)
+            size = map_size(root / row.image)
+            component = read_label_map(root / row.component, "component", size)
+            damage = read_label_map(root / row.damage, "damage", size)
+            depth = decode_depth(read_depth_map(root / row.depth, size))
             focal_px = None if row.focal_mm is None else row.focal_mm / sensor_mm * rgb.shape[1]
             truth, note = crack_truth(root, row.damage)
             return rgb, Maps(component, damage, depth, focal_px, rgb.shape[1] / component.shape[1],
