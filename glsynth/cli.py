@@ -3,6 +3,7 @@
 import argparse
 import dataclasses
 import functools
+import logging
 import math
 import sys
 import time
@@ -268,6 +269,9 @@ def cmd_preview(args: argparse.Namespace) -> None:
 
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)
+    if args.cameras > config.cameras.total:
+        raise UserError(f"--cameras {args.cameras}: this config has {config.cameras.total} "
+                        f"cameras per environment; give at most {config.cameras.total}")
     view = EnvironmentView.open(config, args.seed, args.env)
     cameras = np.linspace(0, config.cameras.total - 1, args.cameras).round().astype(int).tolist()
     atomic_write_bytes(args.out, png_bytes(preview_sheet(view, cameras)))
@@ -600,8 +604,23 @@ def add_textures_parser(sub: Commands) -> None:
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
     _add_seed_arg(p, required=False)
     p.add_argument("--count", type=positive_int, default=12, help="images per category")
-    p.add_argument("--size", type=positive_int, default=512, help="image size in pixels")
+    p.add_argument("--size", type=texture_size, default=512,
+                   help=f"image size in pixels, {TEXTURE_SIZES[0]} to {TEXTURE_SIZES[1]}")
     p.set_defaults(func=cmd_textures)
+
+
+TEXTURE_SIZES = (64, 4096)
+"""Sizes a procedural texture may have: the smallest every category draws (the joints of
+concrete and the skyline of a scene need some pixels), and 8x the default, where one image
+already takes several 400 MB float64 arrays to make."""
+
+
+def texture_size(text: str) -> int:
+    value = int(text)
+    if not TEXTURE_SIZES[0] <= value <= TEXTURE_SIZES[1]:
+        raise argparse.ArgumentTypeError(f"{value}: give {TEXTURE_SIZES[0]} to "
+                                         f"{TEXTURE_SIZES[1]} pixels")
+    return value
 
 
 def cmd_textures(args: argparse.Namespace) -> None:
@@ -640,6 +659,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     disks, missing files) print one line and return 2; anything else is a programming error
     and keeps its traceback. --debug shows the traceback of every error."""
     args = build_parser().parse_args(argv)
+    if args.debug:  # third-party libraries (Ray) show their log lines under --debug only
+        logging.getLogger().setLevel(logging.DEBUG)
     try:
         return args.func(args) or 0
     except (UserError, OSError) as err:

@@ -41,7 +41,7 @@ from glsynth.appearance.materials import Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
-from glsynth.render.gl.context import create_context
+from glsynth.render.gl.context import check_render_size, create_context
 from glsynth.render.gl.programs import compile_programs
 from glsynth.render.scene import PartInfo, RenderScene
 from glsynth.world.cameras import Camera
@@ -193,6 +193,12 @@ class Renderer:
             self.ctx.release()
             raise UserError(f"[render] msaa = {config.msaa}: this GL ({self.platform}) "
                             f"supports at most {most} samples; set msaa to {most} or less")
+        try:
+            check_render_size(self.ctx, self.platform, config.width, config.height,
+                              config.msaa, config.shadow_map_px)
+        except UserError:
+            self.ctx.release()
+            raise
         self.programs = compile_programs(self.ctx)
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
