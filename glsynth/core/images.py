@@ -62,10 +62,13 @@ def read_photo(path: str | Path) -> np.ndarray:
             ValueError) as err:
         if isinstance(err, UserError):
             raise
-        # OSError: truncated data; SyntaxError: Pillow's word for a malformed header.
-        first = (str(err).splitlines() or [""])[0][:120]
-        raise UserError(f"{str(path)!r} is not a readable image ({type(err).__name__}: "
-                        f"{first}); check the file or export it again as PNG or JPEG") from err
+        # OSError: truncated data; SyntaxError: Pillow's word for a malformed header. Its
+        # message is kept when short and not a repetition of the path.
+        first = (str(err).splitlines() or [""])[0]
+        reason = type(err).__name__ + (f": {first}" if first and len(first) < 80
+                                       and str(path) not in first else "")
+        raise UserError(f"{str(path)!r} is not a readable image ({reason}); check the file "
+                        "or export it again as PNG or JPEG") from err
 
 
 def _wide_rgb(path: Path, im: Image.Image) -> Image.Image:
