@@ -259,18 +259,30 @@ def test_bad_run_settings_are_one_line_for_train_and_predict(dataset, runs, tmp_
     assert not (run / "p").exists()
 
 
+TRAIN_ONE_STEP = ["--task", "component", "--image-size", "192x108", "--schedule", "1e-3:1",
+                  "--loader-workers", "0", "--val-count", "0", "--time-budget-min", "1e-9"]
+
+
+@pytest.fixture(scope="module")
+def trained(dataset, tmp_path_factory) -> Path:
+    """A run folder after one training step, with its class_weights.json."""
+    run = tmp_path_factory.mktemp("trained") / "run"
+    assert main(["train", *TRAIN_ONE_STEP, "--data", str(dataset), "--out", str(run)]) == 0
+    assert (run / "class_weights.json").is_file()
+    return run
+
+
 @settings(FUZZ, max_examples=10)
 @given(data=st.one_of(JSON_GARBAGE, st.sampled_from([
     b'{"weights": [1, 2]}', b'{"weights": [1e999, 1, 1, 1, 1, 1, 1, 1, 1]}',
     b'{"weights": [-1, 1, 1, 1, 1, 1, 1, 1, 1]}', b'{"weights": "x"}'])))
-def test_bad_class_weights_are_one_line_on_resume(dataset, tmp_path_factory, capsys, data):
+def test_bad_class_weights_are_one_line_on_resume(dataset, trained, tmp_path_factory, capsys,
+                                                  data):
     run = tmp_path_factory.mktemp("w") / "run"
-    argv = ["train", "--task", "component", "--data", dataset, "--out", run, "--image-size",
-            "192x108", "--schedule", "1e-3:1", "--loader-workers", "0", "--val-count", "0",
-            "--time-budget-min", "1e-9"]
-    assert run_cli(argv, capsys)[0] == 0
+    shutil.copytree(trained, run)
     (run / "class_weights.json").write_bytes(data)
-    assert_one_line(*run_cli(argv, capsys), names=str(run / "class_weights.json"))
+    assert_one_line(*run_cli(["train", *TRAIN_ONE_STEP, "--data", dataset, "--out", run],
+                             capsys), names=str(run / "class_weights.json"))
 
 
 @FUZZ
