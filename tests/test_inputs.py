@@ -152,28 +152,29 @@ BAD_DEPTH = st.one_of(
     st.binary(max_size=300))
 
 
+def _stats_and_evaluate_refuse(path: Path, data: bytes, dataset: Path, run: Path,
+                               out: Path, capsys) -> None:
+    """With ``path`` holding ``data``, stats and evaluate each print one line naming it."""
+    with Corrupted(path, data):
+        for argv in (["stats", dataset, "--out", out / "s"],
+                     ["evaluate", "--run", run, "--data", dataset, "--out", out / "e"]):
+            assert_one_line(*run_cli(argv, capsys), names=str(path))
+
+
 @FUZZ
 @given(data=BAD_COMPONENT)
 def test_bad_component_maps_are_one_line_in_stats_and_evaluate(dataset, runs, tmp_path, capsys,
                                                               data):
-    label = dataset / frame_paths("test", 1, 1)["component"]
-    with Corrupted(label, data):
-        for argv in (["stats", dataset, "--out", tmp_path / "s"],
-                     ["evaluate", "--run", runs["component"], "--data", dataset, "--out",
-                      tmp_path / "e"]):
-            assert_one_line(*run_cli(argv, capsys), names=str(label))
+    _stats_and_evaluate_refuse(dataset / frame_paths("test", 1, 1)["component"], data,
+                               dataset, runs["component"], tmp_path, capsys)
 
 
 @FUZZ
 @given(data=BAD_DEPTH)
 def test_bad_depth_maps_are_one_line_in_stats_and_evaluate(dataset, runs, tmp_path, capsys,
                                                           data):
-    depth = dataset / frame_paths("test", 1, 0)["depth"]
-    with Corrupted(depth, data):
-        for argv in (["stats", dataset, "--out", tmp_path / "s"],
-                     ["evaluate", "--run", runs["depth"], "--data", dataset, "--out",
-                      tmp_path / "e"]):
-            assert_one_line(*run_cli(argv, capsys), names=str(depth))
+    _stats_and_evaluate_refuse(dataset / frame_paths("test", 1, 0)["depth"], data, dataset,
+                               runs["depth"], tmp_path, capsys)
 
 
 @settings(FUZZ, max_examples=8)
