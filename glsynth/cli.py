@@ -604,7 +604,7 @@ def add_textures_parser(sub: Commands) -> None:
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
     _add_seed_arg(p, required=False)
     p.add_argument("--count", type=positive_int, default=12, help="images per category")
-    p.add_argument("--size", type=texture_size, default=512,
+    p.add_argument("--size", type=int, default=512,
                    help=f"image size in pixels, {TEXTURE_SIZES[0]} to {TEXTURE_SIZES[1]}")
     p.set_defaults(func=cmd_textures)
 
@@ -615,17 +615,12 @@ concrete and the skyline of a scene need some pixels), and 8x the default, where
 already takes several 400 MB float64 arrays to make."""
 
 
-def texture_size(text: str) -> int:
-    value = int(text)
-    if not TEXTURE_SIZES[0] <= value <= TEXTURE_SIZES[1]:
-        raise argparse.ArgumentTypeError(f"{value}: give {TEXTURE_SIZES[0]} to "
-                                         f"{TEXTURE_SIZES[1]} pixels")
-    return value
-
-
 def cmd_textures(args: argparse.Namespace) -> None:
     from glsynth.appearance.repository import generate_repository
 
+    if not TEXTURE_SIZES[0] <= args.size <= TEXTURE_SIZES[1]:
+        raise UserError(f"--size {args.size}: give {TEXTURE_SIZES[0]} to {TEXTURE_SIZES[1]} "
+                        "pixels")
     t0 = time.perf_counter()
     root = generate_repository(args.out, args.seed, args.count, args.size)
     print(f"procedural texture repository ({args.count} per category, {args.size} px) in "
