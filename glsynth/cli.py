@@ -13,7 +13,14 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.assess.condition import AssessSettings
-from glsynth.core.config import PRESETS, Config, RenderConfig, config_from_dict, load_config
+from glsynth.core.config import (
+    PRESETS,
+    TEXTURE_PX,
+    Config,
+    RenderConfig,
+    config_from_dict,
+    load_config,
+)
 from glsynth.core.errors import UserError
 from glsynth.core.options import (
     add_options,
@@ -605,22 +612,16 @@ def add_textures_parser(sub: Commands) -> None:
     _add_seed_arg(p, required=False)
     p.add_argument("--count", type=positive_int, default=12, help="images per category")
     p.add_argument("--size", type=int, default=512,
-                   help=f"image size in pixels, {TEXTURE_SIZES[0]} to {TEXTURE_SIZES[1]}")
+                   help=f"image size in pixels, {TEXTURE_PX[0]} to {TEXTURE_PX[1]}")
     p.set_defaults(func=cmd_textures)
-
-
-TEXTURE_SIZES = (64, 4096)
-"""Sizes a procedural texture may have: the smallest every category draws (the joints of
-concrete and the skyline of a scene need some pixels), and 8x the default, where one image
-already takes several 400 MB float64 arrays to make."""
 
 
 def cmd_textures(args: argparse.Namespace) -> None:
     from glsynth.appearance.repository import generate_repository
 
-    if not TEXTURE_SIZES[0] <= args.size <= TEXTURE_SIZES[1]:
-        raise UserError(f"--size {args.size}: give {TEXTURE_SIZES[0]} to {TEXTURE_SIZES[1]} "
-                        "pixels")
+    if not TEXTURE_PX[0] <= args.size <= TEXTURE_PX[1]:
+        raise UserError(f"--size {args.size}: give {TEXTURE_PX[0]} to {TEXTURE_PX[1]} pixels, "
+                        "the sizes [materials] builtin_size allows")
     t0 = time.perf_counter()
     root = generate_repository(args.out, args.seed, args.count, args.size)
     print(f"procedural texture repository ({args.count} per category, {args.size} px) in "

@@ -431,11 +431,18 @@ def test_unchecked_values_are_one_line_before_any_write(dataset, tmp_path, capsy
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.parametrize("size", ["1", "63", "4097", "100000"])
+@pytest.mark.parametrize("size", ["0", "3", "8193", "100000"])
 def test_textures_size_is_bounded(tmp_path, capsys, size):
     code, err = run_cli(["textures", "--out", tmp_path / "t", "--size", size], capsys)
-    assert_one_line(code, err, names="64 to 4096")
+    assert_one_line(code, err, names="4 to 8192")
     assert not (tmp_path / "t").exists()
+
+
+@pytest.mark.parametrize("size", [4, 5, 9, 15])
+def test_the_smallest_textures_are_made(tmp_path, size):
+    """Every category draws at the smallest sizes allowed (scenes hung at 5-9 px)."""
+    assert main(["textures", "--out", str(tmp_path), "--count", "1", "--size", str(size)]) == 0
+    assert len(list(tmp_path.glob("*/*.png"))) == 6
 
 
 def test_a_render_size_beyond_the_gl_is_one_line_with_the_limit():

@@ -396,6 +396,11 @@ _CRACK_FIELDS = frozenset(_DAMAGE_FIELDS[_DAMAGE_FIELDS.index("model"):])
 """DamageConfig's fields from ``model`` on: the crack model's, not the textures'."""
 
 
+TEXTURE_PX = (4, 8192)
+"""Sides a texture may have, in pixels: the procedural ones (glsynth textures, builtin_size) and
+the repository's images once resized (texture_size)."""
+
+
 @dataclass(frozen=True)
 class MaterialsConfig:
     """Texture repository and the per-component PBR rules (paper Sections 2.3, 3.2)."""
@@ -426,8 +431,8 @@ class MaterialsConfig:
         s = "materials"
         if not isinstance(self.repository, str):
             fail(s, "repository", self.repository, "a folder path (string)")
-        check_number(s, "texture_size", self.texture_size, 4, 8192, integer=True)
-        check_number(s, "builtin_size", self.builtin_size, 4, 8192, integer=True)
+        check_number(s, "texture_size", self.texture_size, *TEXTURE_PX, integer=True)
+        check_number(s, "builtin_size", self.builtin_size, *TEXTURE_PX, integer=True)
         check_number(s, "images_per_category", self.images_per_category, 1, 10000,
                      integer=True)
         check_number(s, "repository_seed", self.repository_seed, 0, 2**63 - 1, integer=True)
