@@ -109,7 +109,7 @@ class TrainSettings:
     loader_workers: int = 1
     """Processes decoding images."""
     cache_inputs: bool = field(default=False, compare=False)
-    """Keep training images resized to image_size under $GLSYNTH_CACHE/inputs (uint8 .npy,
+    """Keep training images resized to image_size under $GLSYNTH_CACHE/inputs (uint8 .npz,
     W x H x 3 bytes each: 0.39 MB at 480x270, 6.2 MB at 1920x1080), so epochs after the
     first decode no PNG. The tensors are the same as without it."""
     time_budget_min: float | None = None
