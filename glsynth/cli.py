@@ -7,6 +7,7 @@ import logging
 import math
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -657,18 +658,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.debug:  # third-party libraries (Ray) show their log lines under --debug only
         logging.getLogger().setLevel(logging.DEBUG)
-    try:
-        return args.func(args) or 0
-    except (UserError, OSError) as err:
-        if args.debug:
-            raise
-        print(f"glsynth {args.command}: error: {one_line(err)}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"glsynth {args.command}: interrupted; run the same command again to resume",
-              file=sys.stderr)
-        return 130
+    with warnings.catch_warnings():  # restores showwarning for a library caller of main
+        if not args.debug:  # a warning (a unit or cache entry redone) is one line too
+            warnings.showwarning = functools.partial(_warning_line, args.command)
+        try:
+            return args.func(args) or 0
+        except (UserError, OSError) as err:
+            if args.debug:
+                raise
+            print(f"glsynth {args.command}: error: {one_line(err)}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"glsynth {args.command}: interrupted; run the same command again to resume",
+                  file=sys.stderr)
+            return 130
 
+
+def _warning_line(command: str, message: Warning | str, *_: object, **__: object) -> None:
+    print(f"glsynth {command}: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 if __name__ == "__main__":
     sys.exit(main())

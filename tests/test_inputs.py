@@ -468,6 +468,23 @@ def test_a_worker_traceback_stays_out_of_the_line(dataset, tmp_path, capsys):
     assert_one_line(code, err, names=str(image))
 
 
+def test_a_warning_is_one_line(dataset, tmp_path, capsys, monkeypatch):
+    """A warning while a command runs (a unit or cache entry redone) is one line."""
+    import warnings
+
+    import glsynth.data.statistics as statistics
+
+    counts = statistics.read_image_counts
+
+    def warn_then_count(root):
+        warnings.warn("training cache: remaking 'x.npz' (not a zip file)", stacklevel=1)
+        return counts(root)
+
+    monkeypatch.setattr(statistics, "read_image_counts", warn_then_count)
+    assert run_cli(["stats", dataset, "--out", tmp_path], capsys) == (
+        0, "glsynth stats: warning: training cache: remaking 'x.npz' (not a zip file)\n")
+
+
 def test_a_data_loader_workers_error_is_its_own_message():
     from torch._utils import ExceptionWrapper
 
