@@ -3,8 +3,11 @@
 import argparse
 import dataclasses
 import functools
+import logging
+import math
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -13,6 +16,7 @@ import numpy as np
 from glsynth.assess.condition import AssessSettings
 from glsynth.core.config import (
     PRESETS,
+    TEXTURE_PX,
     Config,
     FlightConfig,
     RenderConfig,
@@ -300,6 +304,9 @@ def cmd_preview(args: argparse.Namespace) -> None:
 
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)
+    if args.cameras > config.cameras.total:
+        raise UserError(f"--cameras {args.cameras}: this config has {config.cameras.total} "
+                        f"cameras per environment; give at most {config.cameras.total}")
     view = EnvironmentView.open(config, args.seed, args.env)
     cameras = np.linspace(0, config.cameras.total - 1, args.cameras).round().astype(int).tolist()
     atomic_write_bytes(args.out, png_bytes(preview_sheet(view, cameras)))
@@ -556,6 +563,10 @@ def cmd_assess(args: argparse.Namespace) -> int:
 
     settings = from_options(AssessSettings, args)
     out = Path(args.out)
+    for name, value in (("--sensor-mm", args.sensor_mm), ("--focal-mm", args.focal_mm)):
+        if value is not None and not 0 < value < math.inf:
+            raise UserError(f"{name} {value}: give a length in millimetres > 0 (a full-frame "
+                            "sensor is 36 mm wide)")
     if (args.runs is None) == (args.oracle is None):
         raise UserError("give either --runs component=R1,damage=R2,depth=R3 or --oracle DATA")
     if args.oracle is not None:
@@ -698,13 +709,17 @@ def add_textures_parser(sub: Commands) -> None:
     p.add_argument("--out", required=True, help="repository folder (one sub-folder a category)")
     _add_seed_arg(p, required=False)
     p.add_argument("--count", type=positive_int, default=12, help="images per category")
-    p.add_argument("--size", type=positive_int, default=512, help="image size in pixels")
+    p.add_argument("--size", type=int, default=512,
+                   help=f"image size in pixels, {TEXTURE_PX[0]} to {TEXTURE_PX[1]}")
     p.set_defaults(func=cmd_textures)
 
 
 def cmd_textures(args: argparse.Namespace) -> None:
     from glsynth.appearance.repository import generate_repository
 
+    if not TEXTURE_PX[0] <= args.size <= TEXTURE_PX[1]:
+        raise UserError(f"--size {args.size}: give {TEXTURE_PX[0]} to {TEXTURE_PX[1]} pixels, "
+                        "the sizes [materials] builtin_size allows")
     t0 = time.perf_counter()
     root = generate_repository(args.out, args.seed, args.count, args.size)
     print(f"procedural texture repository ({args.count} per category, {args.size} px) in "
@@ -724,24 +739,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line(err: BaseException) -> str:
+    """An error's message on one line. torch's DataLoader raises a worker's error again with
+    the worker's traceback in its message; the line keeps the original message alone."""
+    text = str(err)
+    if "\nOriginal Traceback" in text:
+        last = text.rstrip().splitlines()[-1]
+        text = last.partition(": ")[2] or last
+    return " ".join(text.split())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs one command. Bad input (UserError) and operating-system errors (permissions, full
     disks, missing files) print one line and return 2; anything else is a programming error
     and keeps its traceback. --debug shows the traceback of every error."""
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args) or 0
-    except (UserError, OSError) as err:
-        if args.debug:
-            raise
-        message = " ".join(str(err).split())
-        print(f"glsynth {args.command}: error: {message}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"glsynth {args.command}: interrupted; run the same command again to resume",
-              file=sys.stderr)
-        return 130
+    if args.debug:  # third-party libraries (Ray) show their log lines under --debug only
+        logging.getLogger().setLevel(logging.DEBUG)
+    with warnings.catch_warnings():  # restores showwarning for a library caller of main
+        if not args.debug:  # a warning (a unit or cache entry redone) is one line too
+            warnings.showwarning = functools.partial(_warning_line, args.command)
+        try:
+            return args.func(args) or 0
+        except (UserError, OSError) as err:
+            if args.debug:
+                raise
+            print(f"glsynth {args.command}: error: {one_line(err)}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"glsynth {args.command}: interrupted; run the same command again to resume",
+                  file=sys.stderr)
+            return 130
 
+
+def _warning_line(command: str, message: Warning | str, *_: object, **__: object) -> None:
+    print(f"glsynth {command}: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -10,21 +10,27 @@ first decode no PNG.
 """
 
 import hashlib
-import io
 import os
 from pathlib import Path
 
 import cv2
 import numpy as np
 import torch
-from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS, TASKS, VIEWS, target_size
+from glsynth.model.settings import CLASS_NAMES, TASKS, VIEWS, target_size
 from PIL import Image
 from torch.utils.data import Dataset
 
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes
-from glsynth.core.images import nearest_resize
+from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.paths import cache_root
+from glsynth.data.readers import (
+    cache_entry_bytes,
+    map_size,
+    read_cache_entry,
+    read_depth_map,
+    read_label_map,
+)
 from glsynth.data.tokaido import (
     IMAGE_SIZE,
     FrameRecord,
@@ -59,9 +65,8 @@ def image_tensor(image: Image.Image | np.ndarray, size: tuple[int, int]) -> torc
 def read_rgb(path: Path) -> np.ndarray:
     """uint8 (H, W, 3) of an image file; OpenCV decodes PNG about 10-15 % faster than Pillow."""
     bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if bgr is None:  # a format OpenCV lacks, or a damaged file: Pillow names the problem
-        with Image.open(path) as im:
-            return np.asarray(im.convert("RGB"))
+    if bgr is None:  # missing, damaged or a format OpenCV lacks: read_photo names the problem
+        return read_photo(path)
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
@@ -69,10 +74,14 @@ def load_image(path: Path, size: tuple[int, int]) -> torch.Tensor:
     return to_tensor(resize_rgb(read_rgb(path), size))
 
 
-def load_map(path: Path, size: tuple[int, int]) -> np.ndarray:
-    """A label or depth-code map resized by nearest sampling (ids never blend)."""
-    with Image.open(path) as im:
-        return nearest_resize(np.asarray(im), (size[1], size[0]))
+def load_map(path: Path, kind: str, size: tuple[int, int],
+             expected: tuple[int, int] | None = None) -> np.ndarray:
+    """A "component" or "damage" label map or a "depth" code map, checked by its reader
+    (of size ``expected`` when given) and resized to ``size`` by nearest sampling (ids never
+    blend)."""
+    values = (read_depth_map(path, expected) if kind == "depth"
+              else read_label_map(path, kind, expected))
+    return nearest_resize(values, (size[1], size[0]))
 
 
 def _digest(text: str, n: int) -> str:
@@ -80,10 +89,12 @@ def _digest(text: str, n: int) -> str:
 
 
 class InputCache:
-    """Images of one dataset resized to one size, as uint8 .npy files under
-    $GLSYNTH_CACHE/inputs/<dataset and size>/<image path>/<image size and mtime>.npy, so an
-    image that changes is decoded again (and its old entry removed); another dataset folder or
-    size has a folder of its own. The tensors are bit-identical to load_image's. Writes are
+    """Images of one dataset resized to one size, as .npz entries (glsynth.data.readers)
+    under $GLSYNTH_CACHE/inputs/<dataset and size>/<image path>/<image size and mtime>.npz, so
+    an image that changes is decoded again (and its old entry removed); another dataset
+    folder or size has a folder of its own. Each entry holds its key (image path, size, mtime,
+    training size): an entry that is foreign, stale, damaged or of another dtype or shape is
+    made again with a warning. The tensors are bit-identical to load_image's. Writes are
     atomic: loader processes may share a cache."""
 
     def __init__(self, root: Path, size: tuple[int, int], base: Path | None = None) -> None:
@@ -95,17 +106,16 @@ class InputCache:
         stat = path.stat()
         # A folder per image, so that a miss lists only that image's old entries.
         folder = self.dir / _digest(os.path.realpath(path), 20)
-        entry = folder / f"{_digest(f'{stat.st_size}:{stat.st_mtime_ns}', 12)}.npy"
-        try:
-            return to_tensor(np.load(entry))
-        except (OSError, ValueError, EOFError):  # not there, or unreadable: make it again
-            pass
+        entry = folder / f"{_digest(f'{stat.st_size}:{stat.st_mtime_ns}', 12)}.npz"
+        key = (f"{os.path.realpath(path)}|{stat.st_size}:{stat.st_mtime_ns}|"
+               f"{self.size[0]}x{self.size[1]}")
+        rgb = read_cache_entry(entry, key, (self.size[1], self.size[0], 3))
+        if rgb is not None:
+            return to_tensor(rgb)
         rgb = resize_rgb(read_rgb(path), self.size)
-        for stale in folder.glob("*.npy"):
+        for stale in folder.glob("*.np[yz]"):
             stale.unlink(missing_ok=True)
-        buffer = io.BytesIO()
-        np.save(buffer, np.ascontiguousarray(rgb))
-        atomic_write_bytes(entry, buffer.getvalue())
+        atomic_write_bytes(entry, cache_entry_bytes(rgb, key))
         return to_tensor(rgb)
 
 
@@ -142,10 +152,13 @@ class TokaidoDataset(Dataset):
     def target(self, index: int) -> torch.Tensor:
         """The target alone (class statistics need no image decoding)."""
         item, size = self.items[index], target_size(self.size)
+        expected = map_size(self.root / item.image)
         if self.task == "depth":
-            return torch.from_numpy(decode_depth(load_map(self.root / item.depth, size)))
+            return torch.from_numpy(decode_depth(load_map(self.root / item.depth, "depth",
+                                                          size, expected)))
         rel = item.component if self.task == "component" else item.damage
-        return torch.from_numpy(load_map(self.root / rel, size).astype(np.int64))
+        return torch.from_numpy(load_map(self.root / rel, self.task, size,
+                                         expected).astype(np.int64))
 
     def image(self, index: int) -> torch.Tensor:
         path = self.root / self.items[index].image
@@ -183,11 +196,7 @@ class ImageFolder(Dataset):
         return len(self.items)
 
     def target(self, index: int) -> torch.Tensor:
-        labels = self.items[index][1]
-        ids = load_map(labels, target_size(self.size))
-        if ids.ndim != 2 or ids.max(initial=0) > N_OUTPUTS[self.task]:
-            raise UserError(f"{str(labels)!r}: expected one channel of ids 0..."
-                            f"{N_OUTPUTS[self.task]} for task {self.task!r}")
+        ids = load_map(self.items[index][1], self.task, target_size(self.size))
         return torch.from_numpy(ids.astype(np.int64))
 
     def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:

@@ -2,7 +2,6 @@
 (paper Sections 4.4-4.6). Works on glsynth's data and on the released Tokaido dataset.
 """
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,11 +14,17 @@ from glsynth.model.runtime import bf16_helps, load_torch, pick_device, predict_i
 from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS
 from PIL import Image
 
-from glsynth.assess.condition import read_rgb
 from glsynth.core.errors import UserError
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
-from glsynth.core.images import nearest_resize
+from glsynth.core.fileio import (
+    atomic_write_bytes,
+    atomic_write_json,
+    distinct_stems,
+    npy_bytes,
+    png_bytes,
+)
+from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.data.readers import read_json
 from glsynth.data.tokaido import encode_depth
 
 
@@ -45,7 +50,7 @@ class Predictor:
 
     def photo(self, path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         """(RGB uint8 at the photo's own size, prediction at a third of image_size)."""
-        rgb = read_rgb(Path(path))
+        rgb = read_photo(path)
         return rgb, self(image_tensor(rgb, self.image_size)[None])[0].numpy()
 
 
@@ -66,7 +71,8 @@ def load_predictor(run: str | Path, device: str = "auto") -> Predictor:
                         f"task {data.get('task')!r}); train again into a new --out folder")
     settings = Path(run) / "settings.json"
     if settings.is_file():
-        task = json.loads(settings.read_text()).get("task")
+        task = read_json(settings, {"task": str}, "the run folder is damaged: train again "
+                         "into a new --out folder")["task"]
         if task != data["task"]:
             raise UserError(f"run {str(run)!r}: model.pt is a {data['task']} network but "
                             f"settings.json says {task}; the folder mixes two runs: train "
@@ -108,13 +114,14 @@ def predict_files(run: str | Path, images: list[str], out: str | Path,
                   device: str = "auto") -> list[Path]:
     """Per photo, at a third of the run's image size: <stem>_<task>.png (uint8 ids, or uint16
     depth in the Tokaido code) and, for depth, <stem>_depth.npy (float32 metres); plus
-    <stem>_<task>_overlay.png at the photo's size."""
+    <stem>_<task>_overlay.png at the photo's size. Stems are distinct_stems of the paths, so
+    photos that share a file name keep their own outputs."""
     predictor = load_predictor(run, device)
     out = Path(out)
     written = []
-    for path in images:
+    for name, path in zip(distinct_stems(images), images):
         rgb, values = predictor.photo(path)
-        stem = f"{Path(path).stem}_{predictor.task}"
+        stem = f"{name}_{predictor.task}"
         if predictor.task == "depth":
             atomic_write_bytes(out / f"{stem}.npy", npy_bytes(values.astype(np.float32)))
             atomic_write_bytes(out / f"{stem}.png", png_bytes(encode_depth(values)))

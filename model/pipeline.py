@@ -11,10 +11,11 @@ from glsynth.model.data import image_tensor
 from glsynth.model.inference import Predictor, load_predictor, resize_map
 from glsynth.model.metrics import confusion, segmentation_scores
 from glsynth.model.settings import CLASS_NAMES, TASKS
-from PIL import Image
 
-from glsynth.assess.condition import ASSESS_DEFAULTS, AssessSettings, Maps, Photo, read_rgb
+from glsynth.assess.condition import ASSESS_DEFAULTS, AssessSettings, Maps, Photo
 from glsynth.core.errors import UserError
+from glsynth.core.fileio import distinct_stems
+from glsynth.core.images import read_photo
 from glsynth.data.filters import rrdr
 
 
@@ -49,7 +50,7 @@ def predicted_maps(predictors: dict[str, Predictor], path: Path,
     """Photo and the networks' maps at a third of their input size. The focal length is in
     pixels of the photo; a map pixel spans photo width / map width photo pixels (the photo is
     resized, not cropped)."""
-    rgb = read_rgb(path)
+    rgb = read_photo(path)
     inputs: dict[tuple[int, int], torch.Tensor] = {}  # one resize per input size
     outputs = {}
     for task, predictor in predictors.items():
@@ -73,8 +74,7 @@ def network_photos(predictors: dict[str, Predictor], images: list[str],
     def loader(path: Path, focal_mm: float | None):
         return lambda: predicted_maps(predictors, path, focal_mm, sensor_mm)
 
-    names = [Path(p).stem for p in images]
-    stems = [n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names)]
+    stems = distinct_stems(images)
     return [Photo(stem, loader(Path(p), f)) for stem, p, f in zip(stems, images, focals_mm)]
 
 
@@ -96,8 +96,7 @@ def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
     images = []
     for index, record in enumerate(dataset.items):
         truth = dataset.target(index).numpy()
-        with Image.open(root / record.image) as im:
-            photo = im.convert("RGB")
+        photo = read_photo(root / record.image)
         inputs = {size: image_tensor(photo, size)[None]
                   for size in {p.image_size for p in predictors.values()}}
         damage = predictors["damage"](inputs[predictors["damage"].image_size])[0].numpy()
@@ -105,7 +104,7 @@ def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
         if depth.shape != truth.shape:
             depth = resize_map(depth.astype(np.float32), truth.shape[::-1])
         # px/cm is the photo's resolution, whatever size the networks saw.
-        focal_px = record.focal_mm / sensor_mm * photo.size[0] if use_focal else None
+        focal_px = record.focal_mm / sensor_mm * photo.shape[1] if use_focal else None
         reliable = rrdr(depth, focal_px, min_px_per_cm=settings.min_px_per_cm,
                         depth_range_m=settings.depth_range_m)
         m_before = confusion(truth, damage, 3)

@@ -11,8 +11,19 @@ from glsynth.core.fileio import atomic_write_bytes
 
 
 def pick_device(name: str) -> torch.device:
+    """The device --device names, checked to exist here: auto (CUDA when there is one), cpu,
+    cuda or cuda:N."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cpu":
+        return torch.device(name)
+    kind, _, index = name.partition(":")
+    if kind != "cuda" or not (index == "" or index.isdigit()):
+        raise UserError(f"--device {name!r}: choose auto, cpu, cuda or cuda:N")
+    count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    if int(index or 0) >= count:
+        raise UserError(f"--device {name!r}: this machine has {count} CUDA device(s); use "
+                        "--device cpu or auto")
     return torch.device(name)
 
 

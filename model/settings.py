@@ -2,6 +2,7 @@
 build its options from them without importing torch."""
 
 import dataclasses
+import math
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -108,7 +109,7 @@ class TrainSettings:
     loader_workers: int = 1
     """Processes decoding images."""
     cache_inputs: bool = field(default=False, compare=False)
-    """Keep training images resized to image_size under $GLSYNTH_CACHE/inputs (uint8 .npy,
+    """Keep training images resized to image_size under $GLSYNTH_CACHE/inputs (uint8 .npz,
     W x H x 3 bytes each: 0.39 MB at 480x270, 6.2 MB at 1920x1080), so epochs after the
     first decode no PNG. The tensors are the same as without it."""
     time_budget_min: float | None = None
@@ -124,13 +125,13 @@ class TrainSettings:
             value = getattr(self, name)
             if not isinstance(value, int) or value < lo:
                 raise UserError(f"--{name.replace('_', '-')} {value}: give an integer >= {lo}")
-        if not self.schedule or any(lr <= 0 or n < 1 for lr, n in self.schedule):
-            raise UserError(f"--schedule {self.schedule}: give LR:EPOCHS stages with LR > 0 "
-                            "and EPOCHS >= 1, e.g. 1e-3:200,1e-4:50,1e-5:10")
-        if not self.weight_decay >= 0:
-            raise UserError(f"--weight-decay {self.weight_decay}: give a number >= 0")
-        if self.time_budget_min is not None and not self.time_budget_min > 0:
-            raise UserError(f"--time-budget-min {self.time_budget_min}: give minutes > 0")
+        if not self.schedule or any(not 0 < lr < math.inf or n < 1 for lr, n in self.schedule):
+            raise UserError(f"--schedule {self.schedule}: give LR:EPOCHS stages with finite "
+                            "LR > 0 and EPOCHS >= 1, e.g. 1e-3:200,1e-4:50,1e-5:10")
+        if not 0 <= self.weight_decay < math.inf:
+            raise UserError(f"--weight-decay {self.weight_decay}: give a finite number >= 0")
+        if self.time_budget_min is not None and not 0 < self.time_budget_min < math.inf:
+            raise UserError(f"--time-budget-min {self.time_budget_min}: give finite minutes > 0")
         unknown = [a for a in self.augment if a not in AUGMENTATIONS]
         if unknown:
             raise UserError(f"--augment {','.join(self.augment)}: unknown {', '.join(unknown)}; "

@@ -55,6 +55,7 @@ from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_json
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK, RunLock
 from glsynth.core.seeding import Stream, make_rng, make_seed
+from glsynth.data.readers import read_class_weights, read_json
 from glsynth.data.tokaido import FrameRecord
 
 # Items of the training stream (glsynth.core.seeding.Stream.TRAINING).
@@ -196,11 +197,25 @@ def _all_agree(flag: bool, world: int, device: torch.device) -> bool:
     return bool(value.item())
 
 
+def stored_settings(path: Path) -> TrainSettings:
+    """A run folder's settings.json, checked as the command line checks its options."""
+    fix = "it is damaged or not a glsynth run's: train into a new --out folder"
+    data = read_json(path, {"task": str, "data": str, "image_size": list, "schedule": list},
+                     fix)
+    try:
+        return settings_from_json(data)
+    except UserError as err:
+        raise UserError(f"{str(path)!r}: {err}; {fix}") from None
+    except (TypeError, ValueError, KeyError) as err:
+        raise UserError(f"{str(path)!r} does not hold valid training settings "
+                        f"({type(err).__name__}); {fix}") from None
+
+
 def open_run(run: Path, settings: TrainSettings) -> dict | None:
     """Create a run folder, or reopen one with the same settings; returns its checkpoint."""
     stored = run / "settings.json"
     if stored.exists():
-        previous = settings_from_json(json.loads(stored.read_text()))
+        previous = stored_settings(stored)
         if previous != settings:
             raise UserError(f"--out {str(run)!r} holds a run with other settings; use a new "
                             "folder, or the same options to resume it")
@@ -240,7 +255,7 @@ def _class_weights(settings: TrainSettings, run: Path, train_set: Dataset, rank:
         return None
     stats_file = run / "class_weights.json"
     if stats_file.exists():
-        stats = json.loads(stats_file.read_text())
+        stats = {"weights": read_class_weights(stats_file, N_OUTPUTS[settings.task])}
     else:
         stats = class_statistics(train_set, N_OUTPUTS[settings.task])
         if rank == 0:
@@ -337,8 +352,11 @@ def _save_model(state: _Run) -> None:
 
 def train(settings: TrainSettings, run: str | Path, log: Callable[[str], None] = print) -> dict:
     """Train (or resume) a run; returns the final history entry. Rank 0 holds the run
-    folder's lock for the whole run."""
+    folder's lock for the whole run. The device and the data are checked before the run
+    folder is created, so a refused command leaves nothing behind."""
     run = Path(run)
+    pick_device(settings.device)
+    datasets = training_sets(settings)
     rank, world = _distributed()
     lock = RunLock(run).acquire() if rank == 0 else None
     try:
@@ -348,15 +366,15 @@ def train(settings: TrainSettings, run: str | Path, log: Callable[[str], None] =
             if rank:
                 path = run / "checkpoint.pt"
                 checkpoint = load_torch(path) if path.exists() else None
-        return _train(settings, run, rank, world, checkpoint, log)
+        return _train(settings, run, rank, world, checkpoint, datasets, log)
     finally:
         if lock is not None:
             lock.release()
 
 
-def _train(settings: TrainSettings, run: Path, rank: int, world: int,
-           checkpoint: dict | None, log: Callable[[str], None]) -> dict:
-    train_set, val_set = training_sets(settings)
+def _train(settings: TrainSettings, run: Path, rank: int, world: int, checkpoint: dict | None,
+           datasets: tuple[Dataset, Dataset], log: Callable[[str], None]) -> dict:
+    train_set, val_set = datasets
     state, start_epoch = _start(settings, run, train_set, rank, world, checkpoint)
     loader_options = dict(batch_size=settings.batch_size, num_workers=settings.loader_workers,
                           pin_memory=state.device.type == "cuda",

@@ -129,11 +129,11 @@ def test_a_batch_goes_on_past_bad_images_and_handles_different_sizes(tmp_path):
                                                       maps.depth_m, None)
 
     def corrupt():
-        from glsynth.assess.condition import read_rgb
+        from glsynth.core.images import read_photo
 
         path = tmp_path / "corrupt.png"
         path.write_bytes(b"not a png")
-        return read_rgb(path), constructed()
+        return read_photo(path), constructed()
 
     photos = [Photo("a", good((90, 120))), Photo("bad", mismatched), Photo("b", good((61, 77))),
               Photo("corrupt", corrupt)]

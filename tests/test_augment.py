@@ -122,7 +122,7 @@ def test_input_cache_gives_the_same_tensors_and_decodes_each_image_once(tiny_dat
     first = [cached.image(i) for i in range(len(cached))]
     for i, tensor in enumerate(first):
         assert torch.equal(tensor, plain.image(i))
-    assert len(list(cached.cache.dir.glob("*/*.npy"))) == len(cached)
+    assert len(list(cached.cache.dir.glob("*/*.npz"))) == len(cached)
 
     def no_decoding(path):
         raise AssertionError(f"decoded {path} again")
@@ -145,7 +145,7 @@ def test_input_cache_decodes_a_changed_image_again(tiny_dataset, tmp_path):
     os.utime(image, ns=(1, 1))
     after = cache.load(image)
     assert torch.equal(after, load_image(image, (96, 54))) and not torch.equal(after, before)
-    assert len(list(cache.dir.glob("*/*.npy"))) == 1  # the stale entry is gone
+    assert len(list(cache.dir.glob("*/*.npz"))) == 1  # the stale entry is gone
 
 
 def test_augmented_cached_training_is_reproducible(tiny_dataset, tmp_path):

@@ -208,9 +208,11 @@ def test_a_killed_holder_leaves_no_stale_lock(tmp_path):
 
 def test_training_runs_take_the_same_lock(tmp_path, capsys):
     pytest.importorskip("torch", reason="needs the [model] extra")
-    run = tmp_path / "run"
+    run, data = tmp_path / "run", tmp_path / "data"
+    data.mkdir()  # a manifest is all train reads before it takes the lock
+    (data / "files_train.csv").write_text("a_Scene.png,a.bmp,b.bmp,d.png,20.0,True,True\n")
     with RunLock(run):
-        assert main(["train", "--task", "component", "--data", str(tmp_path / "nodata"),
+        assert main(["train", "--task", "component", "--data", str(data),
                      "--out", str(run)]) == 2
         one_line_error(capsys, "in use by another glsynth run")
 

@@ -12,7 +12,8 @@ from glsynth.data.tokaido import DEPTH_MAX_CODE
 
 
 def write_dataset(root):
-    """Two views and one plate, every pixel chosen by hand (360 x 640 maps)."""
+    """Two views and one plate, every pixel chosen by hand (360 x 640 maps of black 1920 x 1080
+    images: maps are a third of their image)."""
     comp_a = np.full((360, 640), 1, np.uint8)
     comp_a[:180] = 6  # rail: 115,200 px
     comp_a[180:, :320] = 7  # sleeper: 57,600 px; nonbridge the other 57,600
@@ -26,15 +27,15 @@ def write_dataset(root):
     depth_a = np.full((360, 640), DEPTH_MAX_CODE, np.uint16)  # sky ...
     depth_a[180:] = 0  # ... and 0.5 m
     depth_b = np.full((360, 640), 2222, np.uint16)  # 0.5 + 29.5 * 2222 / 65535 = 1.5 m
-    files = {"img_syn_raw/train/image_case0_frame0_Scene.png": np.zeros((4, 4, 3), np.uint8),
-             "img_syn_raw/test/image_case1_frame7_Scene.png": np.zeros((4, 4, 3), np.uint8),
+    files = {"img_syn_raw/train/image_case0_frame0_Scene.png": np.zeros((1080, 1920, 3), np.uint8),
+             "img_syn_raw/test/image_case1_frame7_Scene.png": np.zeros((1080, 1920, 3), np.uint8),
              "synthetic/train/labcmp/image_case0_frame0.bmp": comp_a,
              "synthetic/train/labdmg/image_case0_frame0.bmp": dmg_a,
              "synthetic/train/depth/image_case0_frame0.png": depth_a,
              "synthetic/test/labcmp/image_case1_frame7.bmp": comp_b,
              "synthetic/test/labdmg/image_case1_frame7.bmp": dmg_b,
              "synthetic/test/depth/image_case1_frame7.png": depth_b,
-             "images_puretex/image_0.png": np.zeros((4, 4, 3), np.uint8),
+             "images_puretex/image_0.png": np.zeros((1080, 1920, 3), np.uint8),
              "synthetic_puretex/labdmg/image_0.bmp": plate}
     for rel, array in files.items():
         (root / rel).parent.mkdir(parents=True, exist_ok=True)

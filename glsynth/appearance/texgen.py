@@ -101,7 +101,9 @@ def scene(size: int, rng: np.random.Generator) -> Image:
     if rng.random() < 0.5:  # urban: buildings with window grids
         x = 0
         while x < w:
-            bw = int(rng.integers(w // 16, w // 5))
+            # At least one pixel wide: below 16 px w // 16 is 0, and a 0-wide building never
+            # moved x on (sizes 5-9 hung, 4 raised); from 16 px the draws are unchanged.
+            bw = int(rng.integers(max(1, w // 16), max(2, w // 5)))
             top = int(rng.uniform(0.1, 0.9) * horizon)
             color = rng.uniform(0.35, 0.8) * np.array([1.0, 0.98, 0.95])
             img[top:, x:x + bw] = color

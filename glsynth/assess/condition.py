@@ -30,7 +30,7 @@ from glsynth.assess.cracks import (
     width_errors,
 )
 from glsynth.core.errors import UserError
-from glsynth.core.images import nearest_resize
+from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, overlay
 from glsynth.data.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
@@ -329,41 +329,24 @@ def _settings_json(settings: AssessSettings) -> dict:
             "crack_elongation": settings.crack_elongation}
 
 
-def read_rgb(path: Path) -> np.ndarray:
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as im:
-            return np.asarray(im.convert("RGB"))
-    except FileNotFoundError:
-        raise UserError(f"{str(path)!r} does not exist") from None
-    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError) as err:
-        # OSError: truncated data; SyntaxError: PIL's word for a malformed header.
-        raise UserError(f"{str(path)!r} is not a readable image ({type(err).__name__}: "
-                        f"{err})") from err
-
-
 def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
                   limit: int | None = None) -> list[Photo]:
     """Ground-truth maps of a Tokaido-layout split in place of the networks, to check the
     post-processing on its own. The focal length comes from the manifest (mm, on a sensor
     ``sensor_mm`` wide; glsynth's cameras use 36 mm). Ground-truth crack widths come from
     ``synthetic/{split}/crackwidth/`` where the dataset has it."""
-    from PIL import Image
-
+    from glsynth.data.readers import map_size, read_depth_map, read_label_map
     from glsynth.data.tokaido import decode_depth, read_manifest
 
     rows = read_manifest(root, f"files_{split}.csv")[:limit]
 
     def loader(row) -> Callable[[], tuple[np.ndarray, Maps]]:
         def load() -> tuple[np.ndarray, Maps]:
-            def ids(rel: str) -> np.ndarray:
-                with Image.open(root / rel) as im:
-                    return np.asarray(im)
-
-            component, damage = ids(row.component), ids(row.damage)
-            depth = decode_depth(ids(row.depth))
-            rgb = read_rgb(root / row.image)
+            rgb = read_photo(root / row.image)
+            size = map_size(root / row.image)
+            component = read_label_map(root / row.component, "component", size)
+            damage = read_label_map(root / row.damage, "damage", size)
+            depth = decode_depth(read_depth_map(root / row.depth, size))
             focal_px = None if row.focal_mm is None else row.focal_mm / sensor_mm * rgb.shape[1]
             truth, note = crack_truth(root, row.damage)
             return rgb, Maps(component, damage, depth, focal_px, rgb.shape[1] / component.shape[1],

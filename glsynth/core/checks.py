@@ -5,12 +5,12 @@ import math
 import typing
 from typing import Any
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 
 
 def fail(section: str, name: str, value: Any, expected: str) -> typing.NoReturn:
     raise UserError(
-        f"{section}.{name} = {value!r}: must be {expected}. "
+        f"{section}.{name} = {shown(value)}: must be {expected}. "
         f"Fix it in the [{section}] table of your config file, or use a preset."
     )
 

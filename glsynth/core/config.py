@@ -422,6 +422,11 @@ _CRACK_FIELDS = frozenset(_DAMAGE_FIELDS[_DAMAGE_FIELDS.index("model"):])
 """DamageConfig's fields from ``model`` on: the crack model's, not the textures'."""
 
 
+TEXTURE_PX = (4, 8192)
+"""Sides a texture may have, in pixels: the procedural ones (glsynth textures, builtin_size) and
+the repository's images once resized (texture_size)."""
+
+
 @dataclass(frozen=True)
 class MaterialsConfig:
     """Texture repository and the per-component PBR rules (paper Sections 2.3, 3.2)."""
@@ -452,8 +457,8 @@ class MaterialsConfig:
         s = "materials"
         if not isinstance(self.repository, str):
             fail(s, "repository", self.repository, "a folder path (string)")
-        check_number(s, "texture_size", self.texture_size, 4, 8192, integer=True)
-        check_number(s, "builtin_size", self.builtin_size, 4, 8192, integer=True)
+        check_number(s, "texture_size", self.texture_size, *TEXTURE_PX, integer=True)
+        check_number(s, "builtin_size", self.builtin_size, *TEXTURE_PX, integer=True)
         check_number(s, "images_per_category", self.images_per_category, 1, 10000,
                      integer=True)
         check_number(s, "repository_seed", self.repository_seed, 0, 2**63 - 1, integer=True)
@@ -708,8 +713,11 @@ def _check_keys(section: str, values: dict[str, Any], cls: type) -> None:
     allowed = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(values) - allowed)
     if unknown:
-        raise UserError(f"unknown key(s) {unknown} in [{section}]: "
-                        f"allowed keys are {sorted(allowed)}")
+        # A file can hold any number of keys of any length: name the first few, shortened.
+        listed = [k if len(k) <= 30 else f"{k[:24]}..." for k in unknown[:2]]
+        more = f" and {len(unknown) - 2} more" if len(unknown) > 2 else ""
+        raise UserError(f"unknown key(s) {listed}{more} in [{section}]: "
+                        f"allowed keys are {', '.join(sorted(allowed))}")
 
 
 def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
@@ -718,7 +726,8 @@ def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config
     sections = {}
     for section, values in data.items():
         if section not in _SECTIONS:
-            raise UserError(f"unknown config section [{section}]: "
+            name = section if len(section) <= 40 else f"{section[:30]}..."
+            raise UserError(f"unknown config section [{name}]: "
                             f"allowed sections are {sorted(_SECTIONS)}")
         cls = _SECTIONS[section]
         if not isinstance(values, dict):

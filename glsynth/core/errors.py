@@ -8,3 +8,12 @@ the fix. It subclasses ValueError so that callers of the library can catch it as
 
 class UserError(ValueError):
     """Bad input or environment: printed as one line by the command line, without traceback."""
+
+
+def shown(value: object, limit: int = 60) -> str:
+    """``repr(value)`` cut to about ``limit`` characters, so that a message quoting a value a
+    file or an option supplied stays one short line whatever its size."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit - 20]}... ({len(text):,} characters)"

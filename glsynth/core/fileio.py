@@ -164,3 +164,22 @@ class BackgroundWriter:
         finally:
             # On an error in the block the jobs still finish (or fail) before it propagates.
             self._pool.shutdown(wait=True)
+
+
+def distinct_stems(paths: list[str] | list[Path]) -> list[str]:
+    """Output stems for a batch of input files, unique within it: a file's stem, or for stems
+    that occur more than once (a/ok.png, b/ok.png) the stem and the file's position (ok_0,
+    ok_1), so that no output overwrites another."""
+    names = [Path(p).stem for p in paths]
+    taken = {n for n in names if names.count(n) == 1}
+    stems = []
+    for i, name in enumerate(names):
+        stem = name
+        if names.count(name) > 1:
+            stem, k = f"{name}_{i}", i
+            while stem in taken:  # "ok_1" was itself an input's stem
+                k += len(names)
+                stem = f"{name}_{k}"
+        taken.add(stem)
+        stems.append(stem)
+    return stems

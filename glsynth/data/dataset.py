@@ -15,6 +15,7 @@ import os
 import resource
 import shutil
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,6 +34,7 @@ from glsynth.core.fileio import (
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.filters import mask_damage, removal_reason, view_rrdr
+from glsynth.data.readers import read_json
 from glsynth.data.statistics import (
     CrackLength,
     ImageCounts,
@@ -322,7 +324,46 @@ def run_identity(config: Config, root_seed: int) -> dict:
 
 
 def pending_tasks(config: Config, out: Path) -> list[Task]:
-    return [t for t in plan(config) if not (out / t.marker).exists()]
+    """The units without a valid marker. A marker that is unreadable or breaks its contract
+    (read_marker) is removed with a warning naming it, and its unit is done again."""
+    pending = []
+    for task in plan(config):
+        path = out / task.marker
+        if path.exists():
+            try:
+                read_marker(path, task)
+                continue
+            except UserError as err:
+                warnings.warn(f"redoing unit {task.marker}: {err}", stacklevel=2)
+                path.unlink(missing_ok=True)
+        pending.append(task)
+    return pending
+
+
+MARKER_FIX = "remove it and run the same command again to redo its unit"
+
+
+def read_marker(path: Path, task: Task) -> dict:
+    """A progress marker of ``task``, as run_task wrote it: its kind and unit, its manifest
+    rows and its image counts, each of the right form."""
+    data = read_json(path, {"kind": str, "rows": (list, dict), "counts": list}, MARKER_FIX)
+    try:
+        counts = [ImageCounts.from_json(c) for c in data["counts"]]
+        if data["kind"] == "env":
+            ok = (data["env"] == task.first and data["split"] in ("train", "test")
+                  and isinstance(data["removed"], dict)
+                  and all(isinstance(FrameRecord(**r).image, str) for r in data["rows"]))
+        else:
+            ok = data["first"] == task.first and all(
+                isinstance(PuretexRecord(*r).image, str)
+                for split in ("train", "test") for r in data["rows"][split])
+        ok = ok and data["kind"] == task.kind and all(isinstance(c.split, str) for c in counts)
+    except (TypeError, KeyError, ValueError, AttributeError) as err:
+        raise UserError(f"{str(path)!r} is not a progress marker of this glsynth "
+                        f"({type(err).__name__}); {MARKER_FIX}") from None
+    if not ok:
+        raise UserError(f"{str(path)!r} is not the marker of unit {task.marker}; {MARKER_FIX}")
+    return data
 
 
 def check_run_folder(out: Path, config: Config, root_seed: int) -> None:
@@ -332,9 +373,13 @@ def check_run_folder(out: Path, config: Config, root_seed: int) -> None:
         raise UserError(
             f"{str(run_file)!r} is not visible to this worker: with several machines --out "
             "must be a shared filesystem mounted at the same path on every node")
-    recorded = json.loads(run_file.read_text())
+    recorded = read_json(run_file, {"config_sha256": str}, RUN_FILE_FIX)
     if recorded.get("config_sha256") != run_identity(config, root_seed)["config_sha256"]:
         raise UserError(f"{str(run_file)!r} belongs to another run than this worker's")
+
+
+RUN_FILE_FIX = ("it is damaged or not glsynth's: move the folder aside and generate into a new "
+                "--out")
 
 
 def prepare_output(out: Path, config: Config, root_seed: int) -> None:
@@ -344,7 +389,7 @@ def prepare_output(out: Path, config: Config, root_seed: int) -> None:
         raise UserError(f"--out {str(out)!r} is a file; give a folder for the dataset")
     run_file = out / RUN_FILE
     if run_file.exists():
-        previous = json.loads(run_file.read_text())
+        previous = read_json(run_file, {"config_sha256": str, "root_seed": int}, RUN_FILE_FIX)
         if previous.get("config_sha256") != identity["config_sha256"] or \
                 previous.get("root_seed") != root_seed:
             raise UserError(f"--out {str(out)!r} holds a run with other settings (seed "
@@ -372,7 +417,7 @@ def merge(config: Config, out: Path) -> dict:
     plates: dict[str, list] = {"train": [], "test": []}
     counts: list[ImageCounts] = []
     for task in plan(config):
-        data = json.loads((out / task.marker).read_text())
+        data = read_marker(out / task.marker, task)
         counts += [ImageCounts.from_json(c) for c in data["counts"]]
         if data["kind"] == "env":
             frames[data["split"]] += [(data["env"], r["image"], r) for r in data["rows"]]

@@ -6,7 +6,9 @@ depend on the engine, the worker count or the order units finish in. The driver 
 markers into the manifests (glsynth/data/dataset.py).
 """
 
+import logging
 import os
+import re
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -14,7 +16,7 @@ from pathlib import Path
 
 from glsynth.core.children import die_with_parent
 from glsynth.core.config import Config
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.core.runlock import RunLock
 from glsynth.data.dataset import Task, check_run_folder, pending_tasks, run_task
 
@@ -51,6 +53,14 @@ def check_engine(engine: str, workers: int, address: str | None) -> None:
         raise UserError(f"--workers {workers}: give at least 1")
     if address is not None and engine != "ray":
         raise UserError("--address is for --engine ray; drop it or add --engine ray")
+    if address is not None and not RAY_ADDRESS.fullmatch(address):
+        raise UserError(f"--address {shown(address)}: write auto, HOST:PORT or "
+                        "ray://HOST:PORT (e.g. 10.0.0.5:6379), or leave it out for a local Ray")
+
+
+RAY_ADDRESS = re.compile(r"auto|(ray://)?[A-Za-z0-9_.\-]+:(6553[0-5]|655[0-2]\d|65[0-4]\d\d|"
+                         r"6[0-4]\d{3}|[1-5]\d{4}|[1-9]\d{0,3})")
+"""The addresses ray.init takes: auto, or a host and port, with ray:// for Ray Client."""
 
 
 def execute(config: Config, root_seed: int, out: Path, workers: int, engine: str = "local",
@@ -140,10 +150,19 @@ def _ray(config: Config, root_seed: int, out: Path, workers: int, address: str |
     env_vars = {k: v for k, v in os.environ.items() if k.startswith("GLSYNTH_")}
     started_here = not ray.is_initialized()
     if started_here:
-        options = dict(runtime_env={"env_vars": env_vars}, log_to_driver=True)
+        # Ray's own log lines reach the terminal only under --debug (a root logger at DEBUG).
+        quiet = not logging.getLogger().isEnabledFor(logging.DEBUG)
+        options = dict(runtime_env={"env_vars": env_vars}, log_to_driver=True,
+                       logging_level=logging.ERROR if quiet else logging.INFO)
         if address is None:
             options.update(num_cpus=workers, include_dashboard=False)
-        ray.init(address=address, **options)
+        try:
+            ray.init(address=address, **options)
+        except (ConnectionError, RuntimeError, TimeoutError, ValueError) as err:
+            reason = (str(err).splitlines() or [type(err).__name__])[0][:120]
+            raise UserError(f"--address {address}: Ray could not start or connect "
+                            f"({reason}); check the address, or start the cluster with "
+                            "ray start --head") from None
     try:
         actor = ray.remote(num_cpus=1)(GenerationWorker)
         pool = ActorPool([actor.remote(config, root_seed, str(out.resolve()), True)

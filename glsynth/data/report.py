@@ -10,7 +10,9 @@ import numpy as np
 from PIL import Image
 
 from glsynth.core.errors import UserError
+from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.data.readers import map_size, read_depth_map, read_label_map
 from glsynth.data.tokaido import decode_depth, read_manifest
 
 
@@ -90,17 +92,11 @@ def contact_sheet(root: Path, samples: int = 6, width: int = 320) -> np.ndarray:
     rows = []
     for i in picks:
         r = records[i]
-
-        def load(rel: str, mode: str | None = None) -> np.ndarray:
-            im = Image.open(root / rel)
-            return np.asarray(im.convert(mode) if mode else im)
-
-        image = np.asarray(Image.fromarray(load(r.image, "RGB")).resize((width, height)))
-        size = (width, height)
-        comp = np.asarray(Image.fromarray(load(r.component)).resize(size, Image.NEAREST))
-        dmg = np.asarray(Image.fromarray(load(r.damage)).resize(size, Image.NEAREST))
-        depth = decode_depth(np.asarray(Image.fromarray(load(r.depth)).resize(size,
-                                                                            Image.NEAREST)))
+        image = np.asarray(Image.fromarray(read_photo(root / r.image)).resize((width, height)))
+        size, shape = map_size(root / r.image), (height, width)
+        comp = nearest_resize(read_label_map(root / r.component, "component", size), shape)
+        dmg = nearest_resize(read_label_map(root / r.damage, "damage", size), shape)
+        depth = decode_depth(nearest_resize(read_depth_map(root / r.depth, size), shape))
         rows.append(np.concatenate([image, overlay(image, comp, COMPONENT_RGB, 0.55),
                                     overlay(image, dmg, DAMAGE_RGB, 0.8, skip=(1,)),
                                     depth_rgb(depth)], axis=1))

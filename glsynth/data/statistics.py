@@ -17,14 +17,21 @@ Definitions (docs/design.md):
   and say so.
 """
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from glsynth.core.errors import UserError, shown
 from glsynth.core.labels import Component, Damage
 from glsynth.data.filters import rrdr
+from glsynth.data.readers import (
+    map_size,
+    read_crack_width_map,
+    read_depth_map,
+    read_json,
+    read_label_map,
+)
 from glsynth.data.tokaido import (
     CRACK_WIDTH_STEP_MM,
     DEPTH_FAR_M,
@@ -181,7 +188,8 @@ def _crack_length(root: Path, split: str, image: str) -> CrackLength | None:
     path = root / "meta" / split / f"{stem}.json"
     if not path.is_file():
         return None
-    meta = json.loads(path.read_text())
+    meta = read_json(path, {"camera": dict}, "generate the dataset again, or move the file "
+                     "aside")
     if "cracks_in_view" not in meta:
         return None
     camera = meta["camera"]
@@ -190,30 +198,27 @@ def _crack_length(root: Path, split: str, image: str) -> CrackLength | None:
 
 
 def read_image_counts(root: str | Path) -> list[ImageCounts]:
-    """Counts of every image a Tokaido-layout dataset lists, read from its files; crack widths
-    and lengths where the dataset has crack-width maps and crack lists."""
-    from PIL import Image
-
+    """Counts of every image a Tokaido-layout dataset lists, read from its files (each map
+    checked by glsynth.data.readers: mode, size a third of its image's, id range); crack
+    widths and lengths where the dataset has crack-width maps and crack lists."""
     root = Path(root)
-
-    def ids(rel: str) -> np.ndarray:
-        with Image.open(root / rel) as im:
-            return np.asarray(im)
-
     counts = []
     for split in ("train", "test"):
         for row in read_manifest(root, f"files_{split}.csv"):
-            widths = crack_width_path(row.damage)
-            counts.append(image_counts("regular" if row.regular else "closeup", split,
-                                       ids(row.component), ids(row.damage), ids(row.depth),
-                                       row.focal_mm, row.damage_in_rrdr,
-                                       ids(widths) if (root / widths).is_file() else None,
-                                       _crack_length(root, split, row.image)))
+            size = map_size(root / row.image)
+            widths = root / crack_width_path(row.damage)
+            counts.append(image_counts(
+                "regular" if row.regular else "closeup", split,
+                read_label_map(root / row.component, "component", size),
+                read_label_map(root / row.damage, "damage", size),
+                read_depth_map(root / row.depth, size), row.focal_mm, row.damage_in_rrdr,
+                read_crack_width_map(widths, size) if widths.is_file() else None,
+                _crack_length(root, split, row.image)))
         puretex = root / f"files_puretex_{split}.csv"
         if puretex.is_file():
             for row in read_manifest(root, puretex.name):
-                counts.append(image_counts("plate", split, None, ids(row.damage), None, None,
-                                           True))
+                damage = read_label_map(root / row.damage, "damage", map_size(root / row.image))
+                counts.append(image_counts("plate", split, None, damage, None, None, True))
     return counts
 
 
@@ -225,9 +230,14 @@ def read_removals(root: str | Path) -> dict[str, dict[str, int]] | None:
         return None
     removed: dict[str, dict[str, int]] = {"regular": {}, "closeup": {}}
     for marker in markers:
-        by_kind = json.loads(marker.read_text())["removed"]
+        fix = "remove it and run generate again to redo its unit"
+        by_kind = read_json(marker, {"removed": dict}, fix)["removed"]
         if not all(isinstance(v, dict) for v in by_kind.values()):
             return None  # a run from before removals were recorded by camera kind
+        if not all(k in removed and all(type(n) is int for n in v.values())
+                   for k, v in by_kind.items()):
+            raise UserError(f"{str(marker)!r}: removed = {shown(by_kind, 40)} is not counts "
+                            f"by camera kind and reason; {fix}")
         for kind, reasons in by_kind.items():
             for reason, n in reasons.items():
                 removed[kind][reason] = removed[kind].get(reason, 0) + n

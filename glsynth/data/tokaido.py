@@ -27,7 +27,7 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Damage
 
@@ -161,7 +161,7 @@ def _flag(text: str, where: str) -> bool:
         return True
     if text == "False":
         return False
-    raise UserError(f"{where}: flag {text!r} must be 'True' or 'False'")
+    raise UserError(f"{where}: flag {shown(text)} must be 'True' or 'False'")
 
 
 def manifest_text(rows: list[FrameRecord] | list[PuretexRecord]) -> str:
@@ -181,10 +181,15 @@ def safe_path(root: Path, relative: str, where: str) -> Path:
     """root / relative, accepting / or \\ separators; refuses paths that leave the root."""
     parts = PureWindowsPath(relative).parts if "\\" in relative else PurePosixPath(relative).parts
     if not parts or PurePosixPath(relative).is_absolute() or PureWindowsPath(relative).drive:
-        raise UserError(f"{where}: path {relative!r} must be relative to the dataset root")
-    path = root.joinpath(*parts).resolve()
+        raise UserError(f"{where}: path {shown(relative)} must be relative to the dataset root")
+    try:
+        path = root.joinpath(*parts).resolve()
+    except (ValueError, OSError) as err:  # a NUL byte; a symlink loop
+        raise UserError(f"{where}: path {shown(relative)} is not a usable path ({err})") \
+            from None
     if not path.is_relative_to(root.resolve()):
-        raise UserError(f"{where}: path {relative!r} escapes the dataset root {str(root)!r}")
+        raise UserError(f"{where}: path {shown(relative)} escapes the dataset root "
+                        f"{str(root)!r}")
     return path
 
 
@@ -195,26 +200,45 @@ def read_manifest(root: str | Path, name: str) -> list[FrameRecord] | list[Puret
     if not path.is_file():
         raise UserError(f"manifest {str(path)!r} does not exist; is {str(root)!r} a "
                         "Tokaido-layout dataset root?")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise UserError(f"manifest {str(path)!r} is not UTF-8 text (byte {err.start}); save it "
+                        "as UTF-8") from None
     rows = []
-    with path.open(newline="", encoding="utf-8") as f:
-        for line_no, row in enumerate(csv.reader(f), start=1):
-            where = f"{str(path)!r} line {line_no}"
-            if not row:
-                continue
-            if len(row) == 7:
-                for col in row[:4]:
-                    safe_path(root, col, where)
-                focal = _focal(row[4], where)
-                rows.append(FrameRecord(*(_norm(c) for c in row[:4]), focal,
-                                        _flag(row[5], where), _flag(row[6], where)))
-            elif len(row) == 2:
-                for col in row:
-                    safe_path(root, col, where)
-                rows.append(PuretexRecord(_norm(row[0]), _norm(row[1])))
-            else:
-                raise UserError(f"{where}: {len(row)} columns; frame manifests have 7, "
-                                "puretex manifests 2")
+    try:
+        for line_no, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+            rows += _manifest_row(root, row, f"{str(path)!r} line {line_no}")
+    except csv.Error as err:
+        raise UserError(f"manifest {str(path)!r}: {err}; each line holds 7 (frames) or 2 "
+                        "(plates) comma-separated paths and values") from None
     return rows
+
+
+MAX_FIELD = 1024
+"""Characters a manifest field may hold: paths in the Tokaido layout are under 100."""
+
+
+def _manifest_row(root: Path, row: list[str], where: str) -> list[FrameRecord | PuretexRecord]:
+    """The record of one manifest line (none for a blank line)."""
+    long = [len(col) for col in row if len(col) > MAX_FIELD]
+    if long:
+        raise UserError(f"{where}: a field of {long[0]:,} characters, over the {MAX_FIELD} a "
+                        "manifest field may hold; fix the line")
+    if not row:
+        return []
+    if len(row) == 7:
+        for col in row[:4]:
+            safe_path(root, col, where)
+        focal = _focal(row[4], where)
+        return [FrameRecord(*(_norm(c) for c in row[:4]), focal,
+                            _flag(row[5], where), _flag(row[6], where))]
+    if len(row) == 2:
+        for col in row:
+            safe_path(root, col, where)
+        return [PuretexRecord(_norm(row[0]), _norm(row[1]))]
+    raise UserError(f"{where}: {len(row)} columns; frame manifests have 7, puretex "
+                    "manifests 2")
 
 
 def _focal(text: str, where: str) -> float | None:
@@ -226,7 +250,7 @@ def _focal(text: str, where: str) -> float | None:
     except ValueError:
         focal = math.nan
     if not (math.isfinite(focal) and focal > 0):
-        raise UserError(f"{where}: focal length {text!r} must be a number of millimetres > 0, "
+        raise UserError(f"{where}: focal length {shown(text)} must be a number of millimetres > 0, "
                         "or empty when unknown")
     return focal
 

@@ -102,3 +102,27 @@ def create_context(platform: str | None = None) -> tuple[moderngl.Context, str]:
     raise GLUnavailableError("no OpenGL context could be created. Tried: " + "; ".join(tried)
                              + ". Install the packages named (scripts/install.sh does), or set "
                                "GLSYNTH_GL_PLATFORM to a platform that works.")
+
+
+def check_render_size(ctx: moderngl.Context, platform: str, width: int, height: int,
+                      msaa: int, shadow_map_px: int) -> None:
+    """Refuse, with the limit, a render size this GL cannot hold: the context's
+    MAX_TEXTURE_SIZE, MAX_RENDERBUFFER_SIZE and MAX_VIEWPORT_DIMS, asked once, and a trial
+    allocation of the multisampled colour target (llvmpipe refuses 16000x9000 at 4 samples
+    though each side is within its limits)."""
+    info = ctx.info
+    side = min(info["GL_MAX_TEXTURE_SIZE"], info["GL_MAX_RENDERBUFFER_SIZE"],
+               *info["GL_MAX_VIEWPORT_DIMS"])
+    for name, value in (("width", width), ("height", height), ("shadow_map_px", shadow_map_px)):
+        if value > side:
+            raise UserError(f"[render] {name} = {value}: this GL ({platform}) renders at most "
+                            f"{side} px a side; set {name} to {side} or less")
+    try:
+        target = ctx.renderbuffer((width, height), 4, samples=msaa)
+        frame = ctx.framebuffer([target])
+    except moderngl.Error:
+        raise UserError(f"[render] {width}x{height} at msaa = {msaa}: this GL ({platform}) "
+                        "cannot allocate a target that large; lower width and height, or "
+                        "msaa") from None
+    frame.release()
+    target.release()

@@ -53,7 +53,7 @@ from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
-from glsynth.render.gl.context import create_context
+from glsynth.render.gl.context import check_render_size, create_context
 from glsynth.render.gl.programs import VARIANTS, compile_programs, variant
 from glsynth.render.scene import PartInfo, RenderScene
 from glsynth.world.cameras import Camera
@@ -282,6 +282,12 @@ class Renderer:
             self.ctx.release()
             raise UserError(f"[render] msaa = {config.msaa}: this GL ({self.platform}) "
                             f"supports at most {most} samples; set msaa to {most} or less")
+        try:
+            check_render_size(self.ctx, self.platform, config.width, config.height,
+                              config.msaa, config.shadow_map_px)
+        except UserError:
+            self.ctx.release()
+            raise
         self.programs = compile_programs(self.ctx)
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
