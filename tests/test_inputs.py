@@ -43,7 +43,8 @@ def _frame(root: Path, split: str, camera: int, rng: np.random.Generator) -> Fra
     Image.fromarray(rng.integers(0, 9, MAPS[::-1], np.uint8)).save(files["component"])
     Image.fromarray(rng.integers(0, 4, MAPS[::-1], np.uint8)).save(files["damage"])
     Image.fromarray(rng.integers(0, 65536, MAPS[::-1]).astype(np.uint16)).save(files["depth"])
-    return FrameRecord(*paths.values(), 35.0, True, True)
+    return FrameRecord(*(paths[k] for k in ("image", "component", "damage", "depth")), 35.0,
+                       True, True)
 
 
 @pytest.fixture(scope="module")
