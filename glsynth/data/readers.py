@@ -119,26 +119,26 @@ def read_label_map(path: Path, kind: str, size: tuple[int, int] | None = None) -
     return ids
 
 
-def read_depth_map(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
-    """uint16 depth code of a depth map (glsynth.data.tokaido.encode_depth): a 16-bit one-
-    channel PNG, ``size`` = (width, height) when given."""
-    im = _open_map(path, "depth map")
+def _read_16bit_map(path: Path, what: str, encoding: str, size: tuple[int, int] | None
+                    ) -> np.ndarray:
+    """uint16 codes of a 16-bit one-channel PNG map, ``size`` = (width, height) when given;
+    ``encoding`` says what its codes mean, for the message."""
+    im = _open_map(path, what)
     if not im.mode.startswith("I;16"):
         im.close()
-        raise UserError(f"depth map {str(path)!r} is a {im.mode} image; depth maps are 16-bit "
-                        "one-channel PNG (0.5 m -> 0, 30 m -> 65535): write it again as such")
-    return _pixels(im, path, "depth map", size).astype(np.uint16)
+        raise UserError(f"{what} {str(path)!r} is a {im.mode} image; {what}s are 16-bit "
+                        f"one-channel PNG ({encoding}): write it again as such")
+    return _pixels(im, path, what, size).astype(np.uint16)
+
+
+def read_depth_map(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """uint16 depth code of a depth map (glsynth.data.tokaido.encode_depth)."""
+    return _read_16bit_map(path, "depth map", "0.5 m -> 0, 30 m -> 65535", size)
 
 
 def read_crack_width_map(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
-    """uint16 code of a crack-width map (glsynth.data.tokaido.encode_crack_width, 0.01 mm
-    steps): a 16-bit one-channel PNG, ``size`` = (width, height) when given."""
-    im = _open_map(path, "crack-width map")
-    if not im.mode.startswith("I;16"):
-        im.close()
-        raise UserError(f"crack-width map {str(path)!r} is a {im.mode} image; crack-width maps "
-                        "are 16-bit one-channel PNG (0.01 mm steps): write it again as such")
-    return _pixels(im, path, "crack-width map", size).astype(np.uint16)
+    """uint16 code of a crack-width map (glsynth.data.tokaido.encode_crack_width)."""
+    return _read_16bit_map(path, "crack-width map", "0.01 mm steps", size)
 
 
 def cache_entry_bytes(rgb: np.ndarray, key: str) -> bytes:
