@@ -8,8 +8,6 @@ from glsynth.core.config import FiltersConfig
 from glsynth.core.labels import Damage
 
 PAPER_FILTERS = FiltersConfig()
-MIN_MEAN_INTENSITY = PAPER_FILTERS.min_intensity
-MIN_DEPTH_M = PAPER_FILTERS.min_depth_m
 RRDR_PX_PER_CM = PAPER_FILTERS.rrdr_px_per_cm
 RRDR_DEPTH_RANGE_M = (0.5, 20.0)
 
