@@ -15,7 +15,7 @@ A preset sets these knobs of a config (each documented in README.md):
 import dataclasses
 from dataclasses import dataclass
 
-from glsynth.core.config import Config
+from glsynth.core.config import Config, load_config
 from glsynth.core.errors import UserError
 from glsynth.data.tokaido import IMAGE_SIZE
 
@@ -56,14 +56,12 @@ QUALITY = {
                         octaves=8, cylinder_segments=12, shadow_map_px=2048,
                         sky_visibility_maps=16, ao="off"),
     "default": Quality.of(Config()),
-    "high": Quality(render_scale=1.0, msaa=4, texture_size=512, damage_resolution=2048,
-                    octaves=8, cylinder_segments=12, shadow_map_px=2048, sky_visibility_maps=16,
-                    ao="off"),
+    "high": Quality.of(load_config("paper")),
     "reference": Quality(render_scale=1.0, msaa=4, texture_size=1024, damage_resolution=2048,
                          octaves=8, cylinder_segments=24, shadow_map_px=4096,
                          sky_visibility_maps=16, ao="ssao"),
 }
-"""'default' is Config()'s own setting; 'high' matches the paper preset's 2048 px damage.
+"""'default' is Config()'s own setting, 'high' the paper preset's (2048 px damage).
 'reference' uses MSAA 4, the most llvmpipe offers (the renderer refuses more than the GL has),
 and SSAO (every occlusion term on; it measured no closer to Cycles than without: docs/results.md,
 "Lighting knobs"). 'preview' keeps sun shadows (without them, shade is wrong everywhere) on a
