@@ -49,6 +49,7 @@ from glsynth.appearance.materials import Material  # noqa: E402
 from glsynth.assess.cracks import Intrinsics, error_summary, measure_cracks, width_errors  # noqa: E402
 from glsynth.core.config import LightingConfig, RenderConfig, load_config  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
+from glsynth.data.visible_cracks import centreline_samples, project  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.scene import build_scene  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
@@ -187,9 +188,45 @@ def opening() -> dict:
     return out
 
 
+def segments_measured(view: EnvironmentView, camera: Camera, out, measure) -> np.ndarray:
+    """(S, 2) per crack segment of the view measured at a skeleton pixel whose true width is
+    at least 2 px: the median true and measured widths [mm] over those of its skeleton pixels
+    (within one pixel of its centreline samples on the rendered surface)."""
+    truth_px = out.crack_width * camera.fx / (1000.0 * np.maximum(out.depth, 1e-9))
+    wide = np.isfinite(measure.skeleton_width_mm) & (out.crack_width > 0) & (truth_px >= 2)
+    h, w = wide.shape
+    pairs = []
+    for ordinal, part in enumerate(view.environment.parts):
+        if part.name not in view.dressing.materials:
+            continue
+        net = view.dressing.materials.factors(part.name).cracks
+        if net is None or not len(net.points):
+            continue
+        points, segment, _ = centreline_samples(net, part.pose, camera)
+        col, row, depth = project(points, camera)
+        on = col >= 0
+        on[on] = np.abs(depth[on] - out.depth[row[on], col[on]]) <= 0.02 * depth[on] + 0.01
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                r, c = row[on] + dr, col[on] + dc
+                ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+                hit = ok.copy()
+                hit[ok] = wide[r[ok], c[ok]]
+                key = ordinal * 10**7 + segment[on][hit]
+                pairs.append(np.stack([key, r[hit] * w + c[hit]], 1))
+    if not pairs or not sum(len(p) for p in pairs):
+        return np.zeros((0, 2))
+    pairs = np.unique(np.concatenate(pairs), axis=0)
+    truth, measured = out.crack_width.ravel(), measure.skeleton_width_mm.ravel()
+    return np.array([[np.median(truth[pairs[pairs[:, 0] == k, 1]]),
+                      np.median(measured[pairs[pairs[:, 0] == k, 1]])]
+                     for k in np.unique(pairs[:, 0])])
+
+
 def inspection_goal(envs: int) -> dict:
+    """Part 4 over environments 0 .. envs - 1 of the inspection preset."""
     config = load_config("inspection")
-    errors, views, wide_cracks = [], 0, 0
+    errors, segments, views, wide_cracks = [], [], 0, 0
     for env in range(envs):
         view = EnvironmentView.open(config, 0, env)
         try:
@@ -200,6 +237,7 @@ def inspection_goal(envs: int) -> dict:
                 measure = measure_cracks(out.damage, out.depth,
                                          Intrinsics.of_map(placement.camera.K))
                 errors.append(width_errors(measure, out.crack_width))
+                segments.append(segments_measured(view, placement.camera, out, measure))
                 # The measured cracks holding a skeleton pixel of true width >= 2 px (the
                 # pixels width_errors compares, in its order).
                 on = np.isfinite(measure.skeleton_width_mm) & (out.crack_width > 0)
@@ -209,9 +247,17 @@ def inspection_goal(envs: int) -> dict:
         finally:
             view.renderer.release()
     summary = error_summary(errors)
+    summary["environments"] = envs
+    summary["views"] = envs * config.cameras.total
     summary["views_with_cracks"] = views
     summary["views_with_a_crack_of_2px"] = sum(bool((e["truth_px"] >= 2).any()) for e in errors)
     summary["measured_cracks_with_2px"] = wide_cracks
+    pooled = np.concatenate(segments) if segments else np.zeros((0, 2))
+    error = np.abs(pooled[:, 1] - pooled[:, 0])
+    summary["segments_with_2px"] = {
+        "segments": len(pooled),
+        "median_abs_error_mm": float(np.median(error)) if len(pooled) else None,
+        "median_relative_error": float(np.median(error / pooled[:, 0])) if len(pooled) else None}
     return summary
 
 
@@ -256,9 +302,13 @@ def main() -> None:
     parser.add_argument("--skip-open", action="store_true", help="leave out part 3")
     parser.add_argument("--envs", type=int, default=4, help="part 4: inspection environments")
     parser.add_argument("--picture", action="store_true", help="only part 5, the picture")
+    parser.add_argument("--goal-only", action="store_true", help="only part 4, the goal")
     args = parser.parse_args()
     if args.picture:
         print(picture(RESULTS / "cracks_inspection.png"))
+        return
+    if args.goal_only:
+        write_results("cracks_goal", json.loads(json.dumps(inspection_goal(args.envs))))
         return
     rows = accuracy()
     plot(rows, RESULTS / "cracks.png")

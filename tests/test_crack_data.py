@@ -32,7 +32,7 @@ from glsynth.data.tokaido import (
     frame_paths,
     read_manifest,
 )
-from glsynth.data.visible_cracks import member_cracks
+from glsynth.data.visible_cracks import in_frustum, member_cracks, project
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
 
@@ -201,6 +201,22 @@ def test_a_crack_counts_where_labelled_unhidden_and_in_the_image():
     assert listed(unlabelled, depth)[0]["labelled_length_m"] == pytest.approx(
         1.5 - x_at(119.5), abs=0.01)
     assert listed(np.zeros_like(widths), depth) == []
+
+
+def test_the_frustum_cull_keeps_every_segment_that_can_show():
+    """Random segments around a camera: each one culled has no point (of 200 along it) that
+    projects into the image; one crossing the image with both ends outside it is kept."""
+    camera = Camera(160, 90, 50.0, 36.0, np.eye(4), 0.1, 100.0)
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(-6, 6, (2, 4000, 3))
+    kept = in_frustum(a, b, camera)
+    t = np.linspace(0, 1, 200)[:, None, None]
+    cols, _, _ = project((a + t * (b - a)).reshape(-1, 3), camera)
+    shows = (cols.reshape(200, -1) >= 0).any(axis=0)
+    assert shows.any() and not (shows & ~kept).any()
+    assert (~kept).sum() > 1000  # the cull does cut
+    across = in_frustum(np.array([[-50.0, 0.0, -5.0]]), np.array([[50.0, 0.0, -5.0]]), camera)
+    assert across.all()
 
 
 # --- statistics -----------------------------------------------------------------------------

@@ -9,6 +9,7 @@ import pytest
 import trimesh
 from glhelpers import LIGHT, plain_materials, render_config
 
+from glsynth.appearance.dressing import crack_segments
 from glsynth.core.config import (
     SEVERITIES,
     CameraConfig,
@@ -43,8 +44,17 @@ def faces_config(**fields) -> CameraConfig:
     return dataclasses.replace(INSPECTION.cameras, n_closeup=N, **fields)
 
 
+_CRACKS: dict[int, dict] = {}
+
+
+def cracks_of(env) -> dict:
+    """The environment's crack segments under the inspection preset, which its cameras aim at
+    (made once per environment object)."""
+    return _CRACKS.setdefault(id(env), crack_segments(env, INSPECTION))
+
+
 def placements(env, cameras: CameraConfig, render=SMALL, n: int = N) -> list:
-    return place_cameras(env, cameras, render, range(n))
+    return place_cameras(env, cameras, render, range(n), cracks_of(env))
 
 
 def check_geometry(env, p, cameras: CameraConfig) -> None:
@@ -67,7 +77,10 @@ def check_geometry(env, p, cameras: CameraConfig) -> None:
     angle = math.degrees(math.acos(min(1.0, float(-forward @ normal))))
     assert np.isclose(angle, aim.angle_deg, atol=1e-6)
     assert angle <= cameras.face_angle_deg + 1e-5  # acos near 1 is good to about 1e-6 deg
-    level = np.cross(forward, [0.0, 0.0, 1.0])  # image x when level (not looking straight up)
+    level = np.cross(forward, [0.0, 0.0, 1.0])  # image x when level
+    if np.linalg.norm(level) < 1e-9:  # straight up at a soffit: x is rolled from the beam's axis
+        level = np.cross(forward, np.cross(member.pose[:3, int(np.argmax(
+            member.mesh.extents[:2]))], forward))
     level /= np.linalg.norm(level)
     roll = math.degrees(math.atan2(cam.pose[:3, 0] @ np.cross(-forward, level),
                                    cam.pose[:3, 0] @ level))
@@ -84,7 +97,7 @@ def check_geometry(env, p, cameras: CameraConfig) -> None:
 
 
 def test_cameras_stand_at_member_faces_within_the_ranges(env0):
-    cameras = faces_config()
+    cameras = faces_config(face_crack_share=0.0)
     found = placements(env0, cameras)
     for p in found:
         check_geometry(env0, p, cameras)
@@ -93,6 +106,61 @@ def test_cameras_stand_at_member_faces_within_the_ranges(env0):
     assert {p.face.face for p in found} >= {"+x", "-x", "+y", "-y"}
     distances = [p.face.distance_m for p in found]
     assert min(distances) < 1.0 and max(distances) > 2.3  # spread over the range
+
+
+def segment_point_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    ab = b - a
+    t = np.clip(((p - a) * ab).sum(1) / (ab * ab).sum(1), 0.0, 1.0)
+    return np.linalg.norm(a + t[:, None] * ab - p, axis=1), t
+
+
+def test_crack_aimed_cameras_look_at_a_crack_from_where_they_resolve_it(env0):
+    """About face_crack_share of the cameras aim at a point on a crack of their member's face,
+    and stand where its width there spans face_crack_px pixels (or at the near end)."""
+    cameras = faces_config()
+    found = placements(env0, cameras, INSPECTION.render)  # 1920 px: a 0.2 mm crack needs < 1 m
+    parts = {q.name: q for q in env0.parts}
+    aimed = [p for p in found if p.face.crack_width_mm is not None]
+    assert 0.5 * N <= len(aimed) < N  # 0.75 of 40 expected
+    for p in aimed:
+        check_geometry(env0, p, cameras)
+        local, widths = cracks_of(env0)[p.face.member]
+        pose = parts[p.face.member].pose
+        a, b = (local[:, k] @ pose[:3, :3].T + pose[:3, 3] for k in (0, 1))
+        gap, t = segment_point_distance(np.array(p.face.point), a, b)
+        k = int(np.argmin(gap))
+        assert gap[k] < 1e-9
+        width_mm = 1e3 * (widths[k, 0] + t[k] * (widths[k, 1] - widths[k, 0]))
+        assert np.isclose(width_mm, p.face.crack_width_mm, rtol=1e-9)
+        span_px = width_mm / 1e3 * p.camera.fx / p.face.distance_m
+        near = cameras.face_distance_m[0]
+        assert span_px >= cameras.face_crack_px - 1e-9 or p.face.distance_m == near
+    assert any(p.face.distance_m > cameras.face_distance_m[0] for p in aimed)
+
+
+def test_a_crack_aimed_camera_labels_its_centre_pixel_with_the_crack(tmp_path):
+    """Rendered: the centre pixel of each crack-aimed camera is concrete damage, with the
+    aimed crack's width in the crack-width map (the pixel's centre lies on its centreline)."""
+    from glsynth.render.view import EnvironmentView
+
+    eight = TINY.replace("n_closeup = 3", "n_closeup = 8")
+    (tmp_path / "tiny.toml").write_text(eight + "[render]\nwidth = 97\nheight = 55\nmsaa = 0\n")
+    config = load_config("inspection", tmp_path / "tiny.toml")
+    view = EnvironmentView.open(config, 0, 0)
+    checked = 0
+    try:
+        for index in range(config.cameras.total):
+            placement, out = view.render(index, frozenset({"damage"}))
+            if placement.face.crack_width_mm is None:
+                continue
+            assert out.damage[27, 48] == 2
+            assert np.isclose(out.crack_width[27, 48], placement.face.crack_width_mm,
+                              rtol=1e-4)
+            checked += 1
+    finally:
+        view.renderer.release()
+    assert checked >= 3
 
 
 def test_the_centre_pixel_shows_the_member_at_the_aimed_point(env0):
@@ -116,14 +184,15 @@ def test_the_centre_pixel_shows_the_member_at_the_aimed_point(env0):
 def test_placement_is_deterministic_and_per_camera(env0):
     cameras = faces_config()
     first = placements(env0, cameras, n=6)
-    alone = sorted((place_camera(env0, cameras, SMALL, i) for i in (5, 3, 0, 1, 2, 4)),
+    alone = sorted((place_camera(env0, cameras, SMALL, i, cracks_of(env0))
+                    for i in (5, 3, 0, 1, 2, 4)),
                    key=lambda p: p.index)
     for a, b in zip(first, alone):
         assert a.camera.pose.tobytes() == b.camera.pose.tobytes()
         assert a.face == b.face and a.camera.focal_mm == b.camera.focal_mm
     assert len({p.camera.pose.tobytes() for p in first}) == 6
     with pytest.raises(ValueError, match="camera index"):
-        place_camera(env0, cameras, SMALL, N)
+        place_camera(env0, cameras, SMALL, N, cracks_of(env0))
 
 
 @pytest.mark.parametrize("fields", [

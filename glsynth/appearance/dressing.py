@@ -164,6 +164,32 @@ def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: 
     return record, replace(material, cracks=cracks)
 
 
+def crack_segments(env: Environment, config: Config
+                   ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every damaged member's crack segments, seen by a camera or not: end points (N, 2, 3) in
+    its mesh frame and widths (N, 2) in metres. They are the networks ``dress`` gives the
+    seen members, for cameras that aim at cracks ([cameras] face_crack_share); none under
+    model = "paper"."""
+    if config.damage.model != "mechanics":
+        return {}
+    out = {}
+    for ordinal, part in enumerate(env.parts):
+        kind = part_kind(part.name)
+        if kind == "column":
+            damage = _column_damage(config, env.root_seed, env.env_index, ordinal)
+            if not damage["damaged"]:
+                continue
+            _, material = _mechanics_damage(env, config.damage, part, ordinal,
+                                            {**damage, "built": True}, Material())
+        elif kind == "beam":
+            _, material = _beam_damage(env, config.damage, part, ordinal, Material(), True)
+        else:
+            continue
+        if material.cracks is not None and len(material.cracks.points):
+            out[part.name] = (material.cracks.points, material.cracks.widths_m)
+    return out
+
+
 def spalls(severity: str) -> bool:
     """Under mechanics, medium and severe columns spall in their hinge zones; slight ones
     only crack (docs/design.md, "Damage by mechanics")."""

@@ -117,6 +117,15 @@ class CameraConfig:
     face_roll_deg: float = 5.0
     """placement = "faces": largest roll about the optical axis from level (the image's x axis
     horizontal): the camera is held upright."""
+    face_crack_share: float = 0.0
+    """placement = "faces": the share of cameras aimed at a point on a crack (uniform along the
+    environment's cracks on inspected faces, as an inspector photographs the damage), the rest
+    at a point uniform on a face. Needs [damage] model = "mechanics"; an environment without
+    cracks aims every camera at a face point."""
+    face_crack_px: float = 0.0
+    """placement = "faces": a camera aimed at a crack stands no farther than makes the crack's
+    width at the aimed point span this many pixels (within face_distance_m); 0: anywhere in
+    face_distance_m."""
 
     def __post_init__(self) -> None:
         s = "cameras"
@@ -137,6 +146,11 @@ class CameraConfig:
         # Beyond 85 degrees the face is seen edge-on: no image of it is left to inspect.
         check_number(s, "face_angle_deg", self.face_angle_deg, 0.0, 85.0)
         check_number(s, "face_roll_deg", self.face_roll_deg, 0.0, 45.0)
+        check_number(s, "face_crack_share", self.face_crack_share, 0.0, 1.0)
+        check_number(s, "face_crack_px", self.face_crack_px, 0.0, 100.0)
+        if self.face_crack_share and self.placement != "faces":
+            fail(s, "face_crack_share", self.face_crack_share,
+                 '0 unless placement = "faces" (only face cameras aim at cracks)')
         if self.placement == "faces" and self.n_regular:
             fail(s, "n_regular", self.n_regular, '0 under placement = "faces" (every camera '
                  "is a close-up at a member face; set n_closeup instead)")
@@ -637,6 +651,9 @@ class Config:
         if self.environment.panel_distance_m <= half_deck + 1.0:
             fail("environment", "panel_distance_m", self.environment.panel_distance_m,
                   f"more than half the deck width plus 1 m ({half_deck + 1.0})")
+        if self.cameras.face_crack_share and self.damage.model != "mechanics":
+            fail("cameras", "face_crack_share", self.cameras.face_crack_share,
+                 '0 unless [damage] model = "mechanics" (the paper model makes no cracks)')
 
 
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
@@ -651,14 +668,15 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
              "damage": {"resolution": 512, "model": "mechanics"}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
-    # slight cracks of 0.05-1 mm by mechanics, the RRDR for cracks of 0.2 mm and more. No
+    # three in four aimed at a crack from where its width spans 3 pixels or more, slight cracks of 0.05-1 mm by mechanics, the RRDR for cracks of 0.2 mm and more. No
     # plates: they show Section 3.3's noise damage of every severity, not cracks.
     "inspection": {
         "dataset": {"n_environments": 4, "n_test_environments": 1, "n_plates": 0,
                     "n_test_plates": 0},
         "cameras": {"placement": "faces", "n_regular": 0, "n_closeup": 24,
                     "focal_mm": (24.0, 105.0), "face_distance_m": (0.3, 3.0),
-                    "face_angle_deg": 30.0, "face_roll_deg": 5.0},
+                    "face_angle_deg": 30.0, "face_roll_deg": 5.0, "face_crack_share": 0.75,
+                    "face_crack_px": 3.0},
         "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
                    "undamaged_probability": 0.2, "crack_width_mm": (0.05, 1.0)},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,

@@ -29,11 +29,27 @@ on a face seen at 85 degrees the surface under a pixel spans about 1 % of the de
 occluding surface stands farther off than that."""
 
 
+def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera) -> np.ndarray:
+    """(N,) False for the segments a-b (world, (N, 3) each) that lie wholly beyond one plane of
+    the view's frustum (the near plane, or a side grown by 2 pixels): none of their points can
+    land in the image. True for the rest (a conservative test)."""
+    view = camera.view()
+    ca, cb = (p @ view[:3, :3].T + view[:3, 3] for p in (a, b))
+    za, zb = -ca[:, 2], -cb[:, 2]
+    out = (za < camera.znear) & (zb < camera.znear)
+    for axis, size in ((0, camera.width), (1, camera.height)):
+        slope = (size / 2 + 2) / camera.fx  # |x| / depth at the image's edge, plus 2 pixels
+        for sign in (1.0, -1.0):
+            out |= (sign * ca[:, axis] > slope * za) & (sign * cb[:, axis] > slope * zb)
+    return ~out
+
+
 def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points along every segment, in world coordinates (M, 3), the segment each lies on (M,)
-    and the length in metres each stands for (M,). A segment is cut into equal pieces at most
-    SAMPLE_STEP_PX long in the image (taken at its nearer end) and sampled at their middles."""
+    """Points along every segment that can show in the view, in world coordinates (M, 3), the
+    segment each lies on (M,) and the length in metres each stands for (M,). A segment is cut
+    into equal pieces at most SAMPLE_STEP_PX long in the image (taken at its nearer end) and
+    sampled at their middles; a segment outside the frustum (``in_frustum``) gets none."""
     a = net.points[:, 0] @ pose[:3, :3].T + pose[:3, 3]
     b = net.points[:, 1] @ pose[:3, :3].T + pose[:3, 3]
     view = camera.view()
@@ -41,10 +57,11 @@ def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera
     step_m = SAMPLE_STEP_PX * np.maximum(depth, camera.znear) / camera.fx
     length = np.linalg.norm(b - a, axis=1)
     n = np.clip(np.ceil(length / step_m), 1, MAX_SAMPLES_PER_SEGMENT).astype(np.int64)
+    n = np.where(in_frustum(a, b, camera), n, 0)
     segment = np.repeat(np.arange(len(n)), n)
     t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[segment]
     points = a[segment] + t[:, None] * (b - a)[segment]
-    return points, segment, (length / n)[segment]
+    return points, segment, (length / np.maximum(n, 1))[segment]
 
 
 def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.appearance.damage_bank import DamageBank
-from glsynth.appearance.dressing import Dressing, dress, open_repository
+from glsynth.appearance.dressing import Dressing, crack_segments, dress, open_repository
 from glsynth.appearance.materials import surface_albedo
 from glsynth.core.config import Config
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
@@ -36,6 +36,9 @@ class EnvironmentView:
     scene: RenderScene
     lighting: Lighting
     renderer: Renderer
+    cracks: dict[str, np.ndarray] | None = None
+    """Every member's crack segments, where the cameras aim at cracks ([cameras]
+    face_crack_share); else None."""
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
@@ -57,9 +60,10 @@ class EnvironmentView:
             renderer.release_scene()
         report("building the environment", 0.0)
         env = build_environment(config, root_seed, env_index)
+        cracks = crack_segments(env, config) if config.cameras.face_crack_share else None
         if cameras is None:
             cameras = [p.camera for p in place_cameras(env, config.cameras, config.render,
-                                                         range(config.cameras.total))]
+                                                         range(config.cameras.total), cracks)]
         cameras = list(cameras)
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)
@@ -75,11 +79,11 @@ class EnvironmentView:
         renderer = renderer or Renderer(config.render)
         renderer.load(scene, lighting, occlusion_extent(env.parts))
         report("ready", 1.0)
-        return cls(config, env, dressing, scene, lighting, renderer)
+        return cls(config, env, dressing, scene, lighting, renderer, cracks)
 
     def camera(self, index: int) -> CameraPlacement:
         cfg = self.config
-        return place_camera(self.environment, cfg.cameras, cfg.render, index)
+        return place_camera(self.environment, cfg.cameras, cfg.render, index, self.cracks)
 
     def render(self, index: int, passes: frozenset[str] = PASSES
                ) -> tuple[CameraPlacement, RenderOutput]:

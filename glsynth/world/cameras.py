@@ -110,11 +110,15 @@ class FaceAim:
     """About the optical axis, from level (the image's x axis horizontal)."""
     tries: int
     """Draws it took to find a clear view (1: the first)."""
+    crack_width_mm: float | None = None
+    """Under [cameras] face_crack_share, the width of the crack at the aimed point, for a
+    camera aimed at a crack; else None."""
 
     def to_json(self) -> dict:
         return {"member": self.member, "face": self.face, "point": list(self.point),
                 "distance_m": self.distance_m, "angle_deg": self.angle_deg,
-                "roll_deg": self.roll_deg, "tries": self.tries}
+                "roll_deg": self.roll_deg, "tries": self.tries,
+                "crack_width_mm": self.crack_width_mm}
 
 
 @dataclass(frozen=True)

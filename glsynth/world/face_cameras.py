@@ -2,17 +2,25 @@
 future work iv, issue 29; docs/design.md, "Inspection preset").
 
 Each camera draws, from its own generator (Stream.CAMERAS, item = its index):
-1. its focal length, uniform in [cameras] focal_mm;
+1. its focal length, uniform in [cameras] focal_mm, and, where [cameras] face_crack_share is
+   above 0, whether it aims at a crack (with that probability; never where the environment
+   has no crack on an inspected face);
 2. a face of a member, with probability proportional to the face's area: the four lateral
-   faces of every column and, of every cross and tie beam, the two sides and the soffit (the
-   members that [damage] model = "mechanics" cracks; a beam's top lies under the slab or is
-   seen only from above the deck). The girders are left out: they are swept along the track,
-   not boxes, and mechanics puts no cracks on them;
-3. a point uniform on the face, at least 5 cm (or a quarter of the face) from its edges;
+   faces of every column and, of every cross and tie beam, the two sides and the soffit (a
+   beam's top lies under the slab or is seen only from above the deck). The girders are left
+   out: they are swept along the track, not boxes;
+3. a point uniform on the face, at least 5 cm (or a quarter of the face) from its edges. A
+   camera aiming at a crack draws steps 2-3 together instead: a point uniform along the
+   length of the cracks on inspected faces, and the face that holds it;
 4. a direction within face_angle_deg of the face's normal, uniform in solid angle, and a
-   distance along it, uniform in face_distance_m: the camera stands there and looks at the
-   point, held upright (its image rows horizontal) and then rolled uniformly within
-   face_roll_deg.
+   distance along it, log-uniform in face_distance_m (each doubling of the distance is as
+   likely: an inspector's photos range from a crack's width at a few decimetres to a whole
+   face at metres, and what a photo resolves scales with the distance). A camera aiming at
+   a crack, where face_crack_px is above 0, stands no farther than makes the crack's width at
+   the point span that many pixels (as an inspector steps close enough to read a crack's
+   width; at face_distance_m's near end where even that is too far). The camera stands
+   there and looks at the point, held upright (its image rows horizontal) and then rolled
+   uniformly within face_roll_deg.
 The draw is kept when the point is the first surface on the camera's optical axis, the camera
 is inside no solid part and stands at least GROUND_CLEARANCE_M above the ground; else steps
 2-4 are drawn again, at most MAX_TRIES times. So the camera never starts inside a part, and
@@ -20,7 +28,7 @@ its centre pixel shows the member.
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,22 +159,28 @@ class _Scene:
         return heights.size > 0 and float(heights.min()) >= GROUND_CLEARANCE_M
 
 
-def _draw(face: MemberFace, cameras: CameraConfig, rng: np.random.Generator
-          ) -> tuple[np.ndarray, np.ndarray, float, float, float]:
-    """Steps 3-4 for one face: the point, the unit direction from it to the camera, the
-    distance, the angle to the normal (degrees) and the roll (degrees)."""
+def _face_point(face: MemberFace, rng: np.random.Generator) -> np.ndarray:
+    """Step 3: a point uniform on ``face``, EDGE_MARGIN_M (or a quarter of it) from its edges."""
     offsets = [rng.uniform(-1.0, 1.0) * max(h - min(EDGE_MARGIN_M, h / 2), 0.0)
                for h in face.half_extents]
-    point = face.centre + offsets[0] * face.tangents[0] + offsets[1] * face.tangents[1]
+    return face.centre + offsets[0] * face.tangents[0] + offsets[1] * face.tangents[1]
+
+
+def _view(face: MemberFace, cameras: CameraConfig, far: float, rng: np.random.Generator
+          ) -> tuple[np.ndarray, float, float, float]:
+    """Step 4 for a point on ``face``: the unit direction from it to the camera, the distance
+    (log-uniform from face_distance_m's near end to ``far``, or the near end where ``far`` is
+    nearer), the angle to the normal (degrees) and the roll (degrees)."""
     cos_theta = rng.uniform(math.cos(math.radians(cameras.face_angle_deg)), 1.0)
     phi = rng.uniform(0.0, 2 * math.pi)
     sin_theta = math.sqrt(max(0.0, 1.0 - cos_theta ** 2))
     out = cos_theta * face.normal + sin_theta * (math.cos(phi) * face.tangents[0]
                                                  + math.sin(phi) * face.tangents[1])
-    distance = rng.uniform(*cameras.face_distance_m)
+    near = cameras.face_distance_m[0]
+    distance = near * (max(far, near) / near) ** rng.uniform()  # exactly near where far is
     roll = rng.uniform(-cameras.face_roll_deg, cameras.face_roll_deg)
     angle = math.degrees(math.acos(min(1.0, cos_theta)))
-    return point, out / np.linalg.norm(out), float(distance), angle, float(roll)
+    return out / np.linalg.norm(out), float(distance), angle, float(roll)
 
 
 def aim_pose(position: np.ndarray, point: np.ndarray, roll_deg: float,
@@ -217,6 +231,67 @@ def _placement(traj: Trajectory, cameras: CameraConfig, index: int, camera: Came
 
 
 @dataclass(frozen=True)
+class CrackAims:
+    """The crack segments on inspected faces that cameras may aim at, in world metres."""
+
+    segments: np.ndarray
+    """(N, 2, 3) end points."""
+    widths_m: np.ndarray
+    """(N, 2) the crack's width at each end point."""
+    faces: np.ndarray
+    """(N,) int: the face (index into FaceTargets.faces) that holds each segment."""
+    weights: np.ndarray
+    """(N,) each segment's share of the cracks' length."""
+
+    def draw(self, rng: np.random.Generator) -> tuple[int, np.ndarray, float]:
+        """A face, a point on it uniform along the cracks' length, and the width there."""
+        k = int(rng.choice(len(self.weights), p=self.weights))
+        (a, b), (wa, wb), t = self.segments[k], self.widths_m[k], rng.uniform()
+        return int(self.faces[k]), a + t * (b - a), float(wa + t * (wb - wa))
+
+
+ON_FACE_M = 1e-6
+"""A crack segment whose midpoint lies this near a face's plane, within its extent, is on it."""
+
+
+Cracks = Mapping[str, tuple[np.ndarray, np.ndarray]]
+"""Crack segments by member name: end points (N, 2, 3) in its mesh frame, and the widths at
+them (N, 2) in metres."""
+
+
+def crack_aims(parts: Sequence[Part], faces: list[MemberFace], cracks: Cracks
+               ) -> CrackAims | None:
+    """The segments of ``cracks`` that lie on an inspected face, in world metres, with their
+    faces; None where there are none."""
+    index = {p.name: i for i, p in enumerate(parts)}
+    kept, widths, owners = [], [], []
+    for name, (local, width) in cracks.items():
+        mine = [k for k, f in enumerate(faces) if f.part == index.get(name)]
+        if not mine or not len(local):
+            continue
+        pose = parts[index[name]].pose
+        world = local @ pose[:3, :3].T + pose[:3, 3]
+        rel = world.mean(axis=1)[:, None, :] - np.array([faces[k].centre for k in mine])
+        normal = np.array([faces[k].normal for k in mine])
+        tangents = np.array([faces[k].tangents for k in mine])  # (F, 2, 3)
+        half = np.array([faces[k].half_extents for k in mine])
+        off = np.abs(np.einsum("nfc,fc->nf", rel, normal))
+        inside = np.all(np.abs(np.einsum("nfc,ftc->nft", rel, tangents)) <= half + ON_FACE_M, 2)
+        off = np.where(inside, off, np.inf)
+        best = np.argmin(off, axis=1)
+        on = off[np.arange(len(best)), best] <= ON_FACE_M
+        kept.append(world[on])
+        widths.append(width[on])
+        owners.append(np.array(mine)[best[on]])
+    if not kept or not sum(len(k) for k in kept):
+        return None
+    segments = np.concatenate(kept)
+    lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+    return CrackAims(segments, np.concatenate(widths), np.concatenate(owners),
+                     lengths / lengths.sum())
+
+
+@dataclass(frozen=True)
 class FaceTargets:
     """An environment's member faces and what the sight-line tests need, made once for all
     its cameras."""
@@ -226,24 +301,42 @@ class FaceTargets:
     weights: np.ndarray
     """Each face's probability: its share of the faces' area."""
     scene: _Scene
+    cracks: CrackAims | None = None
 
     @classmethod
-    def of(cls, env: Environment) -> "FaceTargets":
+    def of(cls, env: Environment, cracks: Cracks | None = None) -> "FaceTargets":
+        """``cracks``: the environment's crack segments per member, in its mesh frame (for
+        [cameras] face_crack_share)."""
         faces = member_faces(env.parts)
         if not faces:
             raise UserError('[cameras] placement = "faces": the environment has no column or '
                             "cross or tie beam to aim at")
         area = np.array([f.area for f in faces])
-        return cls(env, faces, area / area.sum(), _Scene.of(env.parts))
+        aims = crack_aims(env.parts, faces, cracks) if cracks else None
+        return cls(env, faces, area / area.sum(), _Scene.of(env.parts), aims)
+
+    def draw(self, on_crack: bool, rng: np.random.Generator
+             ) -> tuple[MemberFace, np.ndarray, float | None]:
+        """Steps 2-3: a face, a point on it, and the crack's width there (None off cracks)."""
+        if on_crack and self.cracks is not None:
+            face, point, width = self.cracks.draw(rng)
+            return self.faces[face], point, width
+        face = self.faces[int(rng.choice(len(self.faces), p=self.weights))]
+        return face, _face_point(face, rng), None
 
 
 def face_camera(targets: FaceTargets, cameras: CameraConfig, render: RenderConfig, index: int,
                 rng: np.random.Generator) -> CameraPlacement:
     """Camera ``index`` aimed at a member face, drawn from ``rng`` (the module's steps)."""
     focal = float(rng.uniform(*cameras.focal_mm))
+    on_crack = bool(cameras.face_crack_share) and rng.random() < cameras.face_crack_share
     for tries in range(1, MAX_TRIES + 1):
-        face = targets.faces[int(rng.choice(len(targets.faces), p=targets.weights))]
-        point, out, distance, angle, roll = _draw(face, cameras, rng)
+        face, point, width = targets.draw(on_crack, rng)
+        far = cameras.face_distance_m[1]
+        if width is not None and cameras.face_crack_px:
+            far = min(far, width * focal / cameras.sensor_mm * render.width
+                      / cameras.face_crack_px)
+        out, distance, angle, roll = _view(face, cameras, far, rng)
         position = point + distance * out
         if targets.scene.above_ground(position) and targets.scene.clear_view(
                 face.part, position, point, distance):
@@ -251,7 +344,7 @@ def face_camera(targets: FaceTargets, cameras: CameraConfig, render: RenderConfi
             camera = Camera(render.width, render.height, focal, cameras.sensor_mm, pose,
                             render.znear_m, render.zfar_m)
             aim = FaceAim(face.member, face.label, tuple(float(v) for v in point), distance,
-                          angle, roll, tries)
+                          angle, roll, tries, None if width is None else width * 1e3)
             return _placement(targets.env.trajectory, cameras, index, camera, aim)
     raise UserError(f"camera {index} of environment {targets.env.env_index}: no clear view of a "
                     f"member face in {MAX_TRIES} draws; widen [cameras] face_distance_m or "
@@ -259,22 +352,27 @@ def face_camera(targets: FaceTargets, cameras: CameraConfig, render: RenderConfi
 
 
 def place_cameras(env: Environment, cameras: CameraConfig, render: RenderConfig,
-                  indices: Sequence[int]) -> list[CameraPlacement]:
+                  indices: Sequence[int], cracks: Cracks | None = None
+                  ) -> list[CameraPlacement]:
     """Cameras ``indices`` of environment ``env`` by [cameras] placement, each from its own
-    generator (so each is reproducible alone)."""
+    generator (so each is reproducible alone). ``cracks``: the environment's crack segments,
+    which [cameras] face_crack_share aims at (every crack, seen or not:
+    glsynth.appearance.dressing.crack_segments)."""
     for index in indices:
         if not 0 <= index < cameras.total:
             raise ValueError(f"camera index = {index}: must be in [0, {cameras.total - 1}]")
     if cameras.placement != "faces":
         return [environment_camera(env.trajectory, cameras, render, env.root_seed,
                                    env.env_index, i) for i in indices]
-    targets = FaceTargets.of(env)
+    if cameras.face_crack_share and cracks is None:
+        raise ValueError("face_crack_share > 0: pass the environment's cracks")
+    targets = FaceTargets.of(env, cracks if cameras.face_crack_share else None)
     return [face_camera(targets, cameras, render, i,
                         make_rng(env.root_seed, env.env_index, Stream.CAMERAS, i))
             for i in indices]
 
 
 def place_camera(env: Environment, cameras: CameraConfig, render: RenderConfig,
-                 index: int) -> CameraPlacement:
+                 index: int, cracks: Cracks | None = None) -> CameraPlacement:
     """Camera ``index`` of environment ``env`` (``place_cameras`` for one)."""
-    return place_cameras(env, cameras, render, [index])[0]
+    return place_cameras(env, cameras, render, [index], cracks)[0]
