@@ -6,8 +6,10 @@ Each camera draws, from its own generator (Stream.CAMERAS, item = its index):
 2. a face of a member, with probability proportional to the face's area: the four lateral
    faces of every column and, of every cross and tie beam, the two sides and the soffit (the
    members that [damage] model = "mechanics" cracks; a beam's top lies under the slab or is
-   seen only from above the deck). The girders are left out: they are swept along the track,
-   not boxes, and mechanics puts no cracks on them;
+   seen only from above the deck). The girders are left out, though mechanics cracks them too
+   (glsynth.appearance.girder_cracks): they are swept along the curved track, not boxes, so
+   each of their flat pieces would be a face of its own, and adding them would change every
+   camera the inspection preset draws. Views among the viaducts see their sides and soffit;
 3. a point uniform on the face, at least 5 cm (or a quarter of the face) from its edges;
 4. a direction within face_angle_deg of the face's normal, uniform in solid angle, and a
    distance along it, uniform in face_distance_m: the camera stands there and looks at the
