@@ -234,6 +234,8 @@ def test_extremes_no_demand_and_width_bounds():
     ("model", "fem", '"paper", "mechanics"'),
     ("severe_drift_pct", [5.0, 2.0], "interval"),
     ("cracking_moment_ratio", 0.0, "in (0.0, 1.0]"),
+    ("spalling_severities", ["light"], "distinct names from ['slight', 'medium', 'severe']"),
+    ("spalling_severities", ["medium", "medium"], "distinct names"),
 ])
 def test_bad_crack_settings_are_one_clear_line(key, value, words):
     with pytest.raises(UserError) as err:

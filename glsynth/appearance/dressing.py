@@ -11,11 +11,11 @@ the renderer holds one column's maps at a time, not the environment's.
 
 Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network
 (glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index);
-a medium or severe one also gets its Section 3.3 damage texture (the bank entry and scale
-drawn as under "paper"), confined to the plastic-hinge zones at both ends of each clear span
-(Material.zones), its own concrete elsewhere. Its severity is drawn as under "paper", so both
-models damage the same columns. Cross and tie
-beams and the girders draw their severity, drift and cracks from the CRACKS stream (item =
+one of [damage] spalling_severities (medium and severe by default) also gets its Section 3.3
+damage texture (the bank entry and scale drawn as under "paper"), confined to the
+plastic-hinge zones at both ends of each clear span (Material.zones), its own concrete
+elsewhere. Its severity is drawn as under "paper", so both models damage the same columns.
+Cross and tie beams and the girders draw their severity, drift and cracks from the CRACKS stream (item =
 their index); a girder's cracks are made per clear span on a straight box and mapped onto its
 curved sweep (glsynth.appearance.girder_cracks).
 """
@@ -180,10 +180,11 @@ def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: 
     return record, replace(material, cracks=cracks)
 
 
-def spalls(severity: str) -> bool:
-    """Under mechanics, medium and severe columns spall in their hinge zones; slight ones
-    only crack (docs/design.md, "Damage by mechanics")."""
-    return severity in ("medium", "severe")
+def spalls(cfg: DamageConfig, severity: str) -> bool:
+    """Under mechanics, columns of [damage] spalling_severities (by default medium and severe)
+    spall in their hinge zones; the others only crack (docs/design.md, "Damage by
+    mechanics")."""
+    return severity in cfg.spalling_severities
 
 
 def spalled_material(bank: DamageBank, repository: TextureRepository, damage: dict,
@@ -244,7 +245,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                     sampled = damage
                     damage, material = _mechanics_damage(env, config.damage, part, ordinal,
                                                          sampled, material)
-                    if damage["built"] and spalls(damage["severity"]):
+                    if damage["built"] and spalls(config.damage, damage["severity"]):
                         damage, deferred[part.name] = _spalling(
                             env, config, bank, repository, part, sampled, damage, material)
                 elif damage["built"]:
