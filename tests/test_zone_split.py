@@ -11,7 +11,6 @@ import pytest
 from glhelpers import LIGHT
 from test_spalling import HEIGHT, SECTION, heights, side_camera, spalled
 
-from glsynth.appearance.materials import srgb_decode
 from glsynth.core.labels import Component
 from glsynth.render.cycles import render_linear
 from glsynth.render.gltf import gltf_binary
@@ -40,6 +39,12 @@ def within(z: np.ndarray, intervals, tol: float = 1e-6) -> np.ndarray:
     return np.any([(z >= z0 - tol) & (z <= z1 + tol) for z0, z1 in intervals], axis=0)
 
 
+def face_points(mesh, normal) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and UVs of the corners of ``mesh``'s faces facing ``normal``."""
+    faces = mesh.faces[np.all(np.isclose(mesh.face_normals, normal), axis=1)].ravel()
+    return mesh.vertices[faces], mesh.visual.uv[faces]
+
+
 def test_pieces_cover_the_mesh_once_split_at_the_zones_ends():
     mesh = box((*SECTION, HEIGHT))
     material, _ = spalled(0, "severe", ZONES)
@@ -57,13 +62,10 @@ def test_pieces_cover_the_mesh_once_split_at_the_zones_ends():
     # UVs carry on across a cut: on each lateral face the box's UVs are affine in the
     # position, and the pieces' UVs follow the same map.
     for normal in ([1.0, 0, 0], [0, 1.0, 0], [-1.0, 0, 0], [0, -1.0, 0]):
-        def face_points(m):
-            faces = m.faces[np.all(np.isclose(m.face_normals, normal), axis=1)]
-            return m.vertices[faces.ravel()], m.visual.uv[faces.ravel()]
-        xyz, uv = face_points(mesh)
+        xyz, uv = face_points(mesh, normal)
         affine = np.linalg.lstsq(np.c_[xyz, np.ones(len(xyz))], uv, rcond=None)[0]
         for piece in inside + outside:
-            xyz, uv = face_points(piece)
+            xyz, uv = face_points(piece, normal)
             assert len(xyz) and np.allclose(np.c_[xyz, np.ones(len(xyz))] @ affine, uv)
 
 

@@ -15,9 +15,9 @@ one of [damage] spalling_severities (medium and severe by default) also gets its
 damage texture (the bank entry and scale drawn as under "paper"), confined to the
 plastic-hinge zones at both ends of each clear span (Material.zones), its own concrete
 elsewhere. Its severity is drawn as under "paper", so both models damage the same columns.
-Cross and tie beams and the girders draw their severity, drift and cracks from the CRACKS stream (item =
-their index); a girder's cracks are made per clear span on a straight box and mapped onto its
-curved sweep (glsynth.appearance.girder_cracks).
+Cross and tie beams and the girders draw their severity, drift and cracks from the CRACKS
+stream (item = their index); a girder's cracks are made per clear span on a straight box and
+mapped onto its curved sweep (glsynth.appearance.girder_cracks).
 """
 
 import functools

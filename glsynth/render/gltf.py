@@ -24,7 +24,6 @@ import struct
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-
 import trimesh
 
 from glsynth.appearance.materials import Material

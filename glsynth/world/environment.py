@@ -138,8 +138,7 @@ class _Builder:
     # --- viaduct ---------------------------------------------------------------------------
     def viaduct(self, i: int) -> ViaductInfo:
         d, traj = self.d, self.traj
-        L = d.length_m
-        s0, s1 = i * L, (i + 1) * L
+        s0 = i * d.length_m
         height = float(traj.heights_m[i])
         radius = float(traj.radii_m[i])
         sections = design.cross_sections(height, radius)
