@@ -1,11 +1,13 @@
-// Cracks as straight segments with a width, evaluated per fragment in the mesh's own frame
-// (glsynth.render.cracks_index packs them; docs/design.md, "Cracks", gives the rules). The
+// Cracks as straight segments with a width, evaluated per fragment in the mesh's own frame,
+// relative to the grid's lower corner (the vertex stage subtracts it, mesh.vert, so that the
+// positions keep their precision far from the mesh frame's origin; glsynth.render.cracks_index
+// packs the segments so; docs/design.md, "Cracks", gives the rules). The
 // fragment reads its grid cell's list of segments; from each: the distance to its centreline,
 // the width there, and the pixel footprint across it on the surface.
-uniform sampler2D u_crack_segments;  // RGBA32F, 2 texels per segment: end point (m), width (mm)
+uniform sampler2D u_crack_segments;  // RGBA32F, 2 texels per segment: end point (m, relative
+                                     // to the grid's lower corner), width (mm)
 uniform isampler2D u_crack_cells;    // (first entry, count) per grid cell
 uniform isampler2D u_crack_entries;  // segment ids, cell after cell
-uniform vec3 u_crack_origin;         // the grid's lower corner, mesh frame
 uniform float u_crack_cell_m;        // its cells' edge
 uniform ivec3 u_crack_dims;          // its cells along x, y, z
 
@@ -47,12 +49,13 @@ float footprint_across(vec3 dpdx, vec3 dpdy, vec3 along) {
     return max(abs(dot(dpdx, across)) + abs(dot(dpdy, across)), 1e-12);
 }
 
-// The grid cell holding p, along x, y and z.
+// The grid cell holding p (relative to the grid's lower corner), along x, y and z.
 ivec3 crack_grid(vec3 p) {
-    return ivec3(floor((p - u_crack_origin) / u_crack_cell_m));
+    return ivec3(floor(p / u_crack_cell_m));
 }
 
-// The grid cell holding p (x fastest), or -1 outside the grid.
+// The grid cell holding p (relative to the grid's lower corner; x fastest), or -1 outside the
+// grid.
 int crack_cell(vec3 p) {
     ivec3 c = crack_grid(p);
     if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, u_crack_dims))) return -1;
@@ -88,7 +91,7 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
     }
 }
 
-// The cracks at mesh-frame point p, seen through a pixel whose derivatives are dpdx, dpdy.
+// The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a pixel whose derivatives are dpdx, dpdy.
 // The own cell's list holds every crack within one cell edge beyond its edge; a pixel whose
 // half footprint reaches further also reads the cells within the rest of it, up to one more
 // each way (glsynth.render.cracks_index).

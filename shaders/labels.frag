@@ -11,8 +11,11 @@
 // inside the zones and 1 (no damage) outside; cracks still label on top.
 in vec3 v_view_pos;
 in vec2 v_uv;
-#if defined(CRACKS) || defined(SPALL)
+#ifdef SPALL
 in vec3 v_mesh_pos;
+#endif
+#ifdef CRACKS
+in vec3 v_crack_pos;  // mesh frame, relative to the crack grid's origin (mesh.vert)
 #endif
 
 uniform float u_component;
@@ -38,9 +41,9 @@ void main() {
     if (!in_zones(v_mesh_pos.z)) damage = 1.0;
 #endif
 #ifdef CRACKS
-    vec3 dpdx = dFdx(v_mesh_pos), dpdy = dFdy(v_mesh_pos);
+    vec3 dpdx = dFdx(v_crack_pos), dpdy = dFdy(v_crack_pos);
     CrackHit hit = CrackHit(0.0, 0.0, false);
-    if (u_has_cracks) hit = crack_hit(v_mesh_pos, dpdx, dpdy);
+    if (u_has_cracks) hit = crack_hit(v_crack_pos, dpdx, dpdy);
     damage = hit.labelled ? max(damage, 2.0) : damage;  // 2: concrete damage, 3: rebar
     f_crack = vec2(hit.width_mm, hit.coverage);
 #endif

@@ -215,3 +215,30 @@ def test_under_msaa_a_crack_darkens_as_without_it():
         assert np.all(out.crack_width[out.damage == Damage.CONCRETE] == np.float32(w * 1000))
     assert np.abs(per_row[1] / per_row[0] - 1).max() <= 0.10
     assert per_row[0].min() > 0.1
+
+
+def test_a_crack_far_from_the_mesh_frames_origin_renders_as_near_it(renderer):
+    """A girder's mesh frame is the world frame: the plane, its 0.05 mm crack and the camera
+    moved 700 m from the origin (a float32 coordinate there is good to 30 um) label the same
+    pixels with the same width and darken them as at the origin, through a 105 mm lens at
+    0.3 m (0.64 mm pixels)."""
+    z, w, shift = 0.3, 0.05e-3, np.array([700.0, -400.0, 25.0])
+    fx = W * 105.0 / 36.0
+    x = (80.3 - (W - 1) / 2) * z / fx
+    outs = []
+    for offset in (np.zeros(3), shift):
+        mesh = plane(z).copy()
+        mesh.vertices = mesh.vertices + offset
+        net = network([[[x, -z, -z] + offset, [x, z, -z] + offset]], w)
+        pose = np.eye(4)
+        pose[:3, 3] = offset
+        base, out = render(renderer, mesh, net, camera(W, H, focal_mm=105.0, pose=pose))
+        outs.append((out, darkening(out, base).sum(1)))
+    (near, near_rows), (far, far_rows) = outs
+    crack = near.damage == Damage.CONCRETE
+    assert crack.any(1).all()
+    assert np.array_equal(far.damage, near.damage)
+    assert np.array_equal(far.crack_width, near.crack_width)
+    expected = CRACK_CONTRAST * w / (z / fx)
+    assert np.abs(near_rows / expected - 1).max() <= 0.10
+    assert np.abs(far_rows - near_rows).max() <= 0.02 * expected

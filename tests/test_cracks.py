@@ -234,6 +234,8 @@ def test_extremes_no_demand_and_width_bounds():
     ("model", "fem", '"paper", "mechanics"'),
     ("severe_drift_pct", [5.0, 2.0], "interval"),
     ("cracking_moment_ratio", 0.0, "in (0.0, 1.0]"),
+    ("spalling_severities", ["light"], "distinct names from ['slight', 'medium', 'severe']"),
+    ("spalling_severities", ["medium", "medium"], "distinct names"),
 ])
 def test_bad_crack_settings_are_one_clear_line(key, value, words):
     with pytest.raises(UserError) as err:
@@ -342,17 +344,23 @@ def test_soffit_cracks_follow_the_gravity_moment():
     assert width[1] > 0 and width[2] == 0 and width[3] == 0
 
 
-def test_dressing_under_mechanics_cracks_cross_and_tie_beams_not_girders(tmp_path):
+def test_dressing_under_mechanics_cracks_girders_and_cross_and_tie_beams(tmp_path):
     mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
     env = build_environment(mech, 5, 0)
     beams = [p for p in env.parts if p.name.startswith("beam_")]
     d = dress(env, mech, open_repository(mech), DamageBank(mech.damage, 5, cache_dir=tmp_path),
               {p.name for p in beams})
-    cracked = 0
+    cracked, girders = 0, 0
     for part in beams:
         record, material = d.assignments[part.name].damage, d.materials[part.name]
-        if "_girder_" in part.name:
-            assert record is None and material.cracks is None and beam_span(env, part) is None
+        if "_girder_" in part.name:  # glsynth.appearance.girder_cracks; tests/test_girder_cracks
+            assert beam_span(env, part) is None
+            if record["damaged"]:
+                girders += 1
+                assert [{"member": part.name, **r} for r in crack_records(material.cracks)] \
+                    == record["cracks"] and len(record["cracks"]) > 10
+            else:
+                assert material.cracks is None
             continue
         axis, (u0, u1) = beam_span(env, part)
         assert part.mesh.extents[axis] == part.mesh.extents[:2].max() and u1 == -u0 > 0
@@ -363,7 +371,7 @@ def test_dressing_under_mechanics_cracks_cross_and_tie_beams_not_girders(tmp_pat
             assert np.abs(material.cracks.points[..., axis]).max() <= u1 + TOL
         else:
             assert material.cracks is None
-    assert cracked > 5
+    assert cracked > 5 and girders > 5
     paper = dress(env, SMALL, open_repository(SMALL), DamageBank(SMALL.damage, 5,
                                                                  cache_dir=tmp_path), set())
     assert all(paper.assignments[p.name].damage is None for p in beams)

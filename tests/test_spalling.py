@@ -229,6 +229,37 @@ def test_dressing_spalls_medium_and_severe_seen_columns_in_their_hinge_zones(tmp
     assert counts["spalled"] > 3 and counts["slight"] > 0
 
 
+@pytest.mark.parametrize("spalling", [("slight",), ()])
+def test_spalling_severities_choose_which_columns_spall(tmp_path, spalling):
+    """The inspection preset's early spalling: its slight columns, seen, get the bank's slight
+    texture confined to their hinge zones; with no spalling severities, none spalls."""
+    from glsynth.core.config import load_config
+    assert load_config("inspection").damage.spalling_severities == ("slight",)
+    assert DamageConfig().spalling_severities == ("medium", "severe")
+    cfg = DamageConfig(resolution=64, model="mechanics", severities=("slight",),
+                       spalling_severities=spalling, undamaged_probability=0.2)
+    config = dataclasses.replace(SMALL, damage=cfg)
+    env = build_environment(config, 4, 0)
+    columns = [p for p in env.parts if p.name.startswith("column")]
+    seen = {p.name for p in columns[::2]}
+    dressing = dress(env, config, open_repository(config),
+                     DamageBank(cfg, 4, cache_dir=tmp_path), seen)
+    spalled = 0
+    for part in columns:
+        record, materials = dressing.assignments[part.name].damage, dressing.materials
+        expected = record["damaged"] and part.name in seen and bool(spalling)
+        assert materials.is_deferred(part.name) == expected
+        if not expected:
+            assert materials[part.name].damage_mask is None
+            continue
+        spalled += 1
+        built = materials[part.name]
+        assert record["severity"] == "slight" and record["params"].severity == "slight"
+        assert built.zones.intervals == hinge_zones(cfg, clear_spans(env, part))
+        assert built.cracks is not None and built.damage_mask is not None
+    assert spalled > 3 or not spalling
+
+
 def spalled_area(mask: np.ndarray, section, zones, bottom: float, scale: float,
                  step: float = 0.01) -> float:
     """m^2 of a column's lateral faces, inside ``zones``, whose texel is spalled or rebar by

@@ -11,12 +11,13 @@ the renderer holds one column's maps at a time, not the environment's.
 
 Under ``[damage] model = "mechanics"`` a damaged visible column gets a crack network
 (glsynth.appearance.cracks; its drift and cracks from the CRACKS stream, item = its index);
-a medium or severe one also gets its Section 3.3 damage texture (the bank entry and scale
-drawn as under "paper"), confined to the plastic-hinge zones at both ends of each clear span
-(Material.zones), its own concrete elsewhere. Its severity is drawn as under "paper", so both
-models damage the same columns. Cross and tie
-beams draw their severity, drift and cracks from the CRACKS stream (item = their index); the
-girders, swept along the track, get none yet.
+one of [damage] spalling_severities (medium and severe by default) also gets its Section 3.3
+damage texture (the bank entry and scale drawn as under "paper"), confined to the
+plastic-hinge zones at both ends of each clear span (Material.zones), its own concrete
+elsewhere. Its severity is drawn as under "paper", so both models damage the same columns.
+Cross and tie beams and the girders draw their severity, drift and cracks from the CRACKS
+stream (item = their index); a girder's cracks are made per clear span on a straight box and
+mapped onto its curved sweep (glsynth.appearance.girder_cracks).
 """
 
 import functools
@@ -35,6 +36,7 @@ from glsynth.appearance.cracks import (
     hinge_zones,
 )
 from glsynth.appearance.damage_bank import DamageBank, damage_factors
+from glsynth.appearance.girder_cracks import girder_cracks, girder_spans, girder_sweep
 from glsynth.appearance.materials import (
     Assignment,
     DamageZones,
@@ -122,11 +124,26 @@ def beam_span(env: Environment, part: Part) -> tuple[int, tuple[float, float]] |
     return axis, (-half, half)
 
 
+def _beam_network(env: Environment, cfg: DamageConfig, part: Part, drift: float,
+                  rng: np.random.Generator) -> CrackNetwork:
+    """The cracks of a girder (glsynth.appearance.girder_cracks) or a cross or tie beam."""
+    if is_girder(part):
+        d = env.config.design
+        sweep = girder_sweep(env, part)
+        return girder_cracks(cfg, sweep, girder_spans(sweep, d.crossbeam_width_m),
+                             d.girder_width_m, d.girder_depth_m, drift, rng)
+    axis, span = beam_span(env, part)
+    return beam_cracks(cfg, tuple(float(e) for e in part.mesh.extents), axis, span, drift, rng)
+
+
+def is_girder(part: Part) -> bool:
+    return part.name.startswith("beam_") and "_girder_" in part.name
+
+
 def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
                  material: Material, seen: bool) -> tuple[dict | None, Material]:
-    """A cross or tie beam's record and material under model = "mechanics"."""
-    span = beam_span(env, part)
-    if span is None:
+    """A girder's or a cross or tie beam's record and material under model = "mechanics"."""
+    if not is_girder(part) and beam_span(env, part) is None:
         return None, material
     rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
     severity = _severity(cfg, rng)
@@ -136,8 +153,7 @@ def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
     if not seen:
         return record, material
     demand = column_demand(cfg, severity, rng)
-    extents = tuple(float(e) for e in part.mesh.extents)
-    cracks = beam_cracks(cfg, extents, span[0], span[1], demand.drift, rng)
+    cracks = _beam_network(env, cfg, part, demand.drift, rng)
     record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4))
     return record, replace(material, cracks=cracks)
 
@@ -190,10 +206,11 @@ def crack_segments(env: Environment, config: Config
     return out
 
 
-def spalls(severity: str) -> bool:
-    """Under mechanics, medium and severe columns spall in their hinge zones; slight ones
-    only crack (docs/design.md, "Damage by mechanics")."""
-    return severity in ("medium", "severe")
+def spalls(cfg: DamageConfig, severity: str) -> bool:
+    """Under mechanics, columns of [damage] spalling_severities (by default medium and severe)
+    spall in their hinge zones; the others only crack (docs/design.md, "Damage by
+    mechanics")."""
+    return severity in cfg.spalling_severities
 
 
 def spalled_material(bank: DamageBank, repository: TextureRepository, damage: dict,
@@ -254,7 +271,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                     sampled = damage
                     damage, material = _mechanics_damage(env, config.damage, part, ordinal,
                                                          sampled, material)
-                    if damage["built"] and spalls(damage["severity"]):
+                    if damage["built"] and spalls(config.damage, damage["severity"]):
                         damage, deferred[part.name] = _spalling(
                             env, config, bank, repository, part, sampled, damage, material)
                 elif damage["built"]:

@@ -356,6 +356,10 @@ class DamageConfig:
     severities: tuple[str, ...] = SEVERITIES
     """The severities a damaged member draws from, with equal chance: all three, as Section 3.3
     draws them, or a subset (the inspection preset: "slight" only)."""
+    spalling_severities: tuple[str, ...] = ("medium", "severe")
+    """The severities whose columns also spall in their hinge zones (the bank's texture of the
+    severity, confined to the zones): medium and severe, past cover spalling's onset; the
+    inspection preset adds "slight" for the early spalling of long-term monitoring."""
 
     def __post_init__(self) -> None:
         s = "damage"
@@ -400,6 +404,11 @@ class DamageConfig:
                 or not set(self.severities) <= set(SEVERITIES)):
             fail(s, "severities", self.severities,
                  f"a list of distinct names from {list(SEVERITIES)}")
+        if (not isinstance(self.spalling_severities, tuple)
+                or len(set(self.spalling_severities)) != len(self.spalling_severities)
+                or not set(self.spalling_severities) <= set(SEVERITIES)):
+            fail(s, "spalling_severities", self.spalling_severities,
+                 f"a list of distinct names from {list(SEVERITIES)} (may be empty)")
         if self.model == "paper" and self.severities != SEVERITIES:
             fail(s, "severities", self.severities,
                  f'{list(SEVERITIES)} under model = "paper" (Section 3.3 draws all three)')
@@ -668,8 +677,10 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
              "damage": {"resolution": 512, "model": "mechanics"}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
-    # three in four aimed at a crack from where its width spans 3 pixels or more, slight cracks of 0.05-1 mm by mechanics, the RRDR for cracks of 0.2 mm and more. No
-    # plates: they show Section 3.3's noise damage of every severity, not cracks.
+    # three in four aimed at a crack from where its width spans 3 pixels or more; slight
+    # cracks of 0.05-1 mm by mechanics with early spalling in the hinge zones, the RRDR for
+    # cracks of 0.2 mm and more. No plates: they show Section 3.3's noise damage of every
+    # severity, not cracks.
     "inspection": {
         "dataset": {"n_environments": 4, "n_test_environments": 1, "n_plates": 0,
                     "n_test_plates": 0},
@@ -678,7 +689,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                     "face_angle_deg": 30.0, "face_roll_deg": 5.0, "face_crack_share": 0.75,
                     "face_crack_px": 3.0},
         "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
-                   "undamaged_probability": 0.2, "crack_width_mm": (0.05, 1.0)},
+                   "spalling_severities": ("slight",), "undamaged_probability": 0.2,
+                   "crack_width_mm": (0.05, 1.0)},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0}},
 }

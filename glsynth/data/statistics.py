@@ -52,8 +52,8 @@ CRACK_WIDTH_EDGES_MM = (0.01, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0, 1.5
 practice (0.2, 0.3, 0.5, 1.0 mm, edges here) over the generator's 0.05-5 mm; the first edge
 is the smallest width a map can hold, the last its largest."""
 CRACKED_MEMBERS = (Component.COLUMN, Component.BEAM)
-"""The components whose surface can crack (columns, and cross and tie beams; girders are
-beams too, and get no cracks yet)."""
+"""The components whose surface can crack (columns, and cross and tie beams and girders, all
+labelled beams)."""
 MAX_SLANT = 10.0
 """surface_area_m2 counts a pixel as at most this many times its fronto-parallel area (a
 surface tilted up to 84 degrees): steeper steps in a depth map are silhouettes or noise."""

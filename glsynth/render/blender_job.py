@@ -173,23 +173,27 @@ def add_cracks(cracks: list[dict]) -> None:
         obj = bpy.data.objects.get(member["part"])
         if obj is None or obj.type != "MESH":
             raise SystemExit(f"part {member['part']!r} with cracks is not a mesh of the scene")
-        material = obj.material_slots[0].material
-        if material.users > 1:  # shared with parts without these cracks
-            material = obj.material_slots[0].material = material.copy()
-        tree = material.node_tree
-        output = next(n for n in tree.nodes
-                      if n.type == "OUTPUT_MATERIAL" and n.is_active_output)
-        surface = output.inputs["Surface"].links[0].from_socket
-        coverage = crack_coverage(tree, member,
-                                  Matrix(member["pose"]).inverted() @ obj.matrix_world)
-        black = tree.nodes.new("ShaderNodeBsdfDiffuse")
-        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-        mix = tree.nodes.new("ShaderNodeMixShader")
-        tree.links.new(math_node(tree, "MULTIPLY", coverage, member["contrast"]),
-                       mix.inputs["Fac"])
-        tree.links.new(surface, mix.inputs[1])
-        tree.links.new(black.outputs[0], mix.inputs[2])
-        tree.links.new(mix.outputs[0], output.inputs["Surface"])
+        # A member cut at its damage zones (glsynth.render.zone_split) has a material per piece.
+        for slot in obj.material_slots:
+            material = slot.material
+            if material.users > 1:  # shared with parts without these cracks
+                material = slot.material = material.copy()
+            darken(material.node_tree, member,
+                   Matrix(member["pose"]).inverted() @ obj.matrix_world)
+
+
+def darken(tree: bpy.types.NodeTree, member: dict, mesh_from_object: Matrix) -> None:
+    """Mix the material's surface shader towards black by contrast x crack coverage."""
+    output = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output)
+    surface = output.inputs["Surface"].links[0].from_socket
+    coverage = crack_coverage(tree, member, mesh_from_object)
+    black = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(math_node(tree, "MULTIPLY", coverage, member["contrast"]), mix.inputs["Fac"])
+    tree.links.new(surface, mix.inputs[1])
+    tree.links.new(black.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], output.inputs["Surface"])
 
 
 def setup_scene(job: dict) -> bpy.types.Scene:

@@ -19,6 +19,15 @@ fragment), or one list for every fragment nearer: ``CrackIndex.longest`` reports
 
 Every texture is 4096 texels wide (ROW), filled row by row; the shader finds an entry's texel
 from the texture's own width.
+
+Precision: the segments' end points are stored relative to the grid's lower corner (subtracted
+in float64, then rounded to float32), and the vertex shader subtracts the same float32 corner
+from each vertex (shaders/mesh.vert), so the shader computes distances between small numbers.
+A girder's mesh frame is the world frame: 250 m from its origin a float32 coordinate is good
+to 15 um (half its ulp), and interpolating it and differencing it across a pixel lose as much
+again, as much as a fifth of the thinnest crack's width (0.05 mm) and, at close range, much
+of a pixel's footprint. Relative to the corner only the vertices' own rounding (<= 15 um at
+250 m, the same for the drawn surface) remains.
 """
 
 from dataclasses import dataclass
@@ -42,8 +51,8 @@ class CrackIndex:
     """A network's segments and grid, as the shader reads them (rows of ROW texels)."""
 
     segments: np.ndarray
-    """(rows, ROW, 4) float32: texel 2i holds segment i's first end point (mesh frame, m) and
-    its width there (mm), texel 2i + 1 the second."""
+    """(rows, ROW, 4) float32: texel 2i holds segment i's first end point (mesh frame, m,
+    relative to ``origin``) and its width there (mm), texel 2i + 1 the second."""
     cells: np.ndarray
     """(rows, ROW, 2) int32: per cell (x fastest, then y, then z), its first entry in
     ``entries`` and its number of entries."""
@@ -112,6 +121,7 @@ def pack_cracks(network: CrackNetwork) -> CrackIndex:
                           tuple(int(d) for d in dims), 0)
     half = widths.max(1) / 2
     origin, cell, dims = _grid(points.reshape(-1, 3), float(half.max()))
+    origin = origin.astype(np.float32).astype(np.float64)  # the corner the shader subtracts
     reach = half + 2 * cell
     low = np.floor((points.min(1) - reach[:, None] - origin) / cell).astype(np.int64)
     high = np.floor((points.max(1) + reach[:, None] - origin) / cell).astype(np.int64)
@@ -123,7 +133,7 @@ def pack_cracks(network: CrackNetwork) -> CrackIndex:
     order = np.lexsort((owner, cell_id))
     counts = np.bincount(cell_id, minlength=int(np.prod(dims)))
     starts = np.cumsum(counts) - counts
-    segments = np.concatenate([points, widths[..., None] * 1000.0], -1).reshape(-1, 4)
+    segments = np.concatenate([points - origin, widths[..., None] * 1000.0], -1).reshape(-1, 4)
     return CrackIndex(_rows(segments.astype(np.float32)),
                       _rows(np.stack([starts, counts], 1).astype(np.int32)),
                       _rows(owner[order].astype(np.int32)), origin.astype(np.float32), cell,

@@ -1,6 +1,11 @@
 """glTF 2.0 binary with the materials glsynth renders: the interchange for other renderers.
 
-Each part is a node (its name, its component in ``extras``) with one primitive. Materials are
+Each part is a node (its name, its component in ``extras``) with one primitive, or, for a
+member whose damage material has zones (glsynth.appearance.materials.DamageZones), its mesh
+cut at the zones' ends: the pieces inside them with the damage material, the pieces outside
+with the member's intact concrete (glsynth.render.zone_split), so that the spalling stays in
+the hinge zones as the GL renderer confines it (and in the Cycles twin, which imports this
+file). Materials are
 metallic-roughness: base colour, metallic-roughness (G roughness, B metallic), normal and
 emissive textures with their factors, double-sided as the rasterizer draws them. A damaged
 column's damage-id mask travels as a texture named in the material's
@@ -19,9 +24,11 @@ import struct
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import trimesh
 
 from glsynth.appearance.materials import Material
 from glsynth.core.fileio import png_bytes
+from glsynth.render.zone_split import intact_material, zone_pieces
 from glsynth.world.environment import Part
 
 Z_UP_TO_Y_UP = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=float)
@@ -179,6 +186,26 @@ def _sun_rotation(sun: np.ndarray) -> list[float]:
     return (*(axis / s * np.sin(half)).tolist(), float(np.cos(half)))
 
 
+def _primitive(b: _Builder, mesh: trimesh.Trimesh, m: Material, material: int) -> dict:
+    """A primitive of ``mesh`` (its own frame) drawn with ``m`` (material index ``material``):
+    UVs times its uv_scale, tangents where it has a normal map."""
+    uv = mesh.visual.uv * m.uv_scale
+    uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)
+    normals = np.asarray(mesh.vertex_normals, np.float64)
+    attributes = {
+        "POSITION": b.accessor(np.ascontiguousarray(mesh.vertices, np.float32), "VEC3",
+                               _ARRAY_BUFFER, bounds=True),
+        "NORMAL": b.accessor(np.ascontiguousarray(normals, np.float32), "VEC3", _ARRAY_BUFFER),
+        "TEXCOORD_0": b.accessor(np.ascontiguousarray(uv, np.float32), "VEC2", _ARRAY_BUFFER)}
+    if m.normal_map is not None:  # glTF viewers read the normal map in this frame
+        attributes["TANGENT"] = b.accessor(np.ascontiguousarray(
+            tangents(np.asarray(mesh.vertices, np.float64), normals, uv, mesh.faces),
+            np.float32), "VEC4", _ARRAY_BUFFER)
+    indices = b.accessor(np.ascontiguousarray(mesh.faces.reshape(-1), np.uint32), "SCALAR",
+                         _ELEMENT_ARRAY_BUFFER)
+    return {"attributes": attributes, "indices": indices, "material": material}
+
+
 def gltf_binary(parts: Sequence[Part], materials: Mapping[str, Material],
                 sun: np.ndarray | None = None, sun_irradiance: float = 1.0) -> bytes:
     """The .glb bytes of ``parts`` dressed with ``materials`` (by part name), lit by a sun
@@ -191,28 +218,18 @@ def gltf_binary(parts: Sequence[Part], materials: Mapping[str, Material],
     nodes = []
     for part in parts:
         m = materials[part.name]
-        if id(m) not in material_index:
-            material_index[id(m)] = (m, b.material(part.name, m))
-        mesh = part.mesh
-        uv = mesh.visual.uv * m.uv_scale
-        uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)
-        normals = np.asarray(mesh.vertex_normals, np.float64)
-        attributes = {
-            "POSITION": b.accessor(np.ascontiguousarray(mesh.vertices, np.float32), "VEC3",
-                                   _ARRAY_BUFFER, bounds=True),
-            "NORMAL": b.accessor(np.ascontiguousarray(normals, np.float32), "VEC3",
-                                 _ARRAY_BUFFER),
-            "TEXCOORD_0": b.accessor(np.ascontiguousarray(uv, np.float32), "VEC2",
-                                     _ARRAY_BUFFER)}
-        if m.normal_map is not None:  # glTF viewers read the normal map in this frame
-            attributes["TANGENT"] = b.accessor(np.ascontiguousarray(
-                tangents(np.asarray(mesh.vertices, np.float64), normals, uv, mesh.faces),
-                np.float32), "VEC4", _ARRAY_BUFFER)
-        indices = b.accessor(np.ascontiguousarray(mesh.faces.reshape(-1), np.uint32),
-                             "SCALAR", _ELEMENT_ARRAY_BUFFER)
-        b.tree["meshes"].append({"name": part.name, "primitives": [{
-            "attributes": attributes, "indices": indices,
-            "material": material_index[id(m)][1]}]})
+        pieces = [(part.mesh, m)]
+        if m.zones is not None:  # the damage material inside the zones, concrete outside
+            inside, outside = zone_pieces(part.mesh, m.zones)
+            intact = intact_material(m)
+            pieces = [(p, m) for p in inside] + [(p, intact) for p in outside]
+        primitives = []
+        for mesh, material in pieces:
+            if id(material) not in material_index:
+                name = part.name if material is m else f"{part.name} intact"
+                material_index[id(material)] = (material, b.material(name, material))
+            primitives.append(_primitive(b, mesh, material, material_index[id(material)][1]))
+        b.tree["meshes"].append({"name": part.name, "primitives": primitives})
         b.tree["nodes"].append({
             "name": part.name, "mesh": len(b.tree["meshes"]) - 1,
             "matrix": (Z_UP_TO_Y_UP @ part.pose).T.reshape(-1).tolist(),

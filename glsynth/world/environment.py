@@ -74,6 +74,25 @@ def _samples(s0: float, s1: float, step: float, breaks: np.ndarray) -> np.ndarra
     return np.unique(np.concatenate([s, inside]))
 
 
+def viaduct_samples(config: Config, trajectory: Trajectory, i: int) -> np.ndarray:
+    """The arc lengths at which viaduct i's slab, girders, track and fences are swept."""
+    length = config.design.length_m
+    return _samples(i * length, (i + 1) * length, config.environment.sweep_step_m,
+                    trajectory.centres_s)
+
+
+GIRDER_SIDES = ("l", "r")
+"""A viaduct's girders, beam_vXX_girder_l and _r: on the left (+ across) and right column line."""
+
+
+def girder_profile(d: design.StandardDesign, side: str) -> np.ndarray:
+    """The rectangle swept along the track for the girder on ``side`` (meshes.rectangle: soffit,
+    outer or inner side, top, side): (across, up) from the deck top's centre line."""
+    u = (1 if side == "l" else -1) * d.column_spacing_m / 2
+    return meshes.rectangle(u - d.girder_width_m / 2, u + d.girder_width_m / 2,
+                            -d.slab_thickness_m - d.girder_depth_m, -d.slab_thickness_m)
+
+
 def _photo_uv(mesh: trimesh.Trimesh, mirror: bool) -> trimesh.Trimesh:
     """A scene panel shows one photo: UVs normalised to [0, 1] over the panel (an exception to
     UVs in metres), v = 1 at the top, u left to right as seen from the track (``mirror`` when
@@ -91,6 +110,7 @@ class _Builder:
     """Holds the trajectory and design while parts are made; the result is plain data."""
 
     def __init__(self, config: Config, trajectory: Trajectory) -> None:
+        self.config = config
         self.cfg = config.environment
         self.d = config.design
         self.traj = trajectory
@@ -118,22 +138,18 @@ class _Builder:
     # --- viaduct ---------------------------------------------------------------------------
     def viaduct(self, i: int) -> ViaductInfo:
         d, traj = self.d, self.traj
-        L = d.length_m
-        s0, s1 = i * L, (i + 1) * L
+        s0 = i * d.length_m
         height = float(traj.heights_m[i])
         radius = float(traj.radii_m[i])
         sections = design.cross_sections(height, radius)
-        s = _samples(s0, s1, self.cfg.sweep_step_m, traj.centres_s)
+        s = viaduct_samples(self.config, traj, i)
         tag = f"v{i:02d}"
         t_s, half_w = d.slab_thickness_m, d.deck_width_m / 2
         self.add(f"slab_{tag}", Component.SLAB, i,
                  self.deck_sweep(s, meshes.rectangle(-half_w, half_w, -t_s, 0.0)))
-        beam_bottom = -t_s - d.girder_depth_m
-        for side, sign in (("l", 1), ("r", -1)):
-            u = sign * d.column_spacing_m / 2
-            self.add(f"beam_{tag}_girder_{side}", Component.BEAM, i, self.deck_sweep(
-                s, meshes.rectangle(u - d.girder_width_m / 2, u + d.girder_width_m / 2,
-                                    beam_bottom, -t_s)))
+        for side in GIRDER_SIDES:
+            self.add(f"beam_{tag}_girder_{side}", Component.BEAM, i,
+                     self.deck_sweep(s, girder_profile(d, side)))
         columns = self.columns_and_beams(i, sections, tag)
         self.track(i, s, tag)
         self.fences_and_poles(i, s, tag)

@@ -8,7 +8,9 @@ Each camera draws, from its own generator (Stream.CAMERAS, item = its index):
 2. a face of a member, with probability proportional to the face's area: the four lateral
    faces of every column and, of every cross and tie beam, the two sides and the soffit (a
    beam's top lies under the slab or is seen only from above the deck). The girders are left
-   out: they are swept along the track, not boxes;
+   out, though mechanics cracks them too (glsynth.appearance.girder_cracks): they are swept
+   along the curved track, not boxes, so each of their flat pieces would be a face of its
+   own. Views among the viaducts see their sides and soffit;
 3. a point uniform on the face, at least 5 cm (or a quarter of the face) from its edges. A
    camera aiming at a crack draws steps 2-3 together instead: a point uniform along the
    length of the cracks on inspected faces, and the face that holds it;

@@ -115,7 +115,11 @@ class CrackTextures:
                                                start=first_unit):
             prog[name].value = unit
             texture.use(unit)
-        prog["u_crack_origin"].value = tuple(float(v) for v in self.index.origin)
+        # Read by the vertex stage (shaders/mesh.vert); a program of cracks.glsl alone (the
+        # shader harness) takes positions relative to the origin and has no such uniform.
+        origin = prog.get("u_crack_origin", None)
+        if origin is not None:
+            origin.value = tuple(float(v) for v in self.index.origin)
         prog["u_crack_cell_m"].value = self.index.cell_m
         prog["u_crack_dims"].value = self.index.dims
 
