@@ -15,6 +15,7 @@ from glsynth.appearance.cracks import CrackNetwork
 from glsynth.cli import main
 from glsynth.core.config import load_config
 from glsynth.core.labels import Damage
+from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.statistics import (
     CRACK_WIDTH_EDGES_MM,
     crack_width_counts,
@@ -207,7 +208,7 @@ def test_the_frustum_cull_keeps_every_segment_that_can_show():
     """Random segments around a camera: each one culled has no point (of 200 along it) that
     projects into the image; one crossing the image with both ends outside it is kept."""
     camera = Camera(160, 90, 50.0, 36.0, np.eye(4), 0.1, 100.0)
-    rng = np.random.default_rng(3)
+    rng = make_rng(3, 0, Stream.CAMERAS, 0)
     a, b = rng.uniform(-6, 6, (2, 4000, 3))
     kept = in_frustum(a, b, camera)
     t = np.linspace(0, 1, 200)[:, None, None]
