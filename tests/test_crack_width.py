@@ -253,6 +253,25 @@ def test_invalid_depth_leaves_widths_unmeasured_not_wrong():
     assert np.isnan(measure.width_mm[measure.labels > 0]).all()
 
 
+def test_a_crack_beside_a_silhouette_is_left_unmeasured_where_the_depth_jumps():
+    """A vertical 2 px crack on a wall 1 m away whose right edge meets a background 50 m
+    away: the scans that reach across the silhouette are not measured (the interpolated depth
+    mixes the two surfaces and once read a 1 px crack as hundreds of millimetres wide); a
+    slanted surface up to 80 degrees still is (test_the_surface_slant_is_corrected: 70)."""
+    damage = damage_of(straight(2.0, 90.0, centre=(100.5, 99.6)))  # columns 100 and 101
+    depth = np.full(SHAPE, DEPTH, np.float32)
+    depth[:, 102:] = 50.0
+    measure = measure_cracks(damage, depth, CENTRED)
+    widths = measure.skeleton_width_mm[np.isfinite(measure.skeleton_width_mm)]
+    assert widths.size == 0 or widths.max() <= 3 * 2 * MM_PER_PX
+    near = np.full(SHAPE, DEPTH, np.float32)
+    near[:, 102:] = DEPTH * 1.0001  # a step no larger than a slanted surface makes
+    kept = measure_cracks(damage, near, CENTRED).skeleton_width_mm
+    assert np.nanmedian(kept) == pytest.approx(2 * MM_PER_PX, rel=0.1)
+    damage80, depth80, truth80, k80 = plane_view(80, 90, 0.0015)
+    assert np.isfinite(measure_cracks(damage80, depth80, k80).skeleton_width_mm).sum() > 50
+
+
 # --- grades, settings, intrinsics -------------------------------------------------------------
 def test_grades_follow_the_threshold_table():
     table = (0.2, 0.3, 0.5, 1.0)

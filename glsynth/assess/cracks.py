@@ -29,6 +29,10 @@ SCAN_STEP_PX = 0.05
 """Step of the scan across the crack; the edge is interpolated between two steps."""
 SCAN_SAMPLES = 2_000_000
 """Samples per batch of scans (a few tens of MB), whatever the number of skeleton pixels."""
+MAX_SLANT_DEG = 85.0
+"""A surface seen more obliquely than this is not measured: its depth changes by more than
+tan(85 deg) = 11.4 pixel footprints per pixel. A larger step between a scan's end and its
+skeleton pixel is a silhouette, where the interpolated depth mixes two surfaces."""
 
 
 @dataclass(frozen=True)
@@ -309,6 +313,11 @@ def _measure_skeleton(labels: np.ndarray, skeleton: np.ndarray, tangents: np.nda
                          inverse, intrinsics) for s in (plus, -minus)]
     along = [back_project(points[:, 0] + s * t[:, 0], points[:, 1] + s * t[:, 1], inverse,
                           intrinsics) for s in (1.0, -1.0)]
+    z = depth[rows, cols]
+    bound = (np.abs(np.stack([plus, minus, np.ones_like(plus), np.ones_like(plus)])) + 1.0) \
+        * np.tan(np.radians(MAX_SLANT_DEG)) / intrinsics.fx
+    steps = np.stack([p[:, 2] for p in ends + along]) / z - 1.0
+    continuous = np.all(np.abs(steps) <= bound, axis=0)  # NaN steps fail too
     tangent3 = along[0] - along[1]
     metres_per_px = np.linalg.norm(tangent3, axis=1) / 2
     unit = tangent3 / np.linalg.norm(tangent3, axis=1, keepdims=True)
@@ -316,8 +325,8 @@ def _measure_skeleton(labels: np.ndarray, skeleton: np.ndarray, tangents: np.nda
     across -= np.sum(across * unit, axis=1, keepdims=True) * unit
     kept = _away_from_nodes(skeleton, phi + 0.5)  # phi + 0.5: distance to the background
     return _Samples(rows, cols, labels[rows, cols] - 1, plus + minus,
-                    np.linalg.norm(across, axis=1), metres_per_px * _step_px(t),
-                    kept[rows, cols])
+                    np.where(continuous, np.linalg.norm(across, axis=1), np.nan),
+                    metres_per_px * _step_px(t), kept[rows, cols])
 
 
 def measure_cracks(damage: np.ndarray, depth_m: np.ndarray, intrinsics: Intrinsics,
