@@ -107,7 +107,11 @@ class CrackTextures:
     """A part's crack network on the GPU (glsynth.render.cracks_index.CrackIndex)."""
     textures: tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture]
     """Segments, cells, entries: shaders/cracks.glsl's three samplers, in this order."""
-    index: CrackIndex
+    origin: tuple[float, float, float]
+    cell_m: float
+    dims: tuple[int, int, int]
+    """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
+    demo environment's would add 155 MB to the RSS)."""
 
     def bind(self, prog: moderngl.Program, first_unit: int) -> None:
         """Bind the textures to units first_unit.. and set ``prog``'s crack uniforms."""
@@ -115,9 +119,9 @@ class CrackTextures:
                                                start=first_unit):
             prog[name].value = unit
             texture.use(unit)
-        prog["u_crack_origin"].value = tuple(float(v) for v in self.index.origin)
-        prog["u_crack_cell_m"].value = self.index.cell_m
-        prog["u_crack_dims"].value = self.index.dims
+        prog["u_crack_origin"].value = self.origin
+        prog["u_crack_cell_m"].value = self.cell_m
+        prog["u_crack_dims"].value = self.dims
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,7 +270,8 @@ def upload_cracks(ctx: moderngl.Context, index: CrackIndex) -> CrackTextures:
         texture = ctx.texture(data.shape[1::-1], channels, data.tobytes(), dtype=dtype)
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         textures.append(texture)
-    return CrackTextures(tuple(textures), index)
+    return CrackTextures(tuple(textures), tuple(float(v) for v in index.origin), index.cell_m,
+                         index.dims)
 
 
 class Renderer:
