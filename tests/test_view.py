@@ -260,7 +260,8 @@ def test_relighting_draws_what_opening_under_that_light_draws():
 
 def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages(tmp_path):
     """The render thread's choice of job, without GL: each page's newest camera wins, moving
-    frames go before stills, and a closed page's pending frame is dropped."""
+    frames go before stills, cracks are packed ahead of use only when no frame waits, and a
+    closed page's pending frame is dropped."""
     from glsynth.view.scene import SceneSettings
     from glsynth.view.worker import RenderWorker
 
@@ -273,9 +274,16 @@ def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages
     worker.submit(still, parse_message(camera_message(focal_mm=30.0, moving=False)))
     for focal in (40.0, 41.0, 42.0):
         worker.submit(moving, parse_message(camera_message(focal_mm=focal)))
+    worker._cracks_waiting = True  # a part whose cracks no view has packed yet
+
+    def pack_cracks() -> None:
+        done.append("cracks")
+        worker._cracks_waiting = False
+
+    worker._pack_cracks = pack_cracks
     while (job := worker._pick_job()) is not None:
         job()
-    assert done == [(moving, 42.0), (still, 30.0)]
+    assert done == [(moving, 42.0), (still, 30.0), "cracks"]
     worker.submit(moving, parse_message(camera_message(focal_mm=50.0)))
     worker.remove_client(moving)
     assert worker._pick_job() is None

@@ -4,7 +4,9 @@ Every page (client) has one slot for its next frame, in which the newest camera 
 moving camera's frame comes before any still, and a still whose client moved again while it
 rendered is dropped before it is encoded or sent (the GL work of one frame cannot be stopped
 half way). Scene changes and relighting come first of all; when nothing else waits, the
-sampled cameras' Section 3.4 verdicts are worked out one at a time. Results go back through
+cracks of the parts no view has shown yet are packed, a part at a time (so that a part's
+first view does not wait for it), and then the sampled cameras' Section 3.4 verdicts are
+worked out one at a time. Results go back through
 each client's ``send``, which must be safe to call from this thread.
 """
 
@@ -98,6 +100,8 @@ class RenderWorker:
         self._lock = threading.Condition()
         self._stopping = False
         self._last_move = 0.0
+        self._cracks_waiting = False
+        """Whether some part of the scene has cracks not packed yet."""
         self._thread = threading.Thread(target=self._run, name="glsynth-view-render",
                                         daemon=True)
         self.loading: dict | None = None
@@ -181,7 +185,7 @@ class RenderWorker:
 
     def _pick_job(self) -> Callable[[], None] | None:
         """Under the lock: scene, lighting, moving frames (clients in turn), actions, stills,
-        then one verdict."""
+        one part's cracks, then one verdict."""
         if self._scene_request is not None:
             request, self._scene_request = self._scene_request, None
             return lambda: self._open(*request)
@@ -198,6 +202,8 @@ class RenderWorker:
                 job = self._client_job(cid, self._clients[cid], want)
                 if job is not None:
                     return job
+        if self._cracks_waiting:
+            return self._pack_cracks
         # Verdicts wait for a pause in the moves: each is a full-size render.
         if self._clients and time.monotonic() - self._last_move > VERDICT_AFTER_S:
             todo = [i for i in range(len(self.scene.cameras)) if i not in self.scene.verdicts]
@@ -266,12 +272,17 @@ class RenderWorker:
             return
         with self._lock:
             self.scene, self.loading = scene, None
+            self._cracks_waiting = True
             previous = None
             for client in self._clients.values():
                 client.last = None
                 client.pending = client.pending or self._still(client)
         self._broadcast({**scene.summary(), "seconds": time.perf_counter() - t0})
         return_free_memory()
+
+    def _pack_cracks(self) -> None:
+        """One part's cracks (about 10 ms at the demo preset), in idle time."""
+        self._cracks_waiting = self.scene.view.renderer.prepare_cracks(limit=1) > 0
 
     def _relight(self, values: dict[str, float], cid: int) -> None:
         try:

@@ -31,7 +31,9 @@ in x and y), which changes no byte. Pixels with no geometry read component 1 (No
 damage 1 (no damage) and depth = zfar.
 
 Cracks (a material's CrackNetwork) are packed by glsynth.render.cracks_index into three
-textures per part, uploaded with the scene, and evaluated in the fragment shader
+textures per part, uploaded the first time a view shows the part (packing is most of a cracked
+scene's load: an interactive viewer opens it sooner, and a render packs only what its cameras
+see; the bytes are the same), and evaluated in the fragment shader
 (shaders/cracks.glsl); the crack code is compiled only into the programs' crack variants
 (programs.VARIANTS), which only views and parts with cracks use, so a scene without cracks
 runs the very programs it ran before. Likewise a material's damage zones (a spalled column's
@@ -48,6 +50,7 @@ import moderngl
 import numpy as np
 import pyrender
 
+from glsynth.appearance.cracks import CrackNetwork
 from glsynth.appearance.materials import MAX_ZONES, Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
@@ -166,7 +169,10 @@ class _Draw:
     """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
     corners: np.ndarray
     """(8, 3) world-space corners of the box, for the frustum tests."""
-    cracks: CrackTextures | None = None
+    cracks: CrackNetwork | None = None
+    """The part's cracks, packed and uploaded into ``crack_textures`` when a view first
+    shows the part (Renderer.prepare_cracks)."""
+    crack_textures: CrackTextures | None = None
     zones: ZoneUniforms | None = None
     """Where the part's damage material applies (textures "intact" and "spall" with it)."""
 
@@ -541,9 +547,6 @@ class Renderer:
         # _color_pass), each triangle's corners as they are.
         reversed_ibo = self.ctx.buffer(triangles[::-1].tobytes())
         vaos = self._vertex_arrays(vbo, ibo, reversed_ibo)
-        cracks = None
-        if material.cracks is not None:
-            cracks = upload_cracks(self.ctx, pack_cracks(material.cracks))
         textures = {slot: self._upload_texture(array) for slot, array in (
             ("emissive", material.emissive_map), ("normal", material.normal_map))
             if array is not None}
@@ -566,7 +569,7 @@ class Renderer:
                      component=float(info.component), damage_mask=mask,
                      center=pose[:3, :3] @ box.mean(0) + pose[:3, 3],
                      radiance=_emitted(material), corners=box_corners(box, pose),
-                     cracks=cracks, zones=zones)
+                     cracks=material.cracks, zones=zones)
 
     def _zone_textures(self, material: Material) -> dict[str, moderngl.Texture]:
         """The zone variant's textures: the intact concrete (a repository image, cached like
@@ -609,7 +612,7 @@ class Renderer:
                 vao.release()
             for buffer in draw.buffers:
                 buffer.release()
-            for texture in draw.cracks.textures if draw.cracks is not None else ():
+            for texture in (draw.crack_textures.textures if draw.crack_textures else ()):
                 texture.release()
         self._free_textures(lambda _, sources: not any(
             a is not None and a.flags.writeable for a in sources))
@@ -696,6 +699,7 @@ class Renderer:
         self.make_current()
         draws = self._front_to_back(camera)
         placed = self._place(camera, draws)
+        self.prepare_cracks([item.draw for item in placed])
         color = "color" in passes
         ao = color and self.config.ao == "ssao"
         shadow = None
@@ -710,6 +714,20 @@ class Renderer:
             if self.config.msaa:
                 self._msaa_pass(camera, placed)
         return self._read_back(passes)
+
+    def prepare_cracks(self, draws: list[_Draw] | None = None, limit: int | None = None
+                       ) -> int:
+        """Pack and upload the cracks of ``draws`` (default: the loaded scene's), at most
+        ``limit`` parts' of them, that are not uploaded yet; the number of the scene's parts
+        still waiting after. A view does it for the parts it shows; an interactive caller
+        calls it in idle time, so that a part's first view does not wait for it."""
+        waiting = [d for d in (self._draws if draws is None else draws)
+                   if d.cracks is not None and d.crack_textures is None]
+        if waiting[:limit]:
+            self.make_current()
+        for draw in waiting[:limit]:
+            draw.crack_textures = upload_cracks(self.ctx, pack_cracks(draw.cracks))
+        return sum(d.cracks is not None and d.crack_textures is None for d in self._draws)
 
     def _check_request(self, camera: Camera, passes: frozenset[str] | set[str]) -> None:
         unknown = set(passes) - PASSES
@@ -844,7 +862,7 @@ class Renderer:
                 if cracked:
                     prog["u_has_cracks"].value = draw.cracks is not None
                     if draw.cracks is not None:
-                        draw.cracks.bind(prog, 1)
+                        draw.crack_textures.bind(prog, 1)
                 if draw.zones is not None:
                     draw.zones.set(prog)
                 draw.vaos[name].render()
