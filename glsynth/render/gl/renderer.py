@@ -105,6 +105,10 @@ class RenderOutput:
     0 elsewhere, and everywhere in a view without cracks."""
 
 
+class RenderInterrupted(Exception):
+    """Renderer.render stopped because its ``interrupt()`` said so."""
+
+
 @dataclass(frozen=True, eq=False)
 class CrackTextures:
     """A part's crack network on the GPU (glsynth.render.cracks_index.CrackIndex)."""
@@ -691,29 +695,49 @@ class Renderer:
             texel_m=max(shadow_texel_m(m, px) for m in matrices))
 
     # --- one view ---------------------------------------------------------------------------
-    def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES) -> RenderOutput:
+    def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES,
+               interrupt: Callable[[], bool] | None = None, bands: int = 1) -> RenderOutput:
         """``passes`` of ``camera``. The passes run in this order, each into its own targets:
         sky visibility, shadow, labels, ambient occlusion, colour, MSAA, read-back (the module
-        docstring says what each draws, and when it is skipped)."""
+        docstring says what each draws, and when it is skipped).
+
+        With ``interrupt``, the GL work is finished after each pass and after each of the
+        colour pass's ``bands`` bands of rows, and RenderInterrupted is raised as soon as
+        ``interrupt()`` is true there (the work already queued cannot be stopped, so a band is
+        the longest wait); the image is the same bytes however it is cut."""
         self._check_request(camera, passes)
         self.make_current()
         draws = self._front_to_back(camera)
         placed = self._place(camera, draws)
         self.prepare_cracks([item.draw for item in placed])
+        check = self._checkpoint(interrupt)
         color = "color" in passes
         ao = color and self.config.ao == "ssao"
         shadow = None
         if color:
             self._sky_visibility_pass(camera, placed)
+            check()
             shadow = self._shadow_pass(camera, draws)  # parts out of view cast shadows too
         self._label_pass(camera, placed)  # the colour pass tests against its depth
+        check()
         if ao:
             self._ao_pass(camera)
         if color:
-            self._color_pass(camera, placed, shadow, ao)
+            self._color_pass(camera, placed, shadow, ao, bands, check)
             if self.config.msaa:
                 self._msaa_pass(camera, placed)
+                check()
         return self._read_back(passes)
+
+    def _checkpoint(self, interrupt: Callable[[], bool] | None) -> Callable[[], None]:
+        """What render calls between pieces of work: nothing without ``interrupt``; with it,
+        wait for the GL work so far, then raise RenderInterrupted if ``interrupt()``."""
+        def check() -> None:
+            if interrupt is not None:
+                self.ctx.finish()
+                if interrupt():
+                    raise RenderInterrupted("the render was interrupted")
+        return check
 
     def prepare_cracks(self, draws: list[_Draw] | None = None, limit: int | None = None
                        ) -> int:
@@ -885,9 +909,11 @@ class Renderer:
         self._fullscreen("ssao_blur")
 
     def _color_pass(self, camera: Camera, placed: list[_Placed], shadow: np.ndarray | None,
-                    ao: bool) -> None:
+                    ao: bool, bands: int = 1, check: Callable[[], None] = lambda: None) -> None:
         """Colour of ``placed`` into color_target (and their shading normals into
-        normal_target), then the sky where no part was drawn."""
+        normal_target), then the sky where no part was drawn; in ``bands`` bands of rows
+        (scissored: a pixel's colour does not depend on the others'), ``check()`` after
+        each."""
         self._set_view_uniforms(camera, placed, shadow, ao)
         # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
         # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
@@ -896,6 +922,20 @@ class Renderer:
         self.color_fbo.use()
         self.color_fbo.depth_mask = False
         self.color_fbo.clear(0.0, 0.0, 0.0, 1.0)
+        edges = np.linspace(0, self.size[1], bands + 1).round().astype(int)
+        try:
+            for y0, y1 in zip(edges[:-1], edges[1:], strict=True):
+                if bands > 1:
+                    self.color_fbo.scissor = (0, int(y0), self.size[0], int(y1 - y0))
+                self._draw_colors(camera, placed)
+                check()
+        finally:
+            if bands > 1:
+                self.color_fbo.scissor = None
+            self.color_fbo.depth_mask = True
+
+    def _draw_colors(self, camera: Camera, placed: list[_Placed]) -> None:
+        """``placed`` and the sky into the bound colour framebuffer (_color_pass)."""
         with _depth_state(self.ctx, depth_func="<="):
             for item in reversed(placed):
                 draw, mat = item.draw, item.draw.material
@@ -918,7 +958,6 @@ class Renderer:
                     draw.textures["spall"].use(_SPALL_UNITS["u_spall_map"])
                 draw.vaos[name].render()
             self._draw_sky(camera)
-        self.color_fbo.depth_mask = True
 
     def _set_view_uniforms(self, camera: Camera, placed: list[_Placed],
                            shadow: np.ndarray | None, ao: bool) -> None:
