@@ -44,6 +44,18 @@ def rss_mb(pid: int) -> float:
     raise RuntimeError("no VmRSS")
 
 
+def settled_rss_mb(pid: int, wait_s: float = 3.0) -> float:
+    """The server's RSS once its idle work (packing the cracks no view has shown, then
+    verdict renders) has had ``wait_s``: the lowest of 5 readings 0.25 s apart, since a
+    verdict render in flight holds transient arrays."""
+    time.sleep(wait_s)
+    readings = []
+    for _ in range(5):
+        readings.append(rss_mb(pid))
+        time.sleep(0.25)
+    return min(readings)
+
+
 def orbit(pose: list, step: int) -> list:
     """``pose`` turned by ``step`` x 0.2 degrees about the world z axis through its position
     (the page sends such poses while dragging)."""
@@ -124,8 +136,7 @@ def switch_seconds(ws, envs: list[int], quality: str, pid: int) -> dict:
         header, _ = receive(ws, "frame", timeout=600)
         assert header["still"]
         to_frame.append(time.perf_counter() - t0)
-        time.sleep(3.0)  # the idle work, and the heap handed back
-        rss.append(rss_mb(pid))
+        rss.append(settled_rss_mb(pid))
     return {"summary_s": times, "frame_s": to_frame, "rss_mb": rss}
 
 
@@ -188,7 +199,7 @@ def bench_demo(args: argparse.Namespace, out: Path) -> dict:
             camera = {"pose": scene["cameras"][1]["pose"],
                       "focal_mm": scene["cameras"][1]["focal_mm"]}
             drag(ws, camera, 30)  # warm up: the pacer settles on a size
-            rss = {"start_mb": rss_mb(server.proc.pid)}
+            rss = {"start_mb": settled_rss_mb(server.proc.pid)}
             moving = drag(ws, camera, args.moves)
             rss["after_moves_mb"] = rss_mb(server.proc.pid)
             still = still_seconds(ws, camera)
@@ -221,7 +232,7 @@ def bench_switch(args: argparse.Namespace, out: Path) -> dict:
             ws.send(json.dumps({"type": "camera", "pose": scene["cameras"][1]["pose"],
                                 "focal_mm": scene["cameras"][1]["focal_mm"], "moving": False}))
             receive(ws, "frame")
-            start = rss_mb(server.proc.pid)
+            start = settled_rss_mb(server.proc.pid)
             switch = switch_seconds(ws, [(i + 1) % 3 for i in range(args.switches)], "fast",
                                     server.proc.pid)
     finally:

@@ -286,6 +286,8 @@ class RenderWorker:
     def _pack_cracks(self) -> None:
         """One part's cracks (about 10 ms at the demo preset), in idle time."""
         self._cracks_waiting = self.scene.view.renderer.prepare_cracks(limit=1) > 0
+        if not self._cracks_waiting:
+            return_free_memory()  # packing's temporaries
 
     def _relight(self, values: dict[str, float], cid: int) -> None:
         try:
