@@ -223,15 +223,20 @@ def spread(values: list[float]) -> dict:
             "each": values}
 
 
+def look(ws, scene: dict) -> None:
+    """The page looks through the scene's camera 1 and gets its still (a switch then renders
+    the page's camera)."""
+    ws.send(json.dumps({"type": "camera", "pose": scene["cameras"][1]["pose"],
+                        "focal_mm": scene["cameras"][1]["focal_mm"], "moving": False}))
+    receive(ws, "frame")
+
+
 def bench_switch(args: argparse.Namespace, out: Path) -> dict:
     """The demo switches alone (no moves), the page's camera at camera 1."""
     server = ViewServer(out / "switch")
     try:
         with connect(server.ws_url, max_size=None, open_timeout=30) as ws:
-            scene = receive(ws, "scene", timeout=300)
-            ws.send(json.dumps({"type": "camera", "pose": scene["cameras"][1]["pose"],
-                                "focal_mm": scene["cameras"][1]["focal_mm"], "moving": False}))
-            receive(ws, "frame")
+            look(ws, receive(ws, "scene", timeout=300))
             start = settled_rss_mb(server.proc.pid)
             switch = switch_seconds(ws, [(i + 1) % 3 for i in range(args.switches)], "fast",
                                     server.proc.pid)
@@ -246,7 +251,8 @@ def bench_paper_switch(args: argparse.Namespace, out: Path) -> dict:
     server = ViewServer(out / "paper", "--preset", "paper")
     try:
         with connect(server.ws_url, max_size=None, open_timeout=30) as ws:
-            receive(ws, "scene", timeout=600)
+            scene = receive(ws, "scene", timeout=600)
+            look(ws, scene)
             switch = switch_seconds(ws, list(range(1, args.paper_switches + 1)), "fast",
                                     server.proc.pid)
     finally:
