@@ -201,7 +201,7 @@ def bench_demo(args: argparse.Namespace, out: Path) -> dict:
             drag(ws, camera, 30)  # warm up: the pacer settles on a size
             rss = {"start_mb": settled_rss_mb(server.proc.pid)}
             moving = drag(ws, camera, args.moves)
-            rss["after_moves_mb"] = rss_mb(server.proc.pid)
+            rss["after_moves_mb"] = settled_rss_mb(server.proc.pid)
             still = still_seconds(ws, camera)
             interrupt = interrupt_seconds(ws, camera)
             switch = switch_seconds(ws, [(i + 1) % 3 for i in range(args.switches)], "fast",
