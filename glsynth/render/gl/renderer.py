@@ -366,7 +366,10 @@ class Renderer:
         if (width, height) == self.size:
             return
         self.make_current()
-        attachments: dict[int, moderngl.Texture | moderngl.Renderbuffer] = {}
+        # The normal target is attached to no framebuffer without MSAA: named here, or each
+        # size change would leave one behind (4 MB at 960x540).
+        attachments: dict[int, moderngl.Texture | moderngl.Renderbuffer] = {
+            id(self.normal_target): self.normal_target}
         for fbo in self._sized_framebuffers():
             for target in (*fbo.color_attachments, fbo.depth_attachment):
                 if target is not None:
