@@ -368,3 +368,34 @@ def test_a_move_interrupts_a_still_in_flight_and_the_stale_still_is_never_sent(t
     assert [(f["still"], f["width"]) for f in frames()] == [(True, worker.scene.full_size[0])]
     assert len(bands) == STILL_BANDS
     renderer.release()
+
+
+def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(tmp_path,
+                                                                          monkeypatch):
+    """When the new environment's building starts, nothing holds the old one (its arrays
+    are freed first: one environment at a time, not two, at the peak); then the new scene
+    serves, on the same GL context."""
+    import gc
+    import weakref
+
+    import glsynth.view.worker as worker_module
+    from glsynth.view.scene import SceneSettings
+    from glsynth.view.worker import RenderWorker
+
+    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
+    worker._pick_job()()
+    old_view, renderer = weakref.ref(worker.scene.view), worker.scene.view.renderer
+    seen = []
+
+    def open_scene(*args):
+        gc.collect()
+        seen.append(old_view() is None)
+        return real_open(*args)
+
+    real_open = worker_module.open_scene
+    monkeypatch.setattr(worker_module, "open_scene", open_scene)
+    worker.submit(worker.add_client(lambda m: None), SceneRequest(0, 1, "preview", None))
+    worker._pick_job()()
+    assert seen == [True]
+    assert worker.scene.settings.env == 1 and worker.scene.view.renderer is renderer
+    renderer.release()

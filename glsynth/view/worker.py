@@ -262,24 +262,29 @@ class RenderWorker:
         except UserError as err:
             self._error(cid, err)
             return
+        renderer = previous.view.renderer if previous else None
+        fallback = previous.settings if previous else None
+        with self._lock:
+            # The old environment goes before the new one is built: the process then peaks
+            # at one environment's arrays, not two (pages see the progress meanwhile).
+            self.scene = previous = None
+            for client in self._clients.values():
+                client.last = None
+        return_free_memory()
         t0 = time.perf_counter()
         try:
-            scene = open_scene(settings, previous.view.renderer if previous else None,
-                               self._progress(settings))
+            scene = open_scene(settings, renderer, self._progress(settings))
         except UserError as err:
             self.loading = None
             self._error(cid, err)
-            with self._lock:
-                self.scene = None
-                if previous is not None:
-                    self._scene_request = (previous.settings, None)
+            if fallback is not None:
+                with self._lock:
+                    self._scene_request = (fallback, None)
             return
         with self._lock:
             self.scene, self.loading = scene, None
             self._cracks_waiting = True
-            previous = None
             for client in self._clients.values():
-                client.last = None
                 client.pending = client.pending or self._still(client)
         self._broadcast({**scene.summary(), "seconds": time.perf_counter() - t0})
         return_free_memory()
