@@ -13,7 +13,8 @@ client that moves the camera as a mouse drag does (an input every 33 ms, 30 Hz).
   draws on the CPU, so its "GPU memory" is in the RSS).
 
     .venv/bin/python bench/bench_view.py [--moves 500] [--switches 10] [--paper-switches 2]
-        [--only switch]   (the demo switches alone, for before/after comparisons)
+        [--only switch]   (the demo switches and the interrupted stills alone, for
+                           before/after comparisons: bench/results/view_switch.json)
 """
 
 import argparse
@@ -232,17 +233,21 @@ def look(ws, scene: dict) -> None:
 
 
 def bench_switch(args: argparse.Namespace, out: Path) -> dict:
-    """The demo switches alone (no moves), the page's camera at camera 1."""
+    """The demo's interrupted stills (10) and switches alone, the page at camera 1."""
     server = ViewServer(out / "switch")
     try:
         with connect(server.ws_url, max_size=None, open_timeout=30) as ws:
-            look(ws, receive(ws, "scene", timeout=300))
+            scene = receive(ws, "scene", timeout=300)
+            look(ws, scene)
+            interrupt = interrupt_seconds(ws, {"pose": scene["cameras"][1]["pose"],
+                                               "focal_mm": scene["cameras"][1]["focal_mm"]}, 10)
+            look(ws, scene)
             start = settled_rss_mb(server.proc.pid)
             switch = switch_seconds(ws, [(i + 1) % 3 for i in range(args.switches)], "fast",
                                     server.proc.pid)
     finally:
         server.stop()
-    return {"switch_s": spread(switch["summary_s"]),
+    return {"interrupt": interrupt, "switch_s": spread(switch["summary_s"]),
             "switch_to_first_frame_s": spread(switch["frame_s"]),
             "rss_start_mb": start, "rss_after_each_switch_mb": switch["rss_mb"]}
 
