@@ -242,3 +242,27 @@ def test_a_crack_far_from_the_mesh_frames_origin_renders_as_near_it(renderer):
     expected = CRACK_CONTRAST * w / (z / fx)
     assert np.abs(near_rows / expected - 1).max() <= 0.10
     assert np.abs(far_rows - near_rows).max() <= 0.02 * expected
+
+
+def test_cracks_are_uploaded_when_a_view_first_shows_their_part(renderer):
+    """Two cracked planes, one before the camera and one behind it: loading packs neither,
+    a view packs the one it shows, prepare_cracks packs the rest, and the bytes of a view
+    do not depend on which were packed before it."""
+    z = 1.0
+    behind = np.diag([-1.0, 1.0, -1.0, 1.0])  # turned half about y: looks down +z
+    crack = vertical_crack(z, 2e-3)
+    turned = network(crack.points * [-1.0, 1.0, -1.0], crack.widths_m)
+    renderer.load(scene_of(
+        ("front", Component.COLUMN, plane(z), Material(base_color=GREY, cracks=crack)),
+        ("back", Component.COLUMN, plane(z).apply_transform(behind),
+         Material(base_color=GREY, cracks=turned))), LIGHT)
+    assert renderer.prepare_cracks(limit=0) == 2
+    lazy = renderer.render(camera(W, H))
+    assert renderer.prepare_cracks(limit=0) == 1
+    assert renderer.prepare_cracks() == 0
+    eager = renderer.render(camera(W, H))
+    for name in ("color", "component", "damage", "depth", "crack_width"):
+        assert np.array_equal(getattr(lazy, name), getattr(eager, name)), name
+    assert (lazy.damage == Damage.CONCRETE).sum() >= H
+    back = renderer.render(camera(W, H, pose=behind))
+    assert (back.damage == Damage.CONCRETE).sum() >= H

@@ -221,3 +221,33 @@ def test_each_cell_lists_every_segment_within_reach_of_its_points():
         start, count = cells[cell_id[k]]
         assert set(np.nonzero(near[k])[0]) <= set(entries[start:start + count])
     assert (inside & near.any(1)).sum() > 5000 and (~near.any(1)).sum() > 1000
+
+
+def test_cell_lists_are_exactly_the_segments_within_reach_of_the_cell_centre(monkeypatch):
+    """pack_cracks tests the pairs in batches of segments grouped by box shape; its lists
+    hold exactly the segments that segment_distance puts within reach (half the widest width
+    plus two cell edges) of each cell's centre, ascending, even across batch boundaries and
+    for a zero-length segment."""
+    import glsynth.render.cracks_index as cracks_index
+
+    monkeypatch.setattr(cracks_index, "BATCH", 500)  # many batches, split mid-group
+    network = _column_network(make_rng(6, 0, Stream.DAMAGE))
+    network = CrackNetwork(np.concatenate([network.points, network.points[:1, :1].repeat(2, 1)]),
+                           np.concatenate([network.widths_m, [[2e-3, 2e-3]]]),
+                           np.append(network.crack, 20).astype(np.int32),
+                           network.kinds + ("flexural",))
+    index = pack_cracks(network)
+    # The grid's corner in float64 (the index keeps it in float32, as the shader reads it).
+    origin, cell, _ = cracks_index._grid(network.points.reshape(-1, 3),
+                                         network.widths_m.max() / 2)
+    ijk = np.stack(np.meshgrid(*(np.arange(n) for n in index.dims), indexing="ij"), -1)
+    centre = origin + (ijk.reshape(-1, 3) + 0.5) * cell
+    d, _ = segment_distance(centre[:, None], network.points[None, :, 0],
+                            network.points[None, :, 1])
+    near = d <= network.widths_m.max(1) / 2 + 2 * index.cell_m
+    cells, entries = index.cells.reshape(-1, 2), index.entries.ravel()
+    cell_id = ijk[..., 0] + index.dims[0] * (ijk[..., 1] + index.dims[1] * ijk[..., 2])
+    for k, c in enumerate(cell_id.ravel()):
+        start, count = cells[c]
+        assert list(entries[start:start + count]) == list(np.nonzero(near[k])[0])
+    assert near.sum() > 1000 and near[:, -1].any()

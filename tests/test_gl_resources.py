@@ -134,3 +134,18 @@ def test_texture_data_flips_rows_and_packs_alpha_as_numpy_would():
     assert np.array_equal(texture_data(wide), wide[::-1])
     data = texture_data(rgb, alpha)
     assert data.flags.c_contiguous and data.shape == (7, 10, 4) and data.dtype == np.uint8
+
+
+def test_resizing_back_and_forth_leaves_no_textures_behind():
+    """glsynth view resizes at every move and stop: each size's targets (the normal target
+    too, which no framebuffer holds without MSAA) are freed when the size changes."""
+    config = preview_config(Config(), 128)
+    with Renderer(config.render) as renderer:
+        is_texture = _gl_function("glIsTexture")
+        live = []
+        for size in [(96, 54), (128, 72)] * 4:
+            renderer.resize(*size)
+            probe = renderer.ctx.texture((1, 1), 1)  # GL names the newest texture highest
+            live.append(sum(is_texture(n) for n in range(1, probe.glo)))
+            probe.release()
+        assert len(set(live)) == 1, f"live textures after each resize: {live}"

@@ -260,7 +260,8 @@ def test_relighting_draws_what_opening_under_that_light_draws():
 
 def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages(tmp_path):
     """The render thread's choice of job, without GL: each page's newest camera wins, moving
-    frames go before stills, and a closed page's pending frame is dropped."""
+    frames go before stills, cracks are packed ahead of use only when no frame waits, and a
+    closed page's pending frame is dropped."""
     from glsynth.view.scene import SceneSettings
     from glsynth.view.worker import RenderWorker
 
@@ -273,9 +274,128 @@ def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages
     worker.submit(still, parse_message(camera_message(focal_mm=30.0, moving=False)))
     for focal in (40.0, 41.0, 42.0):
         worker.submit(moving, parse_message(camera_message(focal_mm=focal)))
+    worker._cracks_waiting = True  # a part whose cracks no view has packed yet
+
+    def pack_cracks() -> None:
+        done.append("cracks")
+        worker._cracks_waiting = False
+
+    worker._pack_cracks = pack_cracks
     while (job := worker._pick_job()) is not None:
         job()
-    assert done == [(moving, 42.0), (still, 30.0)]
+    assert done == [(moving, 42.0), (still, 30.0), "cracks"]
     worker.submit(moving, parse_message(camera_message(focal_mm=50.0)))
     worker.remove_client(moving)
     assert worker._pick_job() is None
+
+
+def test_a_banded_interruptible_render_is_the_same_bytes_and_stops_at_a_checkpoint():
+    """Renderer.render with ``interrupt`` and the colour pass in bands: the same bytes as one
+    go; an interrupt raises RenderInterrupted at the next checkpoint, and leaves no state
+    (scissor, depth mask) that changes the next render."""
+    from glsynth.render.gl.renderer import RenderInterrupted
+    from glsynth.view.scene import SceneSettings, open_scene
+
+    scene = open_scene(SceneSettings("demo", 0, 0, quality="preview"), None, lambda *_: None)
+    try:
+        renderer, camera = scene.view.renderer, scene.cameras[1].camera
+        whole = renderer.render(camera)
+        asked = []
+
+        def never() -> bool:
+            asked.append(1)
+            return False
+
+        banded = renderer.render(camera, interrupt=never, bands=5)
+        assert len(asked) == 2 + 5  # after sky visibility and labels, then each band
+        stop_at = iter([False, False, False, True])
+        with pytest.raises(RenderInterrupted):
+            renderer.render(camera, interrupt=lambda: next(stop_at), bands=5)
+        again = renderer.render(camera)
+        for name in ("color", "component", "damage", "depth", "crack_width"):
+            assert np.array_equal(getattr(banded, name), getattr(whole, name)), name
+            assert np.array_equal(getattr(again, name), getattr(whole, name)), name
+        assert len(np.unique(whole.color.reshape(-1, 3), axis=0)) > 1000
+    finally:
+        scene.view.renderer.release()
+
+
+def test_a_move_interrupts_a_still_in_flight_and_the_stale_still_is_never_sent(tmp_path):
+    """The render thread's jobs run here, on a real scene: a move that arrives while a still
+    renders (after its label pass) stops it before its colour pass, the next job sends the
+    move's small frame, and no full-size frame follows; a still left alone is sent."""
+    from glsynth.view.scene import SceneSettings
+    from glsynth.view.worker import STILL_BANDS, RenderWorker
+
+    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
+    worker._pick_job()()  # opens the scene
+    sent = []
+    cid = worker.add_client(sent.append)
+    renderer, placement = worker.scene.view.renderer, worker.scene.cameras[1]
+    label_pass, draw_colors = renderer._label_pass, renderer._draw_colors
+    bands, during_labels = [], []
+    renderer._draw_colors = lambda *a: (bands.append(1), draw_colors(*a))
+
+    def label_then_maybe_move(*args) -> None:
+        label_pass(*args)
+        for message in during_labels:
+            worker.submit(cid, parse_message(message))
+        during_labels.clear()
+
+    renderer._label_pass = label_then_maybe_move
+    pose, focal = placement.camera.pose.tolist(), placement.camera.focal_mm
+
+    def frames() -> list[dict]:
+        heads = [json.loads(m[4:4 + int.from_bytes(m[:4], "big")]) for m in sent
+                 if isinstance(m, bytes)]
+        sent.clear()
+        return heads
+
+    worker.submit(cid, parse_message(camera_message(pose=pose, focal_mm=focal, moving=False)))
+    during_labels.append(camera_message(pose=pose, focal_mm=focal + 1, moving=True))
+    worker._pick_job()()  # the still: interrupted
+    assert frames() == [] and bands == []
+    worker._pick_job()()  # the move
+    moved = frames()
+    assert [(f["still"], f["focal_mm"]) for f in moved] == [(False, focal + 1)]
+    assert moved[0]["width"] < worker.scene.full_size[0]
+    while (job := worker._pick_job()) is not None:  # the idle work: no stale still
+        job()
+    assert frames() == [] and worker._cracks_waiting is False
+    bands.clear()
+    worker.submit(cid, parse_message(camera_message(pose=pose, focal_mm=focal, moving=False)))
+    worker._pick_job()()
+    assert [(f["still"], f["width"]) for f in frames()] == [(True, worker.scene.full_size[0])]
+    assert len(bands) == STILL_BANDS
+    renderer.release()
+
+
+def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(tmp_path,
+                                                                          monkeypatch):
+    """When the new environment's building starts, nothing holds the old one (its arrays
+    are freed first: one environment at a time, not two, at the peak); then the new scene
+    serves, on the same GL context."""
+    import gc
+    import weakref
+
+    import glsynth.view.worker as worker_module
+    from glsynth.view.scene import SceneSettings
+    from glsynth.view.worker import RenderWorker
+
+    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
+    worker._pick_job()()
+    old_view, renderer = weakref.ref(worker.scene.view), worker.scene.view.renderer
+    seen = []
+
+    def open_scene(*args):
+        gc.collect()
+        seen.append(old_view() is None)
+        return real_open(*args)
+
+    real_open = worker_module.open_scene
+    monkeypatch.setattr(worker_module, "open_scene", open_scene)
+    worker.submit(worker.add_client(lambda m: None), SceneRequest(0, 1, "preview", None))
+    worker._pick_job()()
+    assert seen == [True]
+    assert worker.scene.settings.env == 1 and worker.scene.view.renderer is renderer
+    renderer.release()

@@ -107,10 +107,12 @@ class Scene:
         self.config = self.view.config = config
         self.settings = dataclasses.replace(self.settings, lighting=dict(values))
 
-    def verdict(self, index: int) -> str:
+    def verdict(self, index: int, interrupt: Callable[[], bool] | None = None,
+                bands: int = 1) -> str:
         """Camera ``index`` rendered at full size, through the Section 3.4 filters; the
-        renderer must be at the full size."""
-        _, output = self.view.render(index)
+        renderer must be at the full size. ``interrupt`` and ``bands``: Renderer.render's."""
+        output = self.view.renderer.render(self.cameras[index].camera, interrupt=interrupt,
+                                           bands=bands)
         return removal_reason(output.color, output.component, output.depth) or "kept"
 
 

@@ -1,11 +1,13 @@
 """The render thread: the one GL context of ``glsynth view`` and the queue in front of it.
 
 Every page (client) has one slot for its next frame, in which the newest camera wins; a
-moving camera's frame comes before any still, and a still whose client moved again while it
-rendered is dropped before it is encoded or sent (the GL work of one frame cannot be stopped
-half way). Scene changes and relighting come first of all; when nothing else waits, the
-sampled cameras' Section 3.4 verdicts are worked out one at a time. Results go back through
-each client's ``send``, which must be safe to call from this thread.
+moving camera's frame comes before any still, and a still whose client moves again while it
+renders is interrupted (between passes and between bands of its colour pass: GL draws cannot
+be cut) and never sent; a verdict's render stops likewise for any page's move. Scene changes
+and relighting come first of all; when nothing else waits, the cracks of the parts no view
+has shown yet are packed, a part at a time (so that a part's first view does not wait for
+it), and then the sampled cameras' Section 3.4 verdicts are worked out one at a time.
+Results go back through each client's ``send``, which must be safe to call from this thread.
 """
 
 import ctypes
@@ -23,7 +25,7 @@ from pathlib import Path
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
 from glsynth.data.quality import QUALITY
-from glsynth.render.gl.renderer import RenderOutput
+from glsynth.render.gl.renderer import RenderInterrupted, RenderOutput
 from glsynth.render.view import write_render
 from glsynth.view.camera import camera_json
 from glsynth.view.frames import available_passes, encode, legend, pass_image
@@ -45,6 +47,10 @@ MOVING_WIDTHS = (192, 256, 320, 384, 480, 640)
 MOVING_FPS = 12.0
 VERDICT_AFTER_S = 2.0
 """Verdicts (full-size renders) start this long after the last move."""
+STILL_BANDS = 4
+"""Bands of rows of a full-size render's colour pass (its longest pass): a move waits for at
+most about one piece; the bands and the waits between pieces cost a 1920x1080 still 1.6 %
+(bench/bench_view.py)."""
 
 
 @dataclass
@@ -98,6 +104,8 @@ class RenderWorker:
         self._lock = threading.Condition()
         self._stopping = False
         self._last_move = 0.0
+        self._cracks_waiting = False
+        """Whether some part of the scene has cracks not packed yet."""
         self._thread = threading.Thread(target=self._run, name="glsynth-view-render",
                                         daemon=True)
         self.loading: dict | None = None
@@ -181,7 +189,7 @@ class RenderWorker:
 
     def _pick_job(self) -> Callable[[], None] | None:
         """Under the lock: scene, lighting, moving frames (clients in turn), actions, stills,
-        then one verdict."""
+        one part's cracks, then one verdict."""
         if self._scene_request is not None:
             request, self._scene_request = self._scene_request, None
             return lambda: self._open(*request)
@@ -198,6 +206,8 @@ class RenderWorker:
                 job = self._client_job(cid, self._clients[cid], want)
                 if job is not None:
                     return job
+        if self._cracks_waiting:
+            return self._pack_cracks
         # Verdicts wait for a pause in the moves: each is a full-size render.
         if self._clients and time.monotonic() - self._last_move > VERDICT_AFTER_S:
             todo = [i for i in range(len(self.scene.cameras)) if i not in self.scene.verdicts]
@@ -252,26 +262,38 @@ class RenderWorker:
         except UserError as err:
             self._error(cid, err)
             return
+        renderer = previous.view.renderer if previous else None
+        fallback = previous.settings if previous else None
+        with self._lock:
+            # The old environment goes before the new one is built: the process then peaks
+            # at one environment's arrays, not two (pages see the progress meanwhile).
+            self.scene = previous = None
+            for client in self._clients.values():
+                client.last = None
+        return_free_memory()
         t0 = time.perf_counter()
         try:
-            scene = open_scene(settings, previous.view.renderer if previous else None,
-                               self._progress(settings))
+            scene = open_scene(settings, renderer, self._progress(settings))
         except UserError as err:
             self.loading = None
             self._error(cid, err)
-            with self._lock:
-                self.scene = None
-                if previous is not None:
-                    self._scene_request = (previous.settings, None)
+            if fallback is not None:
+                with self._lock:
+                    self._scene_request = (fallback, None)
             return
         with self._lock:
             self.scene, self.loading = scene, None
-            previous = None
+            self._cracks_waiting = True
             for client in self._clients.values():
-                client.last = None
                 client.pending = client.pending or self._still(client)
         self._broadcast({**scene.summary(), "seconds": time.perf_counter() - t0})
         return_free_memory()
+
+    def _pack_cracks(self) -> None:
+        """One part's cracks (about 10 ms at the demo preset), in idle time."""
+        self._cracks_waiting = self.scene.view.renderer.prepare_cracks(limit=1) > 0
+        if not self._cracks_waiting:
+            return_free_memory()  # packing's temporaries
 
     def _relight(self, values: dict[str, float], cid: int) -> None:
         try:
@@ -293,21 +315,36 @@ class RenderWorker:
         return Camera(width, max(1, round(width * full_h / full_w)), request.focal_mm, sensor,
                       request.pose, r.znear_m, r.zfar_m)
 
-    def _render(self, camera: Camera) -> RenderOutput:
+    def _render(self, camera: Camera, interrupt: Callable[[], bool] | None = None
+                ) -> RenderOutput:
         renderer = self.scene.view.renderer
         renderer.resize(camera.width, camera.height)
-        return renderer.render(camera)
+        return renderer.render(camera, interrupt=interrupt, bands=STILL_BANDS if interrupt
+                               else 1)
+
+    def _stale(self, cid: int, client: Client) -> bool:
+        """Whether a still for ``client`` is no longer wanted: its page closed or moved."""
+        with self._lock:
+            return cid not in self._clients or (client.pending is not None
+                                                and client.pending.moving)
+
+    def _moving(self) -> bool:
+        """Whether some page waits for a moving frame."""
+        with self._lock:
+            return any(c.pending is not None and c.pending.moving
+                       for c in self._clients.values())
 
     def _frame(self, cid: int, client: Client, request: CameraRequest) -> None:
         t0 = time.perf_counter()
         still = not request.moving
         camera = self._camera(request, self.scene.full_size[0] if still else self.pacer.width())
-        output = self._render(camera)
+        try:
+            output = self._render(camera, (lambda: self._stale(cid, client)) if still else None)
+        except RenderInterrupted:
+            return  # moved again (or closed): the move's frame comes next
         rendered = time.perf_counter() - t0
-        with self._lock:
-            if cid not in self._clients or (still and client.pending is not None
-                                             and client.pending.moving):
-                return  # closed, or moved again: this still is stale
+        if still and self._stale(cid, client):
+            return  # moved during the read-back
         self._send_frame(cid, client, camera, output, still, t0, rendered)
         if not still:
             self.pacer.measured(time.perf_counter() - t0)
@@ -382,7 +419,10 @@ class RenderWorker:
     def _verdict(self, index: int) -> None:
         scene = self.scene
         scene.view.renderer.resize(*scene.full_size)
-        verdict = scene.verdict(index)
+        try:
+            verdict = scene.verdict(index, self._moving, STILL_BANDS)
+        except RenderInterrupted:
+            return  # a page moved: the verdict is worked out again in the next pause
         with self._lock:
             if scene is not self.scene:
                 return

@@ -31,7 +31,9 @@ in x and y), which changes no byte. Pixels with no geometry read component 1 (No
 damage 1 (no damage) and depth = zfar.
 
 Cracks (a material's CrackNetwork) are packed by glsynth.render.cracks_index into three
-textures per part, uploaded with the scene, and evaluated in the fragment shader
+textures per part, uploaded the first time a view shows the part (packing is most of a cracked
+scene's load: an interactive viewer opens it sooner, and a render packs only what its cameras
+see; the bytes are the same), and evaluated in the fragment shader
 (shaders/cracks.glsl); the crack code is compiled only into the programs' crack variants
 (programs.VARIANTS), which only views and parts with cracks use, so a scene without cracks
 runs the very programs it ran before. Likewise a material's damage zones (a spalled column's
@@ -48,6 +50,7 @@ import moderngl
 import numpy as np
 import pyrender
 
+from glsynth.appearance.cracks import CrackNetwork
 from glsynth.appearance.materials import MAX_ZONES, Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
@@ -102,12 +105,20 @@ class RenderOutput:
     0 elsewhere, and everywhere in a view without cracks."""
 
 
+class RenderInterrupted(Exception):
+    """Renderer.render stopped because its ``interrupt()`` said so."""
+
+
 @dataclass(frozen=True, eq=False)
 class CrackTextures:
     """A part's crack network on the GPU (glsynth.render.cracks_index.CrackIndex)."""
     textures: tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture]
     """Segments, cells, entries: shaders/cracks.glsl's three samplers, in this order."""
-    index: CrackIndex
+    origin: tuple[float, float, float]
+    cell_m: float
+    dims: tuple[int, int, int]
+    """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
+    demo environment's would add 155 MB to the RSS)."""
 
     def bind(self, prog: moderngl.Program, first_unit: int) -> None:
         """Bind the textures to units first_unit.. and set ``prog``'s crack uniforms."""
@@ -119,9 +130,9 @@ class CrackTextures:
         # shader harness) takes positions relative to the origin and has no such uniform.
         origin = prog.get("u_crack_origin", None)
         if origin is not None:
-            origin.value = tuple(float(v) for v in self.index.origin)
-        prog["u_crack_cell_m"].value = self.index.cell_m
-        prog["u_crack_dims"].value = self.index.dims
+            origin.value = self.origin
+        prog["u_crack_cell_m"].value = self.cell_m
+        prog["u_crack_dims"].value = self.dims
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,7 +177,10 @@ class _Draw:
     """Mean emitted radiance (3,), linear: the light it sends where it hides the sky."""
     corners: np.ndarray
     """(8, 3) world-space corners of the box, for the frustum tests."""
-    cracks: CrackTextures | None = None
+    cracks: CrackNetwork | None = None
+    """The part's cracks, packed and uploaded into ``crack_textures`` when a view first
+    shows the part (Renderer.prepare_cracks)."""
+    crack_textures: CrackTextures | None = None
     zones: ZoneUniforms | None = None
     """Where the part's damage material applies (textures "intact" and "spall" with it)."""
 
@@ -270,7 +284,8 @@ def upload_cracks(ctx: moderngl.Context, index: CrackIndex) -> CrackTextures:
         texture = ctx.texture(data.shape[1::-1], channels, data.tobytes(), dtype=dtype)
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         textures.append(texture)
-    return CrackTextures(tuple(textures), index)
+    return CrackTextures(tuple(textures), tuple(float(v) for v in index.origin), index.cell_m,
+                         index.dims)
 
 
 class Renderer:
@@ -355,7 +370,10 @@ class Renderer:
         if (width, height) == self.size:
             return
         self.make_current()
-        attachments: dict[int, moderngl.Texture | moderngl.Renderbuffer] = {}
+        # The normal target is attached to no framebuffer without MSAA: named here, or each
+        # size change would leave one behind (4 MB at 960x540).
+        attachments: dict[int, moderngl.Texture | moderngl.Renderbuffer] = {
+            id(self.normal_target): self.normal_target}
         for fbo in self._sized_framebuffers():
             for target in (*fbo.color_attachments, fbo.depth_attachment):
                 if target is not None:
@@ -540,9 +558,6 @@ class Renderer:
         # _color_pass), each triangle's corners as they are.
         reversed_ibo = self.ctx.buffer(triangles[::-1].tobytes())
         vaos = self._vertex_arrays(vbo, ibo, reversed_ibo)
-        cracks = None
-        if material.cracks is not None:
-            cracks = upload_cracks(self.ctx, pack_cracks(material.cracks))
         textures = {slot: self._upload_texture(array) for slot, array in (
             ("emissive", material.emissive_map), ("normal", material.normal_map))
             if array is not None}
@@ -565,7 +580,7 @@ class Renderer:
                      component=float(info.component), damage_mask=mask,
                      center=pose[:3, :3] @ box.mean(0) + pose[:3, 3],
                      radiance=_emitted(material), corners=box_corners(box, pose),
-                     cracks=cracks, zones=zones)
+                     cracks=material.cracks, zones=zones)
 
     def _zone_textures(self, material: Material) -> dict[str, moderngl.Texture]:
         """The zone variant's textures: the intact concrete (a repository image, cached like
@@ -608,7 +623,7 @@ class Renderer:
                 vao.release()
             for buffer in draw.buffers:
                 buffer.release()
-            for texture in draw.cracks.textures if draw.cracks is not None else ():
+            for texture in (draw.crack_textures.textures if draw.crack_textures else ()):
                 texture.release()
         self._free_textures(lambda _, sources: not any(
             a is not None and a.flags.writeable for a in sources))
@@ -687,28 +702,63 @@ class Renderer:
             texel_m=max(shadow_texel_m(m, px) for m in matrices))
 
     # --- one view ---------------------------------------------------------------------------
-    def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES) -> RenderOutput:
+    def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES,
+               interrupt: Callable[[], bool] | None = None, bands: int = 1) -> RenderOutput:
         """``passes`` of ``camera``. The passes run in this order, each into its own targets:
         sky visibility, shadow, labels, ambient occlusion, colour, MSAA, read-back (the module
-        docstring says what each draws, and when it is skipped)."""
+        docstring says what each draws, and when it is skipped).
+
+        With ``interrupt``, the GL work is finished after each pass and after each of the
+        colour pass's ``bands`` bands of rows, and RenderInterrupted is raised as soon as
+        ``interrupt()`` is true there (the work already queued cannot be stopped, so a band is
+        the longest wait); the image is the same bytes however it is cut."""
         self._check_request(camera, passes)
         self.make_current()
         draws = self._front_to_back(camera)
         placed = self._place(camera, draws)
+        self.prepare_cracks([item.draw for item in placed])
+        check = self._checkpoint(interrupt)
         color = "color" in passes
         ao = color and self.config.ao == "ssao"
         shadow = None
         if color:
             self._sky_visibility_pass(camera, placed)
+            check()
             shadow = self._shadow_pass(camera, draws)  # parts out of view cast shadows too
         self._label_pass(camera, placed)  # the colour pass tests against its depth
+        check()
         if ao:
             self._ao_pass(camera)
         if color:
-            self._color_pass(camera, placed, shadow, ao)
+            self._color_pass(camera, placed, shadow, ao, bands, check)
             if self.config.msaa:
                 self._msaa_pass(camera, placed)
+                check()
         return self._read_back(passes)
+
+    def _checkpoint(self, interrupt: Callable[[], bool] | None) -> Callable[[], None]:
+        """What render calls between pieces of work: nothing without ``interrupt``; with it,
+        wait for the GL work so far, then raise RenderInterrupted if ``interrupt()``."""
+        def check() -> None:
+            if interrupt is not None:
+                self.ctx.finish()
+                if interrupt():
+                    raise RenderInterrupted("the render was interrupted")
+        return check
+
+    def prepare_cracks(self, draws: list[_Draw] | None = None, limit: int | None = None
+                       ) -> int:
+        """Pack and upload the cracks of ``draws`` (default: the loaded scene's), at most
+        ``limit`` parts' of them, that are not uploaded yet; the number of the scene's parts
+        still waiting after. A view does it for the parts it shows; an interactive caller
+        calls it in idle time, so that a part's first view does not wait for it."""
+        waiting = [d for d in (self._draws if draws is None else draws)
+                   if d.cracks is not None and d.crack_textures is None]
+        if waiting[:limit]:
+            self.make_current()
+        for draw in waiting[:limit]:
+            draw.crack_textures = upload_cracks(self.ctx, pack_cracks(draw.cracks))
+        return sum(d.cracks is not None and d.crack_textures is None for d in self._draws)
 
     def _check_request(self, camera: Camera, passes: frozenset[str] | set[str]) -> None:
         unknown = set(passes) - PASSES
@@ -843,7 +893,7 @@ class Renderer:
                 if cracked:
                     prog["u_has_cracks"].value = draw.cracks is not None
                     if draw.cracks is not None:
-                        draw.cracks.bind(prog, 1)
+                        draw.crack_textures.bind(prog, 1)
                 if draw.zones is not None:
                     draw.zones.set(prog)
                 draw.vaos[name].render()
@@ -866,9 +916,11 @@ class Renderer:
         self._fullscreen("ssao_blur")
 
     def _color_pass(self, camera: Camera, placed: list[_Placed], shadow: np.ndarray | None,
-                    ao: bool) -> None:
+                    ao: bool, bands: int = 1, check: Callable[[], None] = lambda: None) -> None:
         """Colour of ``placed`` into color_target (and their shading normals into
-        normal_target), then the sky where no part was drawn."""
+        normal_target), then the sky where no part was drawn; in ``bands`` bands of rows
+        (scissored: a pixel's colour does not depend on the others'), ``check()`` after
+        each."""
         self._set_view_uniforms(camera, placed, shadow, ao)
         # Against the label pass's depth, unchanged: only the nearest surface passes "<=", so
         # each pixel is shaded once. Parts and triangles are drawn in reverse order, so that
@@ -877,6 +929,20 @@ class Renderer:
         self.color_fbo.use()
         self.color_fbo.depth_mask = False
         self.color_fbo.clear(0.0, 0.0, 0.0, 1.0)
+        edges = np.linspace(0, self.size[1], bands + 1).round().astype(int)
+        try:
+            for y0, y1 in zip(edges[:-1], edges[1:], strict=True):
+                if bands > 1:
+                    self.color_fbo.scissor = (0, int(y0), self.size[0], int(y1 - y0))
+                self._draw_colors(camera, placed)
+                check()
+        finally:
+            if bands > 1:
+                self.color_fbo.scissor = None
+            self.color_fbo.depth_mask = True
+
+    def _draw_colors(self, camera: Camera, placed: list[_Placed]) -> None:
+        """``placed`` and the sky into the bound colour framebuffer (_color_pass)."""
         with _depth_state(self.ctx, depth_func="<="):
             for item in reversed(placed):
                 draw, mat = item.draw, item.draw.material
@@ -899,7 +965,6 @@ class Renderer:
                     draw.textures["spall"].use(_SPALL_UNITS["u_spall_map"])
                 draw.vaos[name].render()
             self._draw_sky(camera)
-        self.color_fbo.depth_mask = True
 
     def _set_view_uniforms(self, camera: Camera, placed: list[_Placed],
                            shadow: np.ndarray | None, ao: bool) -> None:
