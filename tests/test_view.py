@@ -2,6 +2,7 @@
 real websocket (the browser tests are in test_view_browser.py)."""
 
 import contextlib
+import dataclasses
 import json
 import types
 
@@ -399,3 +400,31 @@ def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(tmp_p
     assert seen == [True]
     assert worker.scene.settings.env == 1 and worker.scene.view.renderer is renderer
     renderer.release()
+
+
+def test_a_failed_opening_releases_its_context(monkeypatch):
+    """An opening that fails after the old scene was let go releases the renderer it was
+    given (before, the worker's retry made a second context and the first was never freed);
+    the next opening makes a context afresh and serves."""
+    import glsynth.view.scene as scene_module
+    from glsynth.render.gl.renderer import Renderer
+    from glsynth.view.scene import SceneSettings, open_scene
+
+    settings = SceneSettings("demo", 0, 0, quality="preview")
+    scene = open_scene(settings, None, lambda *_: None)
+    renderer, released = scene.view.renderer, []
+    monkeypatch.setattr(renderer, "release", lambda: (released.append(True),
+                                                      Renderer.release(renderer)))
+
+    def failing(*args, **kwargs):
+        raise UserError("environment.n_viaducts = 0: a bad opening")
+
+    real = scene_module.EnvironmentView.open
+    monkeypatch.setattr(scene_module.EnvironmentView, "open", failing)
+    with pytest.raises(UserError, match="bad opening"):
+        open_scene(dataclasses.replace(settings, env=1), renderer, lambda *_: None)
+    assert released == [True]
+    monkeypatch.setattr(scene_module.EnvironmentView, "open", real)
+    again = open_scene(dataclasses.replace(settings, env=1), None, lambda *_: None)
+    assert again.view.renderer is not renderer and again.settings.env == 1
+    again.view.renderer.release()
