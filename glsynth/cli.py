@@ -541,7 +541,8 @@ def add_assess_parser(sub: Commands) -> None:
     p.add_argument("images", nargs="*", help="photos to assess (with --runs)")
     p.add_argument("--runs", default=None, metavar="component=R1,damage=R2,depth=R3")
     p.add_argument("--oracle", default=None, metavar="DATA",
-                   help="use a dataset's ground-truth maps instead of networks")
+                   help="use ground-truth maps instead of networks: a dataset's split, or a "
+                        "glsynth render output (its maps at the image's full size)")
     p.add_argument("--data", default=None,
                    help="with --runs: assess a labelled split and evaluate before/after RRDR")
     _add_split_arg(p)
@@ -559,7 +560,12 @@ def add_assess_parser(sub: Commands) -> None:
 
 
 def cmd_assess(args: argparse.Namespace) -> int:
-    from glsynth.assess.condition import assess_photos, oracle_photos
+    from glsynth.assess.condition import (
+        assess_photos,
+        oracle_photos,
+        render_folders,
+        render_photos,
+    )
 
     settings = from_options(AssessSettings, args)
     out = Path(args.out)
@@ -572,7 +578,9 @@ def cmd_assess(args: argparse.Namespace) -> int:
     if args.oracle is not None:
         if args.images:
             raise UserError("--oracle takes its images from the dataset; drop IMAGES")
-        photos = oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit)
+        renders = render_folders(Path(args.oracle))
+        photos = (render_photos(renders, args.limit) if renders else
+                  oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit))
     else:
         photos = _network_photos(args, settings, out)
     summary = assess_photos(photos, out, settings)

@@ -443,6 +443,38 @@ def test_oracle_cli_reports_the_error_against_ground_truth_widths(tmp_path):
     assert column["grade_range"] == ">= 1 mm"
 
 
+def test_oracle_cli_reads_render_outputs_at_full_size(tmp_path, capsys):
+    """`glsynth assess --oracle` on a `glsynth render --camera 0 1` folder: each subfolder's
+    maps at the image's size, the focal length from camera.json's K; a corrupt depth.npy
+    fails that view alone, in one line."""
+    from PIL import Image
+
+    from glsynth.cli import main
+    from glsynth.world.cameras import Camera
+
+    damage, depth, truth, k = plane_view(60, 90, 0.0015)  # 3 px across, slanted 60 deg
+    camera = Camera(SHAPE[1], SHAPE[0], FOCAL / SHAPE[1] * 36.0, 36.0, np.eye(4), 0.05, 100.0)
+    for name in ("camera_000", "camera_001"):
+        folder = tmp_path / "render" / name
+        folder.mkdir(parents=True)
+        Image.fromarray(np.full(SHAPE + (3,), 120, np.uint8)).save(folder / "image.png")
+        Image.fromarray(np.full(SHAPE, 4, np.uint8)).save(folder / "component.png")
+        Image.fromarray(damage).save(folder / "damage.png")
+        np.save(folder / "depth.npy", depth.astype(np.float32))
+        np.save(folder / "crack_width.npy", truth.astype(np.float32))
+        (folder / "camera.json").write_text(json.dumps(camera.to_json()))
+    (tmp_path / "render" / "camera_001" / "depth.npy").write_bytes(b"not an array")
+    out = tmp_path / "out"
+    assert main(["assess", "--oracle", str(tmp_path / "render"), "--out", str(out)]) == 1
+    failed = capsys.readouterr().err.strip().splitlines()
+    assert len(failed) == 1 and "camera_001" in failed[0] and "depth.npy" in failed[0]
+    truth_summary = json.loads((out / "camera_000.json").read_text())["cracks"]["truth"]
+    assert truth_summary["at_least_2px"]["pixels"] > 100
+    assert truth_summary["at_least_2px"]["median_relative_error"] <= 0.05
+    assert json.loads((out / "camera_000.json").read_text())["maps_size"] == [SHAPE[1],
+                                                                              SHAPE[0]]
+
+
 def test_a_tapered_crack_is_measured_along_its_length():
     """Width 2 px at one end to 10 px at the other (as generated cracks taper): the width at
     each skeleton pixel follows the truth there."""

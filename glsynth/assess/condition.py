@@ -356,6 +356,39 @@ def oracle_photos(root: Path, split: str = "test", sensor_mm: float = 36.0,
     return [Photo(Path(r.image).stem.removesuffix("_Scene"), loader(r)) for r in rows]
 
 
+def render_folders(root: Path) -> list[Path]:
+    """The ``glsynth render`` outputs under ``root``: root itself where it holds a
+    camera.json, else its subfolders that do (render with several cameras), in name order."""
+    if (root / "camera.json").is_file():
+        return [root]
+    if not root.is_dir():
+        return []
+    return sorted(d for d in root.iterdir() if (d / "camera.json").is_file())
+
+
+def render_photos(folders: list[Path], limit: int | None = None) -> list[Photo]:
+    """The full-size ground truth of ``glsynth render`` outputs (image.png, component.png,
+    damage.png, depth.npy, crack_width.npy, camera.json) in place of the networks: the maps
+    are the image's size, and the focal length in pixels is camera.json's K."""
+    from glsynth.data.readers import read_float_map, read_json, read_label_map
+
+    def loader(folder: Path) -> Callable[[], tuple[np.ndarray, Maps]]:
+        def load() -> tuple[np.ndarray, Maps]:
+            rgb = read_photo(folder / "image.png")
+            size = (rgb.shape[1], rgb.shape[0])
+            camera = read_json(folder / "camera.json", {"K": list},
+                               "write it again with glsynth render")
+            maps = Maps(read_label_map(folder / "component.png", "component", size),
+                        read_label_map(folder / "damage.png", "damage", size),
+                        read_float_map(folder / "depth.npy", "depth map", size),
+                        float(camera["K"][0][0]), 1.0,
+                        read_float_map(folder / "crack_width.npy", "crack-width map", size))
+            return rgb, maps
+        return load
+
+    return [Photo(folder.name, loader(folder)) for folder in folders[:limit]]
+
+
 def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | None]:
     """The ground-truth crack widths beside a damage label, ``synthetic/{split}/crackwidth/
     <stem>.png`` (uint16, 0.01 mm steps) in mm, or None and why it is missing."""

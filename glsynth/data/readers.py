@@ -141,6 +141,23 @@ def read_crack_width_map(path: Path, size: tuple[int, int] | None = None) -> np.
     return _read_16bit_map(path, "crack-width map", "0.01 mm steps", size)
 
 
+def read_float_map(path: Path, what: str, size: tuple[int, int]) -> np.ndarray:
+    """A float32 (height, width) ``.npy`` map of ``size`` = (width, height): ``glsynth
+    render``'s depth.npy and crack_width.npy."""
+    fix = "write it again with glsynth render"
+    try:
+        data = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise UserError(f"{what} {str(path)!r} does not exist; {fix}") from None
+    except (OSError, ValueError) as err:
+        raise UserError(f"{what} {str(path)!r} is not a .npy array "
+                        f"({str(err).splitlines()[0][:80]}); {fix}") from None
+    if data.dtype != np.float32 or data.shape != (size[1], size[0]):
+        raise UserError(f"{what} {str(path)!r} is {data.dtype} of shape {data.shape}; it must "
+                        f"be float32 of shape {(size[1], size[0])}, the image's: {fix}")
+    return data
+
+
 def cache_entry_bytes(rgb: np.ndarray, key: str) -> bytes:
     """A training-cache entry: the resized image and the key of what it was made from."""
     buffer = io.BytesIO()
