@@ -475,6 +475,12 @@ class MaterialsConfig:
     painted_roughness: tuple[float, float] = (0.0, 1.0)
     panel_emission: float = 0.5
     """Emission strength of the scene panels (paper: 0.5)."""
+    concrete_detail: Literal["off", "flights", "on"] = "flights"
+    """Concrete's millimetre-scale detail on the concrete parts (cement paste, sand, pores,
+    bug holes, formwork joints and tie holes; docs/design.md, "Concrete detail"): "flights"
+    draws it in glsynth fly's frames alone, where COLMAP needs features at 1-4 mm a pixel,
+    and leaves generate's and render's images as the repository makes them; "on" draws it
+    everywhere, "off" nowhere."""
 
     def __post_init__(self) -> None:
         s = "materials"
@@ -490,6 +496,7 @@ class MaterialsConfig:
         for name in ("steel_roughness", "painted_metallic", "painted_roughness"):
             check_interval(s, name, getattr(self, name), 0.0, 1.0)
         check_number(s, "panel_emission", self.panel_emission, 0.0, 100.0)
+        check_literal(s, MaterialsConfig, "concrete_detail", self.concrete_detail)
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from glsynth.core.config import Config, config_to_dict
+from glsynth.core.config import Config, MaterialsConfig, config_to_dict
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
@@ -68,6 +68,13 @@ def _prepare(out: Path, config: Config, root_seed: int, env: int) -> None:
         raise UserError(f"--out {str(out)!r} is not empty and holds no glsynth flight; use a "
                         "new or empty folder")
     atomic_write_json(run_file, identity)
+
+
+def flight_materials(materials: MaterialsConfig) -> MaterialsConfig:
+    """[materials] as a flight draws them: concrete detail "flights" turns it on."""
+    if materials.concrete_detail == "flights":
+        return replace(materials, concrete_detail="on")
+    return materials
 
 
 def _frame_meta(lens: Lens, plan: FlightPlan, index: int, meta: dict) -> dict:
@@ -138,7 +145,8 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
                                 np.eye(4), r.znear_m, r.zfar_m), lens)
     source_config = replace(config, render=replace(config.render, width=size.width,
-                                                   height=size.height))
+                                                   height=size.height),
+                            materials=flight_materials(config.materials))
     view = EnvironmentView.open(source_config, root_seed, env_index, cameras=[
         source_camera(c, lens) for c in plan.cameras(config)])
     opened = time.perf_counter() - t0
