@@ -48,11 +48,11 @@ float value_noise(vec2 q, uint salt) {
     return 2.0 * mix(mix(a, b, u.x), mix(d, e, u.x), u.y) - 1.0;
 }
 
-// Cement paste: value noise in octaves from 64 mm down to 1 mm, each +-5 %.
+// Cement paste: value noise in octaves from 64 mm down to 1 mm, each +-9 %.
 float paste(vec2 p, float footprint, uint salt) {
     float sum = 0.0, size = 0.064;
     for (int k = 0; k < 7; ++k) {
-        sum += 0.05 * resolved(size, footprint) * value_noise(p / size, salt + uint(k));
+        sum += 0.09 * resolved(size, footprint) * value_noise(p / size, salt + uint(k));
         size *= 0.5;
     }
     return sum;
@@ -112,8 +112,9 @@ float concrete_detail(vec3 pos, vec3 n, uint seed) {
     uint salt = detail_hash(seed ^ uint(2 * axis + int(side > 0.0)) * 0x27d4eb2du);
     float footprint = max(max(length(dFdx(pos)), length(dFdy(pos))), 1e-6);
     float shade = 1.0 + paste(p, footprint, salt)
-                  + 0.16 * resolved(0.0025, footprint) * grains(p, 0.0025, salt ^ 3u)
-                  + 0.08 * resolved(0.012, footprint) * grains(p, 0.012, salt ^ 4u)
+                  + 0.22 * resolved(0.0025, footprint) * grains(p, 0.0025, salt ^ 3u)
+                  + 0.15 * resolved(0.005, footprint) * grains(p, 0.005, salt ^ 12u)
+                  + 0.15 * resolved(0.012, footprint) * grains(p, 0.012, salt ^ 4u)
                   + formwork(p, footprint, salt);
     float dark = 0.55 * holes(p, footprint, 0.006, 0.40, 0.0002, 0.0008, salt ^ 5u)
                  + 0.65 * holes(p, footprint, 0.025, 0.12, 0.0005, 0.004, salt ^ 6u);

@@ -611,6 +611,11 @@ class FlightConfig:
     """Least distance from the path to any mesh; a plan that comes closer is refused."""
     max_frames: int = 0
     """Stop after this many frames (0: fly the whole plan)."""
+    exposure: Literal["metered", "scene"] = "metered"
+    """"metered": the camera exposes once for the whole flight, so that the median pixel of
+    four frames spread along the path is 18 % grey (an orbit in the deck's shade is 1.5-2
+    stops brighter than the scene's exposure makes it); "scene": [lighting] exposure, as
+    glsynth render uses (glsynth.data.flight.exposed)."""
     point_stride_px: int = 4
     """points.ply: every point_stride_px-th pixel of each frame, in both directions."""
     point_spacing_m: float = 0.05
@@ -644,6 +649,7 @@ class FlightConfig:
             fail(s, "k1", self.k1, '0 unless camera_model is "SIMPLE_RADIAL" or "OPENCV"')
         check_number(s, "clearance_m", self.clearance_m, 0.01, 100.0)
         check_number(s, "max_frames", self.max_frames, 0, 10**6, integer=True)
+        check_literal(s, FlightConfig, "exposure", self.exposure)
         check_number(s, "point_stride_px", self.point_stride_px, 1, 1024, integer=True)
         check_number(s, "point_spacing_m", self.point_spacing_m, 1e-4, 100.0)
 
