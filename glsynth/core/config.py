@@ -577,8 +577,9 @@ class FlightConfig:
     standoff_m: float = 2.0
     """Distance to the inspected surface: orbit, to the column's edges (its nearest points);
     facade, across to the outermost column or girder face; underdeck, down from the slab's
-    underside. The columns of a row stand 6 m apart ([design] column_spacing_m), so an orbit
-    much wider than 2 m meets the other column of the pair and is refused."""
+    underside. Columns stand 6 m apart across and along the track ([design]
+    column_spacing_m), so with the default clearance an orbit wider than 4 m meets a
+    neighbouring column and is refused (seed 0, environment 0: 4 m passes, 4.5 m not)."""
     heights_m: tuple[float, ...] = (1.5, 3.0)
     """Orbit: the rings' heights above the column's foot, flown in this order."""
     arc_deg: float = 360.0
