@@ -614,9 +614,9 @@ class FlightConfig:
     """Stop after this many frames (0: fly the whole plan)."""
     exposure: Literal["metered", "scene"] = "metered"
     """"metered": the camera exposes once for the whole flight, so that the median pixel of
-    four frames spread along the path is 18 % grey (an orbit in the deck's shade is 1.5-2
-    stops brighter than the scene's exposure makes it); "scene": [lighting] exposure, as
-    glsynth render uses (glsynth.data.flight.exposed)."""
+    four frames spread along the path is 18 % grey (an orbit in the deck's shade meters about
+    1.4 stops above the scene's exposure); "scene": [lighting] exposure, as glsynth render
+    uses (glsynth.data.flight.exposed)."""
     point_stride_px: int = 4
     """points.ply: every point_stride_px-th pixel of each frame, in both directions."""
     point_spacing_m: float = 0.05

@@ -113,8 +113,7 @@ def _read_frame(out: Path, index: int) -> Frame:
                  np.asarray(Image.open(folder / "damage.png")), np.load(folder / "depth.npy"))
 
 
-def exposed(view: EnvironmentView, cameras: list[Camera],
-            mode: str) -> Lighting:
+def exposed(view: EnvironmentView, cameras: list[Camera], mode: str) -> Lighting:
     """The flight's lighting, its renderer relit by it. "metered": the camera exposes once
     for the whole flight, as a drone's does with its exposure locked: the scene's exposure
     times MID_GREY over the median luminance of METERED_FRAMES frames spread along the path
