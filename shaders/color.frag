@@ -12,7 +12,9 @@
 // surface at this pixel), times u_crack_contrast. The zone variant (#define SPALL) shows the
 // damage material only inside the part's zones and there only where the damage mask is
 // spalled or rebar (the filtered share u_spall_map), the intact concrete u_intact_map
-// elsewhere: no metal, no relief outside the zones.
+// elsewhere: no metal, no relief outside the zones. The detail variant (#define DETAIL)
+// multiplies the base colour by concrete's millimetre-scale detail (concrete_detail.glsl),
+// on the non-metallic share of the surface (not on exposed rebar).
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -61,6 +63,13 @@ uniform sampler2D u_intact_map;   // sRGB: the part's own concrete
 uniform sampler2D u_spall_map;    // R: 1 where the damage mask is 2 or 3, filtered
 uniform float u_intact_uv_ratio;  // the intact map's uv_scale over the damage material's
 #include "zones.glsl"
+#endif
+
+#ifdef DETAIL
+in vec3 v_detail_pos;
+in vec3 v_detail_normal;
+uniform uint u_detail_seed;
+#include "concrete_detail.glsl"
 #endif
 
 #include "tonemap.glsl"
@@ -170,6 +179,10 @@ Surface surface_at_fragment() {
     vec3 intact = srgb_to_linear(texture(u_intact_map, v_uv * u_intact_uv_ratio).rgb);
     base.rgb = mix(intact, base.rgb, spalled);
     metallic *= spalled;
+#endif
+#ifdef DETAIL
+    base.rgb *= mix(concrete_detail(v_detail_pos, v_detail_normal, u_detail_seed), 1.0,
+                    metallic);
 #endif
     return Surface(base.rgb, metallic, clamp(u_roughness, 0.04, 1.0),
                    mix(vec3(0.04), base.rgb, metallic));

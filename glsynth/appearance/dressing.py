@@ -18,6 +18,9 @@ elsewhere. Its severity is drawn as under "paper", so both models damage the sam
 Cross and tie beams and the girders draw their severity, drift and cracks from the CRACKS
 stream (item = their index); a girder's cracks are made per clear span on a straight box and
 mapped onto its curved sweep (glsynth.appearance.girder_cracks).
+
+Under ``[materials] concrete_detail = "on"`` every part of the concrete category gets concrete
+detail (Material.detail_seed) from the DETAIL stream (item = its index), which draws nothing.
 """
 
 import functools
@@ -47,7 +50,7 @@ from glsynth.appearance.materials import (
 )
 from glsynth.appearance.repository import TextureRepository, builtin_repository
 from glsynth.core.config import Config, DamageConfig
-from glsynth.core.seeding import Stream, make_rng
+from glsynth.core.seeding import Stream, make_rng, make_seed
 from glsynth.world.environment import Environment, Part
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
@@ -240,6 +243,18 @@ def _spalling(env: Environment, config: Config, bank: DamageBank,
     return record, (factors, build)
 
 
+def _with_detail(material: Material,
+                 deferred: dict[str, tuple[Material, Callable[[], Material]]], name: str,
+                 seed: int) -> Material:
+    """``material`` with concrete detail of ``seed``; a deferred one's factors and builder
+    are replaced in ``deferred`` too."""
+    if name in deferred:
+        factors, build = deferred[name]
+        deferred[name] = (replace(factors, detail_seed=seed),
+                          lambda: replace(build(), detail_seed=seed))
+    return replace(material, detail_seed=seed)
+
+
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
           visible: set[str]) -> Dressing:
     cfg = config.materials
@@ -286,6 +301,9 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             damage, material = _beam_damage(env, config.damage, part, ordinal, material,
                                             part.name in visible)
             a = replace(a, damage=damage)
+        if cfg.concrete_detail == "on" and a.category == "concrete":
+            material = _with_detail(material, deferred, part.name,
+                                    make_seed(root, index, Stream.DETAIL, ordinal) % 2**32)
         if part.name not in deferred:
             materials[part.name] = material
         assignments[part.name] = a

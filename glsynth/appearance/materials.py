@@ -79,12 +79,19 @@ class Material:
     """Cracks on the part's surface, in its mesh frame (glsynth.appearance.cracks)."""
     zones: DamageZones | None = None
     """Confines the maps and damage mask to these zones (needs a damage mask)."""
+    detail_seed: int | None = None
+    """Concrete's millimetre-scale detail (shaders/concrete_detail.glsl), drawn from this
+    32-bit seed, multiplies the base colour where the surface is not metal; None: none."""
 
     def __post_init__(self) -> None:
         if self.zones is not None and (not isinstance(self.zones, DamageZones)
                                        or self.damage_mask is None):
             raise ValueError("material.zones: a DamageZones, on a material with a damage "
                              "mask")
+        if self.detail_seed is not None and not (isinstance(self.detail_seed, int)
+                                                 and 0 <= self.detail_seed < 2**32):
+            raise ValueError(f"material.detail_seed = {self.detail_seed!r}: an int in "
+                             "[0, 2**32) or None")
         if self.cracks is not None and not isinstance(self.cracks, CrackNetwork):
             raise ValueError(f"material.cracks: {type(self.cracks).__name__}; must be a "
                              "CrackNetwork or None")

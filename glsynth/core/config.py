@@ -475,6 +475,12 @@ class MaterialsConfig:
     painted_roughness: tuple[float, float] = (0.0, 1.0)
     panel_emission: float = 0.5
     """Emission strength of the scene panels (paper: 0.5)."""
+    concrete_detail: Literal["off", "flights", "on"] = "flights"
+    """Concrete's millimetre-scale detail on the concrete parts (cement paste, sand, pores,
+    bug holes, formwork joints and tie holes; docs/design.md, "Concrete detail"): "flights"
+    draws it in glsynth fly's frames alone, where COLMAP needs features at 1-4 mm a pixel,
+    and leaves generate's and render's images as the repository makes them; "on" draws it
+    everywhere, "off" nowhere."""
 
     def __post_init__(self) -> None:
         s = "materials"
@@ -490,6 +496,7 @@ class MaterialsConfig:
         for name in ("steel_roughness", "painted_metallic", "painted_roughness"):
             check_interval(s, name, getattr(self, name), 0.0, 1.0)
         check_number(s, "panel_emission", self.panel_emission, 0.0, 100.0)
+        check_literal(s, MaterialsConfig, "concrete_detail", self.concrete_detail)
 
 
 @dataclass(frozen=True)
@@ -570,8 +577,9 @@ class FlightConfig:
     standoff_m: float = 2.0
     """Distance to the inspected surface: orbit, to the column's edges (its nearest points);
     facade, across to the outermost column or girder face; underdeck, down from the slab's
-    underside. The columns of a row stand 6 m apart ([design] column_spacing_m), so an orbit
-    much wider than 2 m meets the other column of the pair and is refused."""
+    underside. Columns stand 6 m apart across and along the track ([design]
+    column_spacing_m), so with the default clearance an orbit wider than 4 m meets a
+    neighbouring column and is refused (seed 0, environment 0: 4 m passes, 4.5 m not)."""
     heights_m: tuple[float, ...] = (1.5, 3.0)
     """Orbit: the rings' heights above the column's foot, flown in this order."""
     arc_deg: float = 360.0
@@ -604,6 +612,11 @@ class FlightConfig:
     """Least distance from the path to any mesh; a plan that comes closer is refused."""
     max_frames: int = 0
     """Stop after this many frames (0: fly the whole plan)."""
+    exposure: Literal["metered", "scene"] = "metered"
+    """"metered": the camera exposes once for the whole flight, so that the median pixel of
+    four frames spread along the path is 18 % grey (an orbit in the deck's shade meters about
+    1.4 stops above the scene's exposure); "scene": [lighting] exposure, as glsynth render
+    uses (glsynth.data.flight.exposed)."""
     point_stride_px: int = 4
     """points.ply: every point_stride_px-th pixel of each frame, in both directions."""
     point_spacing_m: float = 0.05
@@ -637,6 +650,7 @@ class FlightConfig:
             fail(s, "k1", self.k1, '0 unless camera_model is "SIMPLE_RADIAL" or "OPENCV"')
         check_number(s, "clearance_m", self.clearance_m, 0.01, 100.0)
         check_number(s, "max_frames", self.max_frames, 0, 10**6, integer=True)
+        check_literal(s, FlightConfig, "exposure", self.exposure)
         check_number(s, "point_stride_px", self.point_stride_px, 1, 1024, integer=True)
         check_number(s, "point_spacing_m", self.point_spacing_m, 1e-4, 100.0)
 

@@ -27,6 +27,9 @@ class Stream(IntEnum):
     CRACKS = 9
     """A damaged column's drift and crack network under [damage] model = "mechanics" (item =
     the part's index in the environment's part list)."""
+    DETAIL = 10
+    """A concrete part's detail seed (glsynth.appearance.dressing; item = the part's index in
+    the environment's part list)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

@@ -19,13 +19,15 @@ files, so a resumed flight writes the same bytes as an uninterrupted one.
 import hashlib
 import json
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
-from glsynth.core.config import Config, config_to_dict
+from glsynth.appearance.materials import srgb_decode
+from glsynth.core.config import Config, MaterialsConfig, config_to_dict
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
@@ -44,8 +46,13 @@ from glsynth.world.cameras import Camera
 from glsynth.world.environment import build_environment
 from glsynth.world.flights import FlightPlan, plan_flight
 from glsynth.world.lens import Lens, resample, source_camera, source_pixels
+from glsynth.world.lighting import LUMINANCE, Lighting
 
 RUN_FILE = "flight_run.json"
+MID_GREY = 0.18
+"""The linear luminance a metered flight's median pixel gets (18 % grey, as light meters
+aim)."""
+METERED_FRAMES = 4
 
 
 def frame_name(index: int) -> str:
@@ -68,6 +75,13 @@ def _prepare(out: Path, config: Config, root_seed: int, env: int) -> None:
         raise UserError(f"--out {str(out)!r} is not empty and holds no glsynth flight; use a "
                         "new or empty folder")
     atomic_write_json(run_file, identity)
+
+
+def flight_materials(materials: MaterialsConfig) -> MaterialsConfig:
+    """[materials] as a flight draws them: concrete detail "flights" turns it on."""
+    if materials.concrete_detail == "flights":
+        return replace(materials, concrete_detail="on")
+    return materials
 
 
 def _frame_meta(lens: Lens, plan: FlightPlan, index: int, meta: dict) -> dict:
@@ -97,6 +111,39 @@ def _read_frame(out: Path, index: int) -> Frame:
                  np.asarray(Image.open(folder / "image.png").convert("RGB")),
                  np.asarray(Image.open(folder / "component.png")),
                  np.asarray(Image.open(folder / "damage.png")), np.load(folder / "depth.npy"))
+
+
+def exposed(view: EnvironmentView, cameras: list[Camera], mode: str) -> Lighting:
+    """The flight's lighting, its renderer relit by it. "metered": the camera exposes once
+    for the whole flight, as a drone's does with its exposure locked: the scene's exposure
+    times MID_GREY over the median luminance of METERED_FRAMES frames spread along the path
+    (rendered at the scene's exposure); "scene": the environment's [lighting] exposure."""
+    if mode == "scene" or not cameras:
+        return view.lighting
+    picks = sorted({round(i * (len(cameras) - 1) / max(1, METERED_FRAMES - 1))
+                    for i in range(METERED_FRAMES)})
+    luminance = np.concatenate([
+        srgb_decode(view.renderer.render(cameras[i], {"color"}).color).reshape(-1, 3)
+        @ LUMINANCE for i in picks])
+    median = max(float(np.median(luminance)), 1e-4)  # a black view: at most 1800x brighter
+    lighting = replace(view.lighting, exposure=view.lighting.exposure * MID_GREY / median)
+    view.renderer.relight(lighting)
+    return lighting
+
+
+def _render_frames(view: EnvironmentView, out: Path, cameras: list[Camera], lens: Lens,
+                   where: np.ndarray | None, frame_meta: Callable[[int], dict]) -> int:
+    """Render and write the frames without a marker; how many were rendered."""
+    rendered = 0
+    for index, camera in enumerate(cameras):
+        marker = out / "progress" / f"{frame_name(index)}.done"
+        if marker.exists():
+            continue
+        output = _distorted(view.renderer.render(source_camera(camera, lens)), where)
+        write_render(out / "frames" / frame_name(index), camera, output, frame_meta(index))
+        atomic_write_bytes(marker, b"")
+        rendered += 1
+    return rendered
 
 
 def export_flight(out: Path, n_frames: int, config: Config) -> dict:
@@ -138,28 +185,25 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
                                 np.eye(4), r.znear_m, r.zfar_m), lens)
     source_config = replace(config, render=replace(config.render, width=size.width,
-                                                   height=size.height))
+                                                   height=size.height),
+                            materials=flight_materials(config.materials))
     view = EnvironmentView.open(source_config, root_seed, env_index, cameras=[
         source_camera(c, lens) for c in plan.cameras(config)])
     opened = time.perf_counter() - t0
     cameras = plan.cameras(config)
     where = None if lens.pinhole else source_pixels(cameras[0], lens, size)
-    meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl"}
-    rendered, t1 = 0, time.perf_counter()
+    t1 = time.perf_counter()
     with view.renderer:
-        for index, camera in enumerate(cameras):
-            marker = out / "progress" / f"{frame_name(index)}.done"
-            if marker.exists():
-                continue
-            output = _distorted(view.renderer.render(source_camera(camera, lens)), where)
-            write_render(out / "frames" / frame_name(index), camera, output,
-                         _frame_meta(lens, plan, index, meta))
-            atomic_write_bytes(marker, b"")
-            rendered += 1
+        lighting = exposed(view, [source_camera(c, lens) for c in cameras], fc.exposure)
+        meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl",
+                "exposure": lighting.exposure}
+        rendered = _render_frames(view, out, cameras, lens, where,
+                                  lambda index: _frame_meta(lens, plan, index, meta))
     render_s = time.perf_counter() - t1
     export_environment(view.environment, out / "environment.glb", view.dressing.materials,
-                       view.lighting)
+                       lighting)
     summary = {"plan": plan.plan, "frames": len(plan), "spacing_m": plan.spacing_m,
+               "exposure": lighting.exposure,
                "duration_s": float(plan.times_s[-1]), "parts_built": len(view.scene.parts),
                "parts": len(view.environment.parts),
                **export_flight(out, len(plan), config),

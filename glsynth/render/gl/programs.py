@@ -16,11 +16,22 @@ PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "label
             "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
             "ssao": ("fullscreen.vert", "ssao.frag"),
             "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}
-VARIANTS = {f"{base}{suffix}": (base, macros) for base in ("color", "labels")
-            for suffix, macros in (("_cracks", ("CRACKS",)), ("_spall", ("SPALL",)),
-                                   ("_cracks_spall", ("CRACKS", "SPALL")))}
+
+
+def variant(base: str, cracks: bool, spall: bool, detail: bool = False) -> str:
+    """The name of program ``base`` ("color" or "labels") with crack, zone and concrete detail
+    code as asked."""
+    return base + "_cracks" * cracks + "_spall" * spall + "_detail" * detail
+
+
+_VARIANT_MACROS = {"color": ("CRACKS", "SPALL", "DETAIL"), "labels": ("CRACKS", "SPALL")}
+"""The macros each program has variants for (the labels have no concrete detail)."""
+VARIANTS = {variant(base, *(m in chosen for m in ("CRACKS", "SPALL", "DETAIL"))): (base, chosen)
+            for base, macros in _VARIANT_MACROS.items()
+            for chosen in (tuple(m for i, m in enumerate(macros) if bits >> i & 1)
+                           for bits in range(1, 1 << len(macros)))}
 """Variant name -> (program, the macros it defines): compile-time variants, so that draws
-without cracks or damage zones run the programs without any crack or zone code."""
+without cracks, damage zones or concrete detail run the programs without any of that code."""
 _INCLUDE = re.compile(r'^#include "([\w.]+)"$', re.MULTILINE)
 
 
@@ -42,9 +53,6 @@ def with_define(source: str, *macros: str) -> str:
     return f"{version}\n{defines}{rest}"
 
 
-def variant(base: str, cracks: bool, spall: bool) -> str:
-    """The name of program ``base`` ("color" or "labels") with crack and zone code as asked."""
-    return base + "_cracks" * cracks + "_spall" * spall
 
 
 def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:

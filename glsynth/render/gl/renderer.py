@@ -159,6 +159,21 @@ def zone_uniforms(material: Material) -> ZoneUniforms:
                         zones.intact_uv_scale / material.uv_scale)
 
 
+@dataclass(frozen=True)
+class DetailUniforms:
+    """A part's concrete detail (Material.detail_seed) as the colour pass's detail variants
+    read it."""
+    seed: int
+    origin: tuple[float, float, float]
+    """The part's box's lower corner in its mesh frame: shaders/mesh.vert subtracts it, so
+    that a girder's fragments, hundreds of metres from its frame's origin, keep sub-mm
+    steps."""
+
+    def set(self, prog: moderngl.Program) -> None:
+        prog["u_detail_seed"].value = self.seed
+        prog["u_detail_origin"].value = self.origin
+
+
 @dataclass
 class _Draw:
     name: str
@@ -183,13 +198,16 @@ class _Draw:
     crack_textures: CrackTextures | None = None
     zones: ZoneUniforms | None = None
     """Where the part's damage material applies (textures "intact" and "spall" with it)."""
+    detail: DetailUniforms | None = None
 
     def program(self, base: str, view_has_cracks: bool) -> str:
         """The variant of ``base`` that draws this part: with crack code in a view with
         cracks (labels) or for a part with cracks (colour), with zone code for a part with
-        zones."""
-        cracks = view_has_cracks if base == "labels" else self.cracks is not None
-        return variant(base, cracks, self.zones is not None)
+        zones, and (colour) with detail code for a part with concrete detail."""
+        if base == "labels":
+            return variant(base, view_has_cracks, self.zones is not None)
+        return variant(base, self.cracks is not None, self.zones is not None,
+                       self.detail is not None)
 
 
 @dataclass(frozen=True)
@@ -566,8 +584,13 @@ class Renderer:
             zones = zone_uniforms(material)
             textures |= self._zone_textures(material)
             vaos["labels_spall"] = self._vertex_array("labels_spall", vbo, ibo)
-        if material.cracks is not None or zones is not None:
-            name = variant("color", material.cracks is not None, zones is not None)
+        detail = None
+        if material.detail_seed is not None:
+            detail = DetailUniforms(material.detail_seed,
+                                    tuple(float(v) for v in primitive.positions.min(0)))
+        if material.cracks is not None or zones is not None or detail is not None:
+            name = variant("color", material.cracks is not None, zones is not None,
+                           detail is not None)
             vaos[name] = self._vertex_array(name, vbo, reversed_ibo)
         base = self._base_texture(material)
         if base is not None:
@@ -580,7 +603,7 @@ class Renderer:
                      component=float(info.component), damage_mask=mask,
                      center=pose[:3, :3] @ box.mean(0) + pose[:3, 3],
                      radiance=_emitted(material), corners=box_corners(box, pose),
-                     cracks=material.cracks, zones=zones)
+                     cracks=material.cracks, zones=zones, detail=detail)
 
     def _zone_textures(self, material: Material) -> dict[str, moderngl.Texture]:
         """The zone variant's textures: the intact concrete (a repository image, cached like
@@ -963,6 +986,8 @@ class Renderer:
                     prog["u_intact_uv_ratio"].value = draw.zones.intact_uv_ratio
                     draw.textures["intact"].use(_SPALL_UNITS["u_intact_map"])
                     draw.textures["spall"].use(_SPALL_UNITS["u_spall_map"])
+                if draw.detail is not None:
+                    draw.detail.set(prog)
                 draw.vaos[name].render()
             self._draw_sky(camera)
 

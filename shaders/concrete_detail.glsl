@@ -1,0 +1,122 @@
+// Formed concrete's millimetre-to-decimetre detail, evaluated per fragment at the mesh-frame
+// position (docs/design.md, "Concrete detail"): mottled cement paste, sand grains, pores, bug
+// holes, plywood grain and the formwork's joints and tie holes. A repository image gives a
+// member its colour and stains but, magnified to 1-2 mm per pixel, no contrast at the pixel
+// scale, and it repeats; this detail is hashed from integer cells, so it never repeats, and
+// each feature fades to its mean once a pixel's footprint nears its size (no aliasing).
+// The result multiplies the base colour. Deterministic: a function of the position, the
+// normal's dominant axis and the part's seed alone.
+
+// Chris Wellons' lowbias32: a 32-bit integer hash with good avalanche.
+uint detail_hash(uint x) {
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+
+uint cell_hash(ivec2 c, uint salt) {
+    return detail_hash(uint(c.x) * 0x9e3779b9u ^ detail_hash(uint(c.y) ^ salt));
+}
+
+float unit_float(uint h) {  // [0, 1)
+    return float(h >> 8) * (1.0 / 16777216.0);
+}
+
+// How much of a feature of this size shows: all of it where it spans two pixels or more,
+// none (its mean) where it spans one or less.
+float resolved(float size_m, float footprint_m) {
+    return clamp(size_m / footprint_m - 1.0, 0.0, 1.0);
+}
+
+// The share of a pixel of footprint fp that a disk of radius r covers, at distance d from
+// its centre: antialiased over one pixel, and for a disk smaller than the pixel, no more than
+// its area's share (so that small features fade to their mean, not to speckle).
+float disk(float d, float r, float fp) {
+    return clamp((r - d) / fp + 0.5, 0.0, 1.0) * min(1.0, 4.0 * r * r / (fp * fp));
+}
+
+// Smooth value noise in [-1, 1] with unit lattice spacing.
+float value_noise(vec2 q, uint salt) {
+    vec2 cell = floor(q), f = q - cell, u = f * f * (3.0 - 2.0 * f);
+    ivec2 c = ivec2(cell);
+    float a = unit_float(cell_hash(c, salt)), b = unit_float(cell_hash(c + ivec2(1, 0), salt));
+    float d = unit_float(cell_hash(c + ivec2(0, 1), salt));
+    float e = unit_float(cell_hash(c + ivec2(1, 1), salt));
+    return 2.0 * mix(mix(a, b, u.x), mix(d, e, u.x), u.y) - 1.0;
+}
+
+// Cement paste: value noise in octaves from 64 mm down to 1 mm, each +-9 %.
+float paste(vec2 p, float footprint, uint salt) {
+    float sum = 0.0, size = 0.064;
+    for (int k = 0; k < 7; ++k) {
+        sum += 0.09 * resolved(size, footprint) * value_noise(p / size, salt + uint(k));
+        size *= 0.5;
+    }
+    return sum;
+}
+
+// Sand grains: Voronoi cells around one jittered point per cell of size_m, each cell a
+// shade in [-1, 1]; the nearest point's shade.
+float grains(vec2 p, float size_m, uint salt) {
+    vec2 q = p / size_m, cell = floor(q);
+    float best = 1e9, shade = 0.0;
+    for (int k = 0; k < 9; ++k) {
+        ivec2 c = ivec2(cell) + ivec2(k % 3 - 1, k / 3 - 1);
+        uint h = cell_hash(c, salt);
+        vec2 point = vec2(c) + vec2(unit_float(h), unit_float(detail_hash(h)));
+        float d = dot(q - point, q - point);
+        shade = d < best ? 2.0 * unit_float(detail_hash(h ^ 0x5bd1e995u)) - 1.0 : shade;
+        best = min(d, best);
+    }
+    return shade;
+}
+
+// Holes (pores, bug holes): in a share of the cells of size_m, a disk of radius log-uniform
+// in [r0, r1] inside its cell; the share of the pixel the disk covers.
+float holes(vec2 p, float footprint, float size_m, float share, float r0, float r1,
+            uint salt) {
+    vec2 q = p / size_m;
+    uint h = cell_hash(ivec2(floor(q)), salt);
+    float r = r0 * pow(r1 / r0, unit_float(detail_hash(h))) / size_m;
+    vec2 centre = floor(q) + r + (1.0 - 2.0 * r) * vec2(unit_float(detail_hash(h ^ 1u)),
+                                                        unit_float(detail_hash(h ^ 2u)));
+    return disk(length(q - centre), r, footprint / size_m) * float(unit_float(h) < share);
+}
+
+// Formwork: plywood panels 1.22 x 2.44 m (a dark joint line 4 mm wide between them), tie
+// holes every 0.6 m (25 mm, mortar-filled: lighter), and the plywood's grain along the panel.
+float formwork(vec2 p, float footprint, uint salt) {
+    vec2 offset = vec2(unit_float(detail_hash(salt ^ 7u)), unit_float(detail_hash(salt ^ 9u)));
+    vec2 panel = fract(p / vec2(1.22, 2.44) + offset) * vec2(1.22, 2.44);
+    vec2 edge = min(panel, vec2(1.22, 2.44) - panel);
+    float joint = clamp((0.002 + 0.5 * footprint - min(edge.x, edge.y)) / footprint, 0.0, 1.0);
+    vec2 tie = fract(p / 0.6 + offset) * 0.6 - 0.3;
+    float plug = disk(length(tie), 0.0125, footprint);
+    float grain = 0.03 * resolved(0.002, footprint)
+                  * value_noise(vec2(p.x / 0.002, p.y / 0.04), salt ^ 11u);
+    return grain - 0.25 * joint * resolved(0.004, footprint) + 0.12 * plug;
+}
+
+// The detail's factor on the base colour at mesh-frame position pos (relative to the part's
+// own origin: float32 keeps sub-millimetre steps there), normal n (mesh frame), for part seed.
+float concrete_detail(vec3 pos, vec3 n, uint seed) {
+    vec3 a = abs(n);
+    // The face's own plane, by the normal's dominant axis; each axis and side its own salt,
+    // so that a member's faces differ.
+    int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+    vec2 p = axis == 0 ? pos.yz : (axis == 1 ? pos.xz : pos.xy);
+    float side = axis == 0 ? n.x : (axis == 1 ? n.y : n.z);
+    uint salt = detail_hash(seed ^ uint(2 * axis + int(side > 0.0)) * 0x27d4eb2du);
+    float footprint = max(max(length(dFdx(pos)), length(dFdy(pos))), 1e-6);
+    float shade = 1.0 + paste(p, footprint, salt)
+                  + 0.22 * resolved(0.0025, footprint) * grains(p, 0.0025, salt ^ 3u)
+                  + 0.15 * resolved(0.005, footprint) * grains(p, 0.005, salt ^ 12u)
+                  + 0.15 * resolved(0.012, footprint) * grains(p, 0.012, salt ^ 4u)
+                  + formwork(p, footprint, salt);
+    float dark = 0.55 * holes(p, footprint, 0.006, 0.40, 0.0002, 0.0008, salt ^ 5u)
+                 + 0.65 * holes(p, footprint, 0.025, 0.12, 0.0005, 0.004, salt ^ 6u);
+    return max(shade * (1.0 - dark), 0.0);
+}
