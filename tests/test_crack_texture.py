@@ -181,3 +181,27 @@ def test_coverage_survives_the_16_bit_encoding():
                                                                                65535]
     with pytest.raises(ValueError, match="16 bits"):
         encode(np.array([[65536]]), 1)
+
+
+def test_a_curved_girders_cracks_read_back_from_their_own_facets():
+    """A girder at the tightest radius is flat pieces a hundredth of a radian apart, several
+    within the lookup's millimetre of a point near their joints: each crack's centreline,
+    read as the Blender material reads it, finds coverage from the nearest facet's texels,
+    as a flat face's does (summing the planes in reach read wrong texels)."""
+    from test_girder_cracks import cracks_of, curved_env, tightest_girders
+
+    env = curved_env()
+    part = tightest_girders(env)[0]
+    net = cracks_of(env, part, 1)
+    texture = bake_texture(net, part.mesh, 2e-4)
+    ends = net.points
+    mid = (ends[:, 0] + ends[:, 1]) / 2
+    face_normals = np.asarray(part.mesh.face_normals)
+    corners = np.asarray(part.mesh.vertices)[part.mesh.faces[:, 0]]
+    gap = np.abs(mid @ face_normals.T - np.einsum("ij,ij->i", face_normals, corners))
+    normals = face_normals[np.argmin(gap, axis=1)]  # a face whose plane holds the point
+    got = texture.lookup(mid, normals)
+    wide = net.widths_m.min(1) >= 4e-4  # two texels and more: the centre texel is covered
+    assert wide.sum() > 50
+    assert np.all((got >= 0) & (got <= 1))
+    assert np.mean(got[wide] > 0.5) > 0.95

@@ -268,6 +268,9 @@ def test_a_crack_beside_a_silhouette_is_left_unmeasured_where_the_depth_jumps():
     near[:, 102:] = DEPTH * 1.0001  # a step no larger than a slanted surface makes
     kept = measure_cracks(damage, near, CENTRED).skeleton_width_mm
     assert np.nanmedian(kept) == pytest.approx(2 * MM_PER_PX, rel=0.1)
+    across = damage_of(drawn(1.0, [[40.0, 60.0], [101.0, 60.0]]))  # ends at the silhouette
+    (crack,) = measure_cracks(across, depth, CENTRED).cracks
+    assert crack["length_m"] == pytest.approx(61 * MM_PER_PX / 1000, rel=0.1)
     damage80, depth80, truth80, k80 = plane_view(80, 90, 0.0015)
     assert np.isfinite(measure_cracks(damage80, depth80, k80).skeleton_width_mm).sum() > 50
 
@@ -464,10 +467,16 @@ def test_oracle_cli_reads_render_outputs_at_full_size(tmp_path, capsys):
         np.save(folder / "crack_width.npy", truth.astype(np.float32))
         (folder / "camera.json").write_text(json.dumps(camera.to_json()))
     (tmp_path / "render" / "camera_001" / "depth.npy").write_bytes(b"not an array")
+    bad_k = tmp_path / "render" / "camera_002"
+    bad_k.mkdir()
+    for name in ("image.png", "component.png", "damage.png", "depth.npy", "crack_width.npy"):
+        (bad_k / name).write_bytes((tmp_path / "render" / "camera_000" / name).read_bytes())
+    (bad_k / "camera.json").write_text(json.dumps({"K": [[1, 2], [3]]}))
     out = tmp_path / "out"
     assert main(["assess", "--oracle", str(tmp_path / "render"), "--out", str(out)]) == 1
     failed = capsys.readouterr().err.strip().splitlines()
-    assert len(failed) == 1 and "camera_001" in failed[0] and "depth.npy" in failed[0]
+    assert len(failed) == 2 and "camera_001" in failed[0] and "depth.npy" in failed[0]
+    assert "camera_002" in failed[1] and "K = " in failed[1]
     truth_summary = json.loads((out / "camera_000.json").read_text())["cracks"]["truth"]
     assert truth_summary["at_least_2px"]["pixels"] > 100
     assert truth_summary["at_least_2px"]["median_relative_error"] <= 0.05

@@ -44,13 +44,16 @@ def faces_config(**fields) -> CameraConfig:
     return dataclasses.replace(INSPECTION.cameras, n_closeup=N, **fields)
 
 
-_CRACKS: dict[int, dict] = {}
+_CRACKS: dict[tuple[int, int], dict] = {}
 
 
 def cracks_of(env) -> dict:
     """The environment's crack segments under the inspection preset, which its cameras aim at
-    (made once per environment object)."""
-    return _CRACKS.setdefault(id(env), crack_segments(env, INSPECTION))
+    (made once per environment)."""
+    key = (env.root_seed, env.env_index)
+    if key not in _CRACKS:
+        _CRACKS[key] = crack_segments(env, INSPECTION)
+    return _CRACKS[key]
 
 
 def placements(env, cameras: CameraConfig, render=SMALL, n: int = N) -> list:
@@ -222,6 +225,10 @@ def test_extremes_of_the_ranges(env0, fields):
     ("cameras", {"face_distance_m": [-1.0, 3.0]}, "face_distance_m"),
     ("cameras", {"face_roll_deg": 60.0}, "face_roll_deg"),
     ("cameras", {"n_regular": 2}, "n_regular"),
+    ("cameras", {"face_crack_share": 1.5}, "face_crack_share"),
+    ("cameras", {"face_crack_share": -0.1}, "face_crack_share"),
+    ("cameras", {"face_crack_px": -1.0}, "face_crack_px"),
+    ("cameras", {"placement": "within", "n_regular": 2}, "face_crack_share"),
     ("damage", {"severities": ["slight", "slight"]}, "severities"),
     ("damage", {"severities": ["light"]}, "severities"),
     ("damage", {"severities": []}, "severities"),
@@ -234,6 +241,14 @@ def test_bad_inspection_settings_give_one_clear_line(section, values, field):
         config_from_dict({section: values}, INSPECTION)
     message = str(err.value)
     assert "\n" not in message and f"{section}.{field}" in message
+
+
+def test_cameras_aim_at_cracks_only_under_mechanics():
+    paper = {"model": "paper", "severities": ["slight", "medium", "severe"],
+             "spalling_severities": ["medium", "severe"]}
+    with pytest.raises(UserError) as err:
+        config_from_dict({"damage": paper}, INSPECTION)
+    assert "cameras.face_crack_share" in str(err.value) and "mechanics" in str(err.value)
 
 
 def test_severities_subset_only_under_mechanics():

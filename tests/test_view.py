@@ -368,6 +368,14 @@ def test_a_move_interrupts_a_still_in_flight_and_the_stale_still_is_never_sent(t
     worker._pick_job()()
     assert [(f["still"], f["width"]) for f in frames()] == [(True, worker.scene.full_size[0])]
     assert len(bands) == STILL_BANDS
+    # A page that moves and stops elsewhere within one still: the first still is dropped and
+    # only the second pose's is sent.
+    worker.submit(cid, parse_message(camera_message(pose=pose, focal_mm=focal, moving=False)))
+    during_labels.append(camera_message(pose=pose, focal_mm=focal + 2, moving=False))
+    worker._pick_job()()
+    assert frames() == []
+    worker._pick_job()()
+    assert [(f["still"], f["focal_mm"]) for f in frames()] == [(True, focal + 2)]
     renderer.release()
 
 
@@ -428,3 +436,32 @@ def test_a_failed_opening_releases_its_context(monkeypatch):
     again = open_scene(dataclasses.replace(settings, env=1), None, lambda *_: None)
     assert again.view.renderer is not renderer and again.settings.env == 1
     again.view.renderer.release()
+
+
+def test_a_programming_error_in_a_switch_reopens_the_last_scene(tmp_path, monkeypatch):
+    """A switch that fails with a programming error keeps its traceback (the render thread
+    prints it) but leaves no page waiting on a progress bar: loading clears and the last good
+    scene is asked for again."""
+    import glsynth.view.worker as worker_module
+    from glsynth.view.scene import SceneSettings
+    from glsynth.view.worker import RenderWorker
+
+    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
+    worker._pick_job()()
+    renderer = worker.scene.view.renderer
+    real_open = worker_module.open_scene
+
+    def broken(settings, *args):
+        if settings.env == 1:
+            raise RuntimeError("a bug")
+        return real_open(settings, *args)
+
+    monkeypatch.setattr(worker_module, "open_scene", broken)
+    worker.submit(worker.add_client(lambda m: None), SceneRequest(0, 1, "preview", None))
+    with pytest.raises(RuntimeError, match="a bug"):
+        worker._pick_job()()
+    assert worker.loading is None and worker.scene is None
+    worker._pick_job()()  # the fallback
+    assert worker.scene is not None and worker.scene.settings.env == 0
+    worker.scene.view.renderer.release()
+    del renderer

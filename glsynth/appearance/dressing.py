@@ -185,7 +185,8 @@ def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: 
 
 def crack_segments(env: Environment, config: Config
                    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Every damaged member's crack segments, seen by a camera or not: end points (N, 2, 3) in
+    """Every damaged column's and cross and tie beam's crack segments (the members face
+    cameras aim at; not the girders'), seen by a camera or not: end points (N, 2, 3) in
     its mesh frame and widths (N, 2) in metres. They are the networks ``dress`` gives the
     seen members, for cameras that aim at cracks ([cameras] face_crack_share); none under
     model = "paper"."""
@@ -200,7 +201,7 @@ def crack_segments(env: Environment, config: Config
                 continue
             _, material = _mechanics_damage(env, config.damage, part, ordinal,
                                             {**damage, "built": True}, Material())
-        elif kind == "beam":
+        elif kind == "beam" and "_girder_" not in part.name:  # no camera aims at a girder
             _, material = _beam_damage(env, config.damage, part, ordinal, Material(), True)
         else:
             continue

@@ -10,6 +10,7 @@ oblique surfaces are under-counted by the cosine of their tilt. Cracks kept ther
 in millimetres when the focal length is known (glsynth.assess.cracks).
 """
 
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -370,23 +371,37 @@ def render_photos(folders: list[Path], limit: int | None = None) -> list[Photo]:
     """The full-size ground truth of ``glsynth render`` outputs (image.png, component.png,
     damage.png, depth.npy, crack_width.npy, camera.json) in place of the networks: the maps
     are the image's size, and the focal length in pixels is camera.json's K."""
-    from glsynth.data.readers import read_float_map, read_json, read_label_map
+    from glsynth.data.readers import read_float_map, read_label_map
 
     def loader(folder: Path) -> Callable[[], tuple[np.ndarray, Maps]]:
         def load() -> tuple[np.ndarray, Maps]:
             rgb = read_photo(folder / "image.png")
             size = (rgb.shape[1], rgb.shape[0])
-            camera = read_json(folder / "camera.json", {"K": list},
-                               "write it again with glsynth render")
             maps = Maps(read_label_map(folder / "component.png", "component", size),
                         read_label_map(folder / "damage.png", "damage", size),
                         read_float_map(folder / "depth.npy", "depth map", size),
-                        float(camera["K"][0][0]), 1.0,
+                        _render_focal_px(folder / "camera.json"), 1.0,
                         read_float_map(folder / "crack_width.npy", "crack-width map", size))
             return rgb, maps
         return load
 
     return [Photo(folder.name, loader(folder)) for folder in folders[:limit]]
+
+
+def _render_focal_px(path: Path) -> float:
+    """fx of a render's camera.json K (3x3, pixels), checked."""
+    from glsynth.data.readers import read_json
+
+    fix = "write it again with glsynth render"
+    k = read_json(path, {"K": list}, fix)["K"]
+    try:
+        fx = float(np.asarray(k, dtype=np.float64).reshape(3, 3)[0, 0])
+    except (TypeError, ValueError):
+        fx = math.nan
+    if not 0 < fx < math.inf:
+        raise UserError(f"{str(path)!r}: K = {str(k)[:60]} is not a 3x3 matrix with a focal "
+                        f"length > 0 in pixels; {fix}")
+    return fx
 
 
 def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | None]:

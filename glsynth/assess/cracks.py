@@ -319,7 +319,11 @@ def _measure_skeleton(labels: np.ndarray, skeleton: np.ndarray, tangents: np.nda
     steps = np.stack([p[:, 2] for p in ends + along]) / z - 1.0
     continuous = np.all(np.abs(steps) <= bound, axis=0)  # NaN steps fail too
     tangent3 = along[0] - along[1]
-    metres_per_px = np.linalg.norm(tangent3, axis=1) / 2
+    # Where a step along the crack crosses a silhouette, its length per pixel is the
+    # fronto-parallel footprint: the back-projected step would span the two surfaces.
+    smooth_along = np.all(np.abs(steps[2:]) <= bound[2:], axis=0)
+    metres_per_px = np.where(smooth_along, np.linalg.norm(tangent3, axis=1) / 2,
+                             z / intrinsics.fx)
     unit = tangent3 / np.linalg.norm(tangent3, axis=1, keepdims=True)
     across = ends[0] - ends[1]
     across -= np.sum(across * unit, axis=1, keepdims=True) * unit

@@ -128,25 +128,32 @@ def plane_coordinates(tree: bpy.types.NodeTree, member: dict, mesh_from_object: 
     rotation, shift = mesh_from_object.to_3x3(), mesh_from_object.translation
     to_object = rotation.transposed()
     block = member["block_m"]
-    u = v = on = 0.0
+    u = v = 0.0
+    best = member["tolerance_m"]  # the nearest plane within it wins (crack_texture.lookup)
     for g in member["planes"]:
         n, eu, ev = (Vector(g[k]) for k in ("normal", "u_axis", "v_axis"))
-        near = math_node(tree, "LESS_THAN", math_node(
-            tree, "ABSOLUTE", dot(tree, point, to_object @ n, shift.dot(n) - g["offset"])),
-            member["tolerance_m"])
+        gap = math_node(tree, "ABSOLUTE", dot(tree, point, to_object @ n,
+                                              shift.dot(n) - g["offset"]))
         facing = math_node(tree, "GREATER_THAN", dot(tree, normal, to_object @ n, 0.0), 0.5)
-        mine = math_node(tree, "MULTIPLY", near, facing)
+        mine = math_node(tree, "MULTIPLY", math_node(tree, "LESS_THAN", gap, best), facing)
         clamp = tree.nodes.new("ShaderNodeClamp")
         tree.links.new(dot(tree, point, to_object @ eu / block,
                            (shift.dot(eu) - g["corner"][0]) / block + g["column"]),
                        clamp.inputs["Value"])
         clamp.inputs["Min"].default_value = g["column"] - 0.5
         clamp.inputs["Max"].default_value = g["column"] + g["blocks"][0] + 0.5
-        u = math_node(tree, "MULTIPLY_ADD", mine, clamp.outputs[0], u)
-        v = math_node(tree, "MULTIPLY_ADD", mine, dot(
-            tree, point, to_object @ ev / block, (shift.dot(ev) - g["corner"][1]) / block), v)
-        on = math_node(tree, "ADD", mine, on)
+        u = _choose(tree, mine, clamp.outputs[0], u)
+        v = _choose(tree, mine, dot(tree, point, to_object @ ev / block,
+                                    (shift.dot(ev) - g["corner"][1]) / block), v)
+        best = _choose(tree, mine, gap, best)
+    on = math_node(tree, "LESS_THAN", best, member["tolerance_m"])
     return u, v, on
+
+
+def _choose(tree: bpy.types.NodeTree, pick: bpy.types.NodeSocket, new: bpy.types.NodeSocket,
+            old: bpy.types.NodeSocket | float) -> bpy.types.NodeSocket:
+    """``new`` where ``pick`` is 1, ``old`` where it is 0: old + pick (new - old)."""
+    return math_node(tree, "MULTIPLY_ADD", pick, math_node(tree, "SUBTRACT", new, old), old)
 
 
 def crack_coverage(tree: bpy.types.NodeTree, member: dict, mesh_from_object: Matrix

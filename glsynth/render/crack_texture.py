@@ -44,8 +44,10 @@ each); baking 14.7 M of them took 280 MB more in glsynth (and 14 s)."""
 PLANE_TOLERANCE_M = 1e-5
 """A segment lies on a plane of the mesh when both its ends are this close to it."""
 LOOKUP_TOLERANCE_M = 1e-3
-"""A point reads a plane's texels within this distance of it (and facing its way): above
-the float32 precision of Cycles' positions a kilometre from the origin (0.1 mm)."""
+"""A point reads the texels of the nearest plane facing its way, within this distance: above
+the float32 precision of Cycles' positions a kilometre from the origin (0.1 mm). Nearest, not
+any: a curved girder's flat pieces are planes a hundredth of a radian apart, several within
+a millimetre of a point near their joints."""
 ENCODE_STEPS = 255 * 256
 """16 bits over two 8-bit channels: coverage = R + G / 256, block index = 256 R + G (R, G the
 bytes)."""
@@ -91,17 +93,18 @@ class CrackTexture:
     def lookup(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """The coverage at mesh-frame ``points`` (n, 3) on faces of ``normals``, computed as
         blender_job.py's nodes compute it."""
-        u = np.zeros(len(points))
-        v, on = np.zeros(len(points)), np.zeros(len(points), bool)
+        u, v = np.zeros(len(points)), np.zeros(len(points))
+        best = np.full(len(points), LOOKUP_TOLERANCE_M)  # the nearest plane within it wins
         for g in self.planes:
-            mine = ((normals @ g.normal > 0.5)
-                    & (np.abs(points @ g.normal - g.offset) < LOOKUP_TOLERANCE_M))
+            gap = np.abs(points @ g.normal - g.offset)
+            mine = (normals @ g.normal > 0.5) & (gap < best)
             scale = BLOCK * self.texel_m
             uu = np.clip((points @ g.u_axis - g.corner[0]) / scale + g.column, g.column - 0.5,
                          g.column + g.blocks[0] + 0.5)
             u = np.where(mine, uu, u)
             v = np.where(mine, (points @ g.v_axis - g.corner[1]) / scale, v)
-            on |= mine
+            best = np.where(mine, gap, best)
+        on = best < LOOKUP_TOLERANCE_M
         rows, cols = self.indirection.shape
         inside = (u >= 0) & (u < cols) & (v >= 0) & (v < rows)
         k = np.where(inside, self.indirection[np.clip(v, 0, rows - 1).astype(int),

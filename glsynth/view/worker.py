@@ -274,12 +274,14 @@ class RenderWorker:
         t0 = time.perf_counter()
         try:
             scene = open_scene(settings, renderer, self._progress(settings))
-        except UserError as err:
+        except Exception as err:  # the last good scene opens again, as after a bad config
             self.loading = None
-            self._error(cid, err)
-            if fallback is not None:
+            if fallback is not None and fallback != settings:
                 with self._lock:
                     self._scene_request = (fallback, None)
+            if not isinstance(err, UserError):
+                raise  # a programming error: _run prints its traceback on the pages' behalf
+            self._error(cid, err)
             return
         with self._lock:
             self.scene, self.loading = scene, None
@@ -323,10 +325,10 @@ class RenderWorker:
                                else 1)
 
     def _stale(self, cid: int, client: Client) -> bool:
-        """Whether a still for ``client`` is no longer wanted: its page closed or moved."""
+        """Whether a still for ``client`` is no longer wanted: its page closed, or asked for
+        another frame (a move, or a stop elsewhere) since the still was taken."""
         with self._lock:
-            return cid not in self._clients or (client.pending is not None
-                                                and client.pending.moving)
+            return cid not in self._clients or client.pending is not None
 
     def _moving(self) -> bool:
         """Whether some page waits for a moving frame."""
