@@ -49,8 +49,8 @@ VERDICT_AFTER_S = 2.0
 """Verdicts (full-size renders) start this long after the last move."""
 STILL_BANDS = 4
 """Bands of rows of a full-size render's colour pass (its longest pass): a move waits for at
-most about one piece; the bands and the waits between pieces cost a 1920x1080 still 1.6 %
-(bench/bench_view.py)."""
+most about one piece; on a 1920x1080 still the bands' cost is within bench_view's noise
+(docs/results.md, "The viewer")."""
 
 
 @dataclass
