@@ -33,9 +33,10 @@ from glsynth.data.tokaido import (
     frame_paths,
     read_manifest,
 )
-from glsynth.data.visible_cracks import in_frustum, member_cracks, project
+from glsynth.data.visible_cracks import member_cracks, project
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
+from glsynth.world.visibility import in_frustum
 
 
 # --- downsampling ---------------------------------------------------------------------------

@@ -16,7 +16,7 @@ import numpy as np
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
-from glsynth.world.visibility import part_corners, seen_by
+from glsynth.world.visibility import in_frustum, part_corners, seen_by
 
 SAMPLE_STEP_PX = 0.5
 """Samples along a centreline, at most this many image pixels apart."""
@@ -27,21 +27,6 @@ DEPTH_TOLERANCE = (0.02, 0.01)
 """A sample is on the rendered surface when its depth is within 2 % + 1 cm of the depth there:
 on a face seen at 85 degrees the surface under a pixel spans about 1 % of the depth, and an
 occluding surface stands farther off than that."""
-
-
-def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera) -> np.ndarray:
-    """(N,) False for the segments a-b (world, (N, 3) each) that lie wholly beyond one plane of
-    the view's frustum (the near plane, or a side grown by 2 pixels): none of their points can
-    land in the image. True for the rest (a conservative test)."""
-    view = camera.view()
-    ca, cb = (p @ view[:3, :3].T + view[:3, 3] for p in (a, b))
-    za, zb = -ca[:, 2], -cb[:, 2]
-    out = (za < camera.znear) & (zb < camera.znear)
-    for axis, size in ((0, camera.width), (1, camera.height)):
-        slope = (size / 2 + 2) / camera.fx  # |x| / depth at the image's edge, plus 2 pixels
-        for sign in (1.0, -1.0):
-            out |= (sign * ca[:, axis] > slope * za) & (sign * cb[:, axis] > slope * zb)
-    return ~out
 
 
 def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera

@@ -30,7 +30,13 @@ from glsynth.core.children import run_child
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 from glsynth.core.seeding import Stream, make_seed
-from glsynth.render.crack_texture import BLOCK, LOOKUP_TOLERANCE_M, bake_for_views, encode
+from glsynth.render.crack_texture import (
+    BLOCK,
+    LOOKUP_TOLERANCE_M,
+    bake_for_views,
+    encode,
+    framed,
+)
 from glsynth.render.cracks_index import CRACK_CONTRAST
 from glsynth.render.export import describe_lighting
 from glsynth.render.gltf import gltf_binary
@@ -132,10 +138,10 @@ def crack_jobs(parts: Sequence[Part], materials: dict[str, Material],
                cameras: Sequence[Camera], work: Path) -> list[dict]:
     """The job's cracks: per part with cracks, its crack texture for ``cameras`` (images
     written to ``work``) and where it lies on the part."""
-    cracked = [p for p in parts if materials[p.name].cracks is not None
-               and len(materials[p.name].cracks.points)]
-    textures = bake_for_views([(materials[p.name].cracks, p.mesh, p.pose) for p in cracked],
-                              cameras)
+    shown = {p.name: framed(materials[p.name].cracks, p.pose, cameras) for p in parts
+             if materials[p.name].cracks is not None}
+    cracked = [p for p in parts if p.name in shown and len(shown[p.name].points)]
+    textures = bake_for_views([(shown[p.name], p.mesh, p.pose) for p in cracked], cameras)
     jobs = []
     for i, (part, texture) in enumerate(zip(cracked, textures)):
         images = {"indirection": encode(texture.indirection, 1), "atlas": encode(texture.atlas)}

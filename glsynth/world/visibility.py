@@ -126,3 +126,18 @@ def ray_hits(part: Part, origin: np.ndarray, direction: np.ndarray) -> np.ndarra
     t = np.einsum("ij,ij->i", e2, q) * inv
     hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
     return np.sort(t[hit])
+
+
+def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera) -> np.ndarray:
+    """(N,) False for the segments a-b (world, (N, 3) each) that lie wholly beyond one plane of
+    the view's frustum (the near plane, or a side grown by 2 pixels): none of their points can
+    land in the image. True for the rest (a conservative test)."""
+    view = camera.view()
+    ca, cb = (p @ view[:3, :3].T + view[:3, 3] for p in (a, b))
+    za, zb = -ca[:, 2], -cb[:, 2]
+    out = (za < camera.znear) & (zb < camera.znear)
+    for axis, size in ((0, camera.width), (1, camera.height)):
+        slope = (size / 2 + 2) / camera.fx  # |x| / depth at the image's edge, plus 2 pixels
+        for sign in (1.0, -1.0):
+            out |= (sign * ca[:, axis] > slope * za) & (sign * cb[:, axis] > slope * zb)
+    return ~out
