@@ -49,7 +49,11 @@ from glsynth.appearance.materials import Material  # noqa: E402
 from glsynth.assess.cracks import Intrinsics, error_summary, measure_cracks, width_errors  # noqa: E402
 from glsynth.core.config import LightingConfig, RenderConfig, load_config  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
-from glsynth.data.visible_cracks import centreline_samples, project  # noqa: E402
+from glsynth.data.visible_cracks import (  # noqa: E402
+    DEPTH_TOLERANCE,
+    centreline_samples,
+    project,
+)
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.scene import build_scene  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
@@ -205,7 +209,8 @@ def segments_measured(view: EnvironmentView, camera: Camera, out, measure) -> np
         points, segment, _ = centreline_samples(net, part.pose, camera)
         col, row, depth = project(points, camera)
         on = col >= 0
-        on[on] = np.abs(depth[on] - out.depth[row[on], col[on]]) <= 0.02 * depth[on] + 0.01
+        rel, ab = DEPTH_TOLERANCE
+        on[on] = np.abs(depth[on] - out.depth[row[on], col[on]]) <= rel * depth[on] + ab
         for dr in (-1, 0, 1):
             for dc in (-1, 0, 1):
                 r, c = row[on] + dr, col[on] + dc

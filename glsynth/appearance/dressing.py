@@ -201,7 +201,7 @@ def crack_segments(env: Environment, config: Config
                 continue
             _, material = _mechanics_damage(env, config.damage, part, ordinal,
                                             {**damage, "built": True}, Material())
-        elif kind == "beam" and "_girder_" not in part.name:  # no camera aims at a girder
+        elif kind == "beam" and not is_girder(part):  # no camera aims at a girder
             _, material = _beam_damage(env, config.damage, part, ordinal, Material(), True)
         else:
             continue
