@@ -157,9 +157,10 @@ def test_surface_area_on_a_tilted_plane_and_at_a_silhouette():
         # Central differences inside, one-sided ones on the image border.
         assert np.allclose(area[1:-1, 1:-1], exact[1:-1, 1:-1], rtol=0.002), tilt
         assert np.allclose(area, exact, rtol=0.05), tilt
-    # Beyond 84 degrees a pixel counts 10 times its fronto-parallel area (MAX_SLANT).
+    # Beyond 85 degrees a pixel counts 11.5 times its fronto-parallel area (MAX_AREA_FACTOR).
     depth = plane_depth((60, 80), f, z0, 88.0)
-    assert np.allclose(surface_area_m2(depth, f)[20:40, 35:45], 10 * (depth[20:40, 35:45] / f) ** 2)
+    assert np.allclose(surface_area_m2(depth, f)[20:40, 35:45],
+                       11.474 * (depth[20:40, 35:45] / f) ** 2, rtol=1e-4)
     # A near plane in front of a far one: its edge pixels keep their own surface.
     depth = np.full((40, 40), 20.0)
     depth[:, :20] = 2.0

@@ -21,6 +21,7 @@ import numpy as np
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import grade_rgb
+from glsynth.core.surfaces import MAX_SLANT_DEG
 
 TANGENT_RADIUS_PX = 4
 """Half-size of the window of skeleton pixels whose principal axis gives the local direction:
@@ -29,10 +30,6 @@ SCAN_STEP_PX = 0.05
 """Step of the scan across the crack; the edge is interpolated between two steps."""
 SCAN_SAMPLES = 2_000_000
 """Samples per batch of scans (a few tens of MB), whatever the number of skeleton pixels."""
-MAX_SLANT_DEG = 85.0
-"""A surface seen more obliquely than this is not measured: its depth changes by more than
-tan(85 deg) = 11.4 pixel footprints per pixel. A larger step between a scan's end and its
-skeleton pixel is a silhouette, where the interpolated depth mixes two surfaces."""
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from glsynth.core.checks import (
 )
 from glsynth.core.design import StandardDesign
 from glsynth.core.errors import UserError
+from glsynth.core.surfaces import MAX_SLANT_DEG
 
 
 @dataclass(frozen=True)
@@ -143,8 +144,7 @@ class CameraConfig:
         check_interval(s, "rot_y_deg", self.rot_y_deg, -180.0, 180.0)
         check_interval(s, "rot_z_deg", self.rot_z_deg, -180.0, 180.0)
         check_positive_interval(s, "face_distance_m", self.face_distance_m, 1000.0, "metres")
-        # Beyond 85 degrees the face is seen edge-on: no image of it is left to inspect.
-        check_number(s, "face_angle_deg", self.face_angle_deg, 0.0, 85.0)
+        check_number(s, "face_angle_deg", self.face_angle_deg, 0.0, MAX_SLANT_DEG)
         check_number(s, "face_roll_deg", self.face_roll_deg, 0.0, 45.0)
         check_number(s, "face_crack_share", self.face_crack_share, 0.0, 1.0)
         check_number(s, "face_crack_px", self.face_crack_px, 0.0, 100.0)

@@ -24,6 +24,7 @@ import numpy as np
 
 from glsynth.core.errors import UserError, shown
 from glsynth.core.labels import Component, Damage
+from glsynth.core.surfaces import MAX_AREA_FACTOR
 from glsynth.data.filters import rrdr
 from glsynth.data.readers import (
     map_size,
@@ -54,9 +55,6 @@ is the smallest width a map can hold, the last its largest."""
 CRACKED_MEMBERS = (Component.COLUMN, Component.BEAM)
 """The components whose surface can crack (columns, and cross and tie beams and girders, all
 labelled beams)."""
-MAX_SLANT = 10.0
-"""surface_area_m2 counts a pixel as at most this many times its fronto-parallel area (a
-surface tilted up to 84 degrees): steeper steps in a depth map are silhouettes or noise."""
 KINDS = ("regular", "closeup", "plate")
 COMPONENTS = [c for c in Component if c != Component.UNLABELLED]
 
@@ -121,7 +119,8 @@ def surface_area_m2(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
     back-projected steps to its neighbours in x and in y. A step is the mean of the steps to
     the two neighbours where they agree within half their length (one smooth surface), else
     the step to the neighbour of nearer depth (the pixel's own surface at a silhouette or an
-    edge). That is (z / f)^2 / cos(tilt) on a plane; at most MAX_SLANT times (z / f)^2."""
+    edge). That is (z / f)^2 / cos(tilt) on a plane; at most MAX_AREA_FACTOR times (z / f)^2
+    (glsynth.core.surfaces)."""
     h, w = depth_m.shape
     rows, cols = np.mgrid[0:h, 0:w]
     z = depth_m.astype(np.float64)
@@ -139,7 +138,7 @@ def surface_area_m2(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
         return np.where(smooth[..., None], (ahead + back) / 2, near)
 
     area = np.linalg.norm(np.cross(step(1), step(0)), axis=-1)
-    return np.minimum(area, MAX_SLANT * (z / focal_px) ** 2)
+    return np.minimum(area, MAX_AREA_FACTOR * (z / focal_px) ** 2)
 
 
 def crack_width_counts(code: np.ndarray) -> tuple[int, ...]:
