@@ -86,3 +86,39 @@ def test_builtin_repository_has_the_same_images_at_every_texture_size():
         shrunk = np.asarray(Image.fromarray(large.image(category, 0)).resize(
             (16, 16), Image.Resampling.BOX), dtype=float)
         assert np.abs(shrunk - small.image(category, 0)).mean() < 4.0  # levels
+
+
+def test_decoded_images_are_cached_by_content(repo_dir, monkeypatch):
+    """A second repository reads the decoded image without decoding it; an edited image, or a
+    damaged cache entry, is decoded again."""
+    import glsynth.appearance.repository as repository
+
+    first = TextureRepository(repo_dir, 16).image("concrete", 0)
+    entries = sorted((repository.cache_root() / "decoded").glob("*.npy"))
+    assert entries and any(np.array_equal(np.load(e), first) for e in entries)
+
+    def no_decoding(*args, **kwargs):
+        raise AssertionError("decoded again")
+
+    with monkeypatch.context() as m:
+        m.setattr(repository.Image, "open", no_decoding)
+        assert np.array_equal(TextureRepository(repo_dir, 16).image("concrete", 0), first)
+
+    path = repo_dir / "concrete" / "concrete_0000.png"
+    Image.new("RGB", (32, 32), (250, 0, 0)).save(path)
+    assert TextureRepository(repo_dir, 16).image("concrete", 0)[..., 0].min() == 250
+
+    entries = set((repository.cache_root() / "decoded").glob("*.npy"))
+    for entry in entries:
+        entry.write_bytes(entry.read_bytes()[:100])  # truncated
+    with pytest.warns(UserWarning, match="concrete_0000.png' again"):
+        red = TextureRepository(repo_dir, 16).image("concrete", 0)
+    assert red[..., 0].min() == 250
+
+    def readable(entry):
+        try:
+            return np.array_equal(np.load(entry), red)
+        except ValueError:
+            return False
+
+    assert any(readable(e) for e in entries)  # replaced

@@ -11,6 +11,6 @@ def shader_dir() -> Path:
 
 
 def cache_root() -> Path:
-    """$GLSYNTH_CACHE, default ~/.cache/glsynth: the built-in texture repository, the damage
-    bank and the resized training inputs."""
+    """$GLSYNTH_CACHE, default ~/.cache/glsynth: the built-in texture repository, repository
+    images decoded at a texture size, the damage bank and the resized training inputs."""
     return Path(os.environ.get("GLSYNTH_CACHE") or Path.home() / ".cache" / "glsynth")
