@@ -174,16 +174,16 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     folder's run lock. Returns the flight's summary (flight.json) and timings."""
     _check_renderer(config)
     plan = plan_flight(build_environment(config, root_seed, env_index), config, validate=True)
+    fc, r = config.flight, config.render
+    lens = Lens(fc.camera_model, fc.k1, fc.k2)
+    # The lens's canvas depends on the intrinsics alone, not on a pose; making it checks them.
+    size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
+                                np.eye(4), r.znear_m, r.zfar_m), lens)
     _prepare(out, config, root_seed, env_index)  # after the checks: a refused plan writes nothing
     if (out / "flight.json").exists():  # written last: the flight is complete
         return {**json.loads((out / "flight.json").read_text()), "open_s": 0.0, "rendered": 0,
                 "render_s_per_frame": None}
-    fc = config.flight
-    lens = Lens(fc.camera_model, fc.k1, fc.k2)
     t0 = time.perf_counter()
-    r = config.render  # the lens's canvas depends on the intrinsics alone, not on a pose
-    size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
-                                np.eye(4), r.znear_m, r.zfar_m), lens)
     source_config = replace(config, render=replace(config.render, width=size.width,
                                                    height=size.height),
                             materials=flight_materials(config.materials))

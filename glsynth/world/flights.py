@@ -182,11 +182,26 @@ def plan_flight(env: Environment, config: Config, validate: bool = False) -> Fli
         poses = poses[:flight.max_frames]
     stacked = np.stack(poses)
     steps = np.linalg.norm(np.diff(stacked[:, :3, 3], axis=0), axis=1)
+    _check_frame_rate(steps, flight)
     times = np.concatenate([[0.0], np.cumsum(steps)]) / flight.speed_mps
     plan = FlightPlan(flight.plan, stacked, times, spacing, flight.focal_mm)
     if validate:
         validate_flight(env, plan, flight.clearance_m)
     return plan
+
+
+def _check_frame_rate(steps: np.ndarray, flight: FlightConfig) -> None:
+    """Refuse a plan with two frames nearer than the frame rate allows at its speed: an orbit's
+    chords are shorter than its arc spacing, and a facade's turn to the next row may be
+    shorter than a row's spacing."""
+    if not steps.size:
+        return
+    i = int(np.argmin(steps))
+    if steps[i] * flight.frame_rate_hz < flight.speed_mps * (1 - 1e-9):
+        raise UserError(f"flight.speed_mps = {flight.speed_mps}: waypoints {i} and {i + 1} are "
+                        f"{steps[i]:.3f} m apart and would come faster than frame_rate_hz = "
+                        f"{flight.frame_rate_hz}; fly at most "
+                        f"{steps[i] * flight.frame_rate_hz:.3f} m/s")
 
 
 def _path_samples(positions: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:

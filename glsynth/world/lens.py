@@ -66,13 +66,15 @@ class Lens:
 
 
 def check_lens(lens: Lens, camera: Camera) -> None:
-    """The radius map must increase out to the image's corners, or pixels would fold over."""
+    """The radius map must increase until it reaches the image's corners, or pixels would
+    fold over (barrel distortion turns back beyond some radius; the image must end before)."""
     k = camera.K
     corner = math.hypot(max(k[0, 2] + 0.5, camera.width - 0.5 - k[0, 2]),
                         max(k[1, 2] + 0.5, camera.height - 0.5 - k[1, 2])) / k[0, 0]
-    r = np.linspace(0.0, 1.0, 1001) * corner * 2
+    r = np.linspace(0.0, 10.0, 100_001) * corner
     rd = r * lens.factor(r * r)
-    if np.any(np.diff(rd) <= 0) or rd[-1] < corner:
+    reached = np.flatnonzero(rd >= corner)
+    if not reached.size or np.any(np.diff(rd[:reached[0] + 1]) <= 0):
         raise UserError(f"flight.k1 = {lens.k1}, k2 = {lens.k2}: the distortion folds the image "
                         "over before its corners; use smaller coefficients")
 
