@@ -11,11 +11,14 @@ taken in turn `--repeats` times:
   (shadows and sky visibility need it) with flat materials.
 
 The cast also counts the parts and the damaged columns the frames show, which says whether
-an orbit can open in a quarter of an environment's time at all.
+an orbit can open in a quarter of an environment's time at all. After opening, the first
+`--frames` views (the environment's sampled cameras, or the orbit's frames) are rendered with
+every pass and timed, without writing files: a frame against a view at the same preset and
+size.
 
     .venv/bin/python bench/bench_flight_open.py [--preset paper] [--env 0] [--column 4]
                                                 [--standoff 4] [--heights 1.5,2.5]
-                                                [--focal 50] [--repeats 3]
+                                                [--focal 50] [--repeats 3] [--frames 8]
 """
 
 import argparse
@@ -76,7 +79,14 @@ if mode == "pixels":
 t0 = time.perf_counter()
 view = EnvironmentView.open(config, args["seed"], args["env"], cameras=cameras)
 opened = time.perf_counter() - t0
-print(json.dumps({"open_s": opened, "parts_uploaded": len(view.scene.parts),
+frame_s = []
+if mode != "pixels":
+    for i in range(args["frames"]):
+        camera = view.camera(i).camera if cameras is None else cameras[i]
+        t = time.perf_counter()
+        view.renderer.render(camera)
+        frame_s.append(time.perf_counter() - t)
+print(json.dumps({"open_s": opened, "frame_s": frame_s, "parts_uploaded": len(view.scene.parts),
                   "damage_textures": sum(1 for a in view.dressing.assignments.values()
                                          if a.damage and a.damage.get("built")),
                   "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
@@ -141,10 +151,12 @@ def main() -> None:
     parser.add_argument("--heights", default="1.5,2.5")
     parser.add_argument("--focal", type=float, default=50.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--frames", type=int, default=8,
+                        help="views rendered after each opening (all passes), timed")
     a = parser.parse_args()
     args = {"preset": a.preset, "seed": 0, "env": a.env, "column": a.column,
             "standoff": a.standoff, "heights": [float(h) for h in a.heights.split(",")],
-            "focal": a.focal}
+            "focal": a.focal, "frames": a.frames}
     config = orbit_config(args)
     t0 = time.perf_counter()
     seen = pixel_parts(config, a.env)
@@ -169,11 +181,15 @@ def main() -> None:
             "open_s": [round(r["open_s"], 2) for r in items],
             "open_s_median": round(statistics.median(r["open_s"] for r in items), 2),
             "peak_rss_mib_median": round(statistics.median(r["peak_rss_mib"] for r in items)),
+            "render_s_per_frame_median": (round(statistics.median(
+                t for r in items for t in r["frame_s"]), 3) if items[0]["frame_s"] else None),
             "parts_uploaded": items[0]["parts_uploaded"],
             "damage_textures": items[0]["damage_textures"]}
     full = results["environment"]["open_s_median"]
     results["over_environment"] = {m: round(results[m]["open_s_median"] / full, 2)
                                    for m in ("orbit", "pixels")}
+    results["frame_over_view"] = round(results["orbit"]["render_s_per_frame_median"] /
+                                       results["environment"]["render_s_per_frame_median"], 2)
     write_results("flight_open", results)
 
 
