@@ -379,6 +379,27 @@ def test_a_zero_length_flight_renders_and_exports(tmp_path):
     assert len(model.images) == 2 and len(model.points3D) == len(cloud["xyz"])
 
 
+def test_under_mechanics_components_reproject_exactly(tmp_path):
+    """The demo preset's mechanics damage labels every pixel a crack's centreline crosses, so
+    a point's damage id may differ between frames; its component id may not."""
+    pycolmap = pytest.importorskip("pycolmap", reason="pycolmap is not installed")
+    cfg = tmp_path / "mechanics.toml"
+    cfg.write_text(SMALL.replace('model = "paper"\n', "") + "max_frames = 10\n")
+    assert load_config("demo", cfg).damage.model == "mechanics"
+    out = tmp_path / "mechanics"
+    assert main(_fly_args(cfg, out)) == 0
+    model = pycolmap.Reconstruction(str(out / "sparse" / "0"))
+    cloud = read_ply(out / "points.ply")
+    for image_id, image in model.images.items():
+        folder = out / "frames" / f"frame_{image_id - 1:04d}"
+        sees = [i for i, f in enumerate(cloud["frames"]) if image_id - 1 in f]
+        uv = model.cameras[1].img_from_cam(np.array([image.cam_from_world() * p
+                                                     for p in cloud["xyz"][sees]]))
+        comp = np.asarray(Image.open(folder / "component.png"))
+        landed = comp[np.floor(uv[:, 1]).astype(int), np.floor(uv[:, 0]).astype(int)]
+        assert np.array_equal(landed, cloud["component"][sees]), image_id
+
+
 def test_a_complete_flight_is_left_as_it_is(flight, capsys):
     cfg, out = flight
     before = _digests(out)
