@@ -171,8 +171,9 @@ def _rows(fmt: str, table: np.ndarray) -> str:
 
 def write_colmap(folder: Path, frames: Sequence[Frame], xyz: np.ndarray, rgb: np.ndarray,
                  ids: list[np.ndarray], pixels: list[np.ndarray]) -> None:
-    """cameras.txt (one camera: PINHOLE, or the lens's SIMPLE_RADIAL or OPENCV), images.txt (poses and, per image, the points it sees
-    at their exact pixels), points3D.txt (each point with its true track, error 0)."""
+    """cameras.txt (one camera: PINHOLE, or the lens's SIMPLE_RADIAL or OPENCV), images.txt
+    (poses and, per image, the points it sees at their exact pixels), points3D.txt (each
+    point with its true track, error 0)."""
     cam = frames[0].camera
     model, params = frames[0].lens.colmap_params(cam)
     atomic_write_bytes(folder / "cameras.txt", (
