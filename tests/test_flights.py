@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -19,7 +20,9 @@ from scipy.spatial.transform import Rotation
 from glsynth.cli import main
 from glsynth.core.config import config_from_dict, load_config
 from glsynth.core.errors import UserError
+from glsynth.data.flight import flight_materials
 from glsynth.data.flight_export import label_interior, ply_bytes, read_ply, rotation_quaternion
+from glsynth.render.view import EnvironmentView
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import build_environment
 from glsynth.world.flights import (
@@ -398,6 +401,31 @@ def test_under_mechanics_components_reproject_exactly(tmp_path):
         comp = np.asarray(Image.open(folder / "component.png"))
         landed = comp[np.floor(uv[:, 1]).astype(int), np.floor(uv[:, 0]).astype(int)]
         assert np.array_equal(landed, cloud["component"][sees]), image_id
+
+
+def test_a_flight_builds_only_what_its_frames_can_see(tmp_path):
+    """Looking up at the deck from under it, 10 frames see a few of the environment's parts:
+    only those, and the parts that may shadow them, are built, and they render the same as
+    with every part built."""
+    cfg = tmp_path / "under.toml"
+    cfg.write_text(SMALL + "max_frames = 10\nplan = \"underdeck\"\ngimbal_pitch_deg = 60.0\n")
+    out = tmp_path / "under"
+    assert main(["fly", "--seed", "0", "--env", "0", "--plan", "underdeck", "--config",
+                 str(cfg), "--out", str(out)]) == 0
+    summary = json.loads((out / "flight.json").read_text())
+    assert summary["parts_built"] < summary["parts"] / 2, summary
+    config = load_config("demo", cfg)
+    plan = plan_flight(build_environment(config, 0, 0), config)
+    view = EnvironmentView.open(replace(config, materials=flight_materials(config.materials)),
+                                0, 0, cull=False, cameras=plan.cameras(config))
+    with view.renderer:
+        view.renderer.relight(replace(view.lighting, exposure=summary["exposure"]))
+        for i in (0, 9):
+            whole = view.renderer.render(plan.cameras(config)[i])
+            folder = out / "frames" / f"frame_{i:04d}"
+            assert np.array_equal(whole.color, np.asarray(Image.open(folder / "image.png")))
+            assert np.array_equal(whole.component,
+                                  np.asarray(Image.open(folder / "component.png")))
 
 
 def test_a_complete_flight_is_left_as_it_is(flight, capsys):
