@@ -88,10 +88,12 @@ def test_builtin_repository_has_the_same_images_at_every_texture_size():
         assert np.abs(shrunk - small.image(category, 0)).mean() < 4.0  # levels
 
 
-def test_decoded_images_are_cached_by_content(repo_dir, monkeypatch):
+def test_decoded_images_are_cached_by_content(repo_dir, monkeypatch, tmp_path):
     """A second repository reads the decoded image without decoding it; an edited image, or a
     damaged cache entry, is decoded again."""
     import glsynth.appearance.repository as repository
+
+    monkeypatch.setenv("GLSYNTH_CACHE", str(tmp_path / "cache"))  # its entries are damaged
 
     first = TextureRepository(repo_dir, 16).image("concrete", 0)
     entries = sorted((repository.cache_root() / "decoded").glob("*.npy"))
