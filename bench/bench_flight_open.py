@@ -180,6 +180,7 @@ def main() -> None:
         results[mode] = {
             "open_s": [round(r["open_s"], 2) for r in items],
             "open_s_median": round(statistics.median(r["open_s"] for r in items), 2),
+            "peak_rss_mib": [round(r["peak_rss_mib"]) for r in items],
             "peak_rss_mib_median": round(statistics.median(r["peak_rss_mib"] for r in items)),
             "render_s_per_frame_median": (round(statistics.median(
                 t for r in items for t in r["frame_s"]), 3) if items[0]["frame_s"] else None),
