@@ -31,6 +31,7 @@ from glsynth.world.flights import (
     frame_spacing_m,
     look_pose,
     plan_flight,
+    ring_overlap_pct,
     surface_distance,
     validate_flight,
 )
@@ -187,6 +188,13 @@ def test_zero_length_flights_have_one_frame_per_row_or_ring():
     assert np.allclose(plan.poses[:, :2, 3], plan.poses[0, :2, 3]) and len(plan) > 1
     assert plan.times_s[-1] == pytest.approx((plan.poses[-1, 2, 3] - plan.poses[0, 2, 3])
                                              / facade.flight.speed_mps)
+
+
+def test_an_orbits_rings_report_their_overlap():
+    """At 2 m with 24 mm on a 36 x 20.25 mm sensor an image is 1.6875 m tall: rings 0.5 m
+    apart share 70.4 % of it, 3.5 m apart nothing."""
+    config = _config(heights_m=[1.0, 1.5, 5.0], standoff_m=2.0, focal_mm=24.0)
+    assert ring_overlap_pct(config.flight, 36.0 * 1080 / 1920) == [70.4, 0.0]
 
 
 def test_too_fast_for_the_frame_rate_is_refused():
@@ -373,6 +381,7 @@ def test_a_zero_length_flight_renders_and_exports(tmp_path):
     assert sorted(p.name for p in (out / "frames").iterdir()) == ["frame_0000", "frame_0001"]
     summary = json.loads((out / "flight.json").read_text())
     assert summary["frames"] == 2 and summary["duration_s"] == pytest.approx(1.5 / 2.0)
+    assert summary["ring_overlap_pct"] == [11.1]  # 1.5 m apart, 1.6875 m tall at 2 m
     cloud = read_ply(out / "points.ply")
     assert len(cloud["xyz"]) > 100 and {0, 1} <= {j for f in cloud["frames"] for j in f}
     assert len(json.loads((out / "transforms.json").read_text())["frames"]) == 2

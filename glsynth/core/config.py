@@ -581,7 +581,9 @@ class FlightConfig:
     column_spacing_m), so with the default clearance an orbit wider than 4 m meets a
     neighbouring column and is refused (seed 0, environment 0: 4 m passes, 4.5 m not)."""
     heights_m: tuple[float, ...] = (1.5, 3.0)
-    """Orbit: the rings' heights above the column's foot, flown in this order."""
+    """Orbit: the rings' heights above the column's foot, flown in this order. flight.json
+    reports how much consecutive rings overlap (ring_overlap_pct; side_overlap_pct does not
+    place them)."""
     arc_deg: float = 360.0
     """Orbit: the angle each ring sweeps (360: a closed ring; 0: one frame per ring)."""
     length_m: float = math.inf

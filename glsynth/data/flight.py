@@ -44,7 +44,7 @@ from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import EnvironmentView, write_render
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import build_environment
-from glsynth.world.flights import FlightPlan, plan_flight
+from glsynth.world.flights import FlightPlan, plan_flight, ring_overlap_pct
 from glsynth.world.lens import Lens, resample, source_camera, source_pixels
 from glsynth.world.lighting import LUMINANCE, Lighting
 
@@ -202,7 +202,11 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     render_s = time.perf_counter() - t1
     export_environment(view.environment, out / "environment.glb", view.dressing.materials,
                        lighting)
-    summary = {"plan": plan.plan, "frames": len(plan), "spacing_m": plan.spacing_m,
+    rings = {}
+    if plan.plan == "orbit":
+        sensor_h = config.cameras.sensor_mm * r.height / r.width
+        rings = {"ring_overlap_pct": ring_overlap_pct(fc, sensor_h)}
+    summary = {"plan": plan.plan, "frames": len(plan), "spacing_m": plan.spacing_m, **rings,
                "exposure": lighting.exposure,
                "duration_s": float(plan.times_s[-1]), "parts_built": len(view.scene.parts),
                "parts": len(view.environment.parts),

@@ -62,6 +62,15 @@ def frame_spacing_m(flight: FlightConfig, sensor_mm: float) -> float:
         flight.standoff_m, sensor_mm, flight.focal_mm)
 
 
+def ring_overlap_pct(flight: FlightConfig, sensor_h_mm: float) -> list[float]:
+    """An orbit's consecutive rings: how much of the image height at the stand-off each pair
+    shares (0 where they leave a gap). [flight] heights_m places the rings; side_overlap_pct
+    spaces a facade's rows only, so this says what the heights give."""
+    tall = footprint_m(flight.standoff_m, sensor_h_mm, flight.focal_mm)
+    steps = np.abs(np.diff(flight.heights_m))
+    return [round(max(0.0, 100.0 * (1.0 - float(d) / tall)), 1) for d in steps]
+
+
 def look_pose(position: np.ndarray, yaw: float, pitch: float) -> np.ndarray:
     """World-from-camera looking along azimuth ``yaw`` (from +x, counter-clockwise) tilted up
     by ``pitch``, image x horizontal: camera x = (sin yaw, -cos yaw, 0)."""
