@@ -133,6 +133,33 @@ def test_facade_rows_cover_the_side_at_the_stand_off():
     assert np.allclose(forward[:, 2], 0.0)  # gimbal pitch 0
 
 
+def test_the_right_facade_mirrors_the_left_across_the_track():
+    """Flown on the right, the rows stand as far to the right of the centre line as the left
+    side's to its left, looking back across the track."""
+    sides = {}
+    for side in ("left", "right"):
+        config = _config(plan="facade", standoff_m=3.0, side=side, length_m=12.0)
+        env = build_environment(config, 0, 1)
+        plan = plan_flight(env, config)
+        validate_flight(env, plan, config.flight.clearance_m)
+        s0 = env.viaducts[0].start_s_m
+        point, _, normal = env.trajectory.frame(np.array([s0]))
+        offset = (plan.poses[0, :2, 3] - point[0, :2]) @ normal[0, :2]
+        sides[side] = (offset, _forward(plan.poses[0])[:2] @ normal[0, :2])
+    assert sides["right"][0] == pytest.approx(-sides["left"][0]) and sides["left"][0] > 3.0
+    assert sides["left"][1] == pytest.approx(-1.0) and sides["right"][1] == pytest.approx(1.0)
+
+
+def test_a_waypoint_beyond_the_grounds_edge_is_refused():
+    config = _config(plan="orbit")
+    env = build_environment(config, 0, 0)
+    far = FlightPlan("orbit", look_pose(np.array([1e5, 1e5, 2.0]), 0.0, 0.0)[None],
+                     np.zeros(1), 1.0, 24.0)
+    with pytest.raises(UserError, match=r"waypoint 0 is beyond the ground's edge \(no ground "
+                                        r"under it\); move the flight over the environment"):
+        validate_flight(env, far, 1.0)
+
+
 def test_underdeck_flies_the_stand_off_under_the_slab():
     config = _config(plan="underdeck", standoff_m=2.0, gimbal_pitch_deg=90.0)
     env = build_environment(config, 0, 0)

@@ -262,7 +262,7 @@ def _where(owner: int) -> str:
 
 def _ground_violation(env: Environment, positions: np.ndarray) -> str | None:
     """Every waypoint has ground under it (a vertical ray down from far above meets a ground
-    strip) and stands above the highest such hit."""
+    strip) and stands above the highest such hit; else what fails and its fix."""
     ground = trimesh.util.concatenate([_world_mesh(p) for p in ground_parts(env.parts)])
     origins = positions.copy()
     origins[:, 2] = ground.bounds[1, 2] + 10.0
@@ -272,9 +272,11 @@ def _ground_violation(env: Environment, positions: np.ndarray) -> str | None:
     np.maximum.at(top, rays, hits[:, 2])
     for i, (z, g) in enumerate(zip(positions[:, 2], top)):
         if not np.isfinite(g):
-            return f"waypoint {i} is beyond the ground's edge (no ground under it)"
+            return (f"waypoint {i} is beyond the ground's edge (no ground under it); move "
+                    "the flight over the environment (column, viaduct, length_m)")
         if z <= g:
-            return f"waypoint {i} is {g - z:.2f} m below the ground"
+            return (f"waypoint {i} is {g - z:.2f} m below the ground; raise heights_m "
+                    "(orbit) or lower standoff_m (underdeck)")
     return None
 
 
@@ -314,7 +316,7 @@ def validate_flight(env: Environment, plan: FlightPlan, clearance: float) -> Non
                         "move the flight (column, viaduct, standoff_m, heights_m)")
     why = _ground_violation(env, positions)
     if why:
-        raise UserError(f"[flight] {plan.plan}: {why}; raise heights_m or lower standoff_m")
+        raise UserError(f"[flight] {plan.plan}: {why}")
     if found:
         first, reason = min(found)
         others = len({o for o, _ in found}) - 1
