@@ -21,7 +21,7 @@ from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera, CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
-from glsynth.world.face_cameras import place_camera, place_cameras
+from glsynth.world.face_cameras import place_cameras
 from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
@@ -36,9 +36,9 @@ class EnvironmentView:
     scene: RenderScene
     lighting: Lighting
     renderer: Renderer
-    cracks: dict[str, np.ndarray] | None = None
-    """Every member's crack segments, where the cameras aim at cracks ([cameras]
-    face_crack_share); else None."""
+    placements: list[CameraPlacement] | None = None
+    """The environment's sampled cameras, placed once when it was opened; None where it was
+    opened for cameras given instead (a flight's)."""
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
@@ -60,10 +60,12 @@ class EnvironmentView:
             renderer.release_scene()
         report("building the environment", 0.0)
         env = build_environment(config, root_seed, env_index)
-        cracks = crack_segments(env, config) if config.cameras.face_crack_share else None
+        placements = None
         if cameras is None:
-            cameras = [p.camera for p in place_cameras(env, config.cameras, config.render,
-                                                         range(config.cameras.total), cracks)]
+            cracks = crack_segments(env, config) if config.cameras.face_crack_share else None
+            placements = place_cameras(env, config.cameras, config.render,
+                                       range(config.cameras.total), cracks)
+            cameras = [p.camera for p in placements]
         cameras = list(cameras)
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)
@@ -79,11 +81,17 @@ class EnvironmentView:
         renderer = renderer or Renderer(config.render)
         renderer.load(scene, lighting, occlusion_extent(env.parts))
         report("ready", 1.0)
-        return cls(config, env, dressing, scene, lighting, renderer, cracks)
+        return cls(config, env, dressing, scene, lighting, renderer, placements)
 
     def camera(self, index: int) -> CameraPlacement:
-        cfg = self.config
-        return place_camera(self.environment, cfg.cameras, cfg.render, index, self.cracks)
+        """Sampled camera ``index`` of the environment (each placed from its own generator,
+        so the same as placing it alone)."""
+        if self.placements is None:
+            raise ValueError("this view was opened for given cameras; it has no sampled ones")
+        if not 0 <= index < len(self.placements):
+            raise ValueError(f"camera index = {index}: must be in "
+                             f"[0, {len(self.placements) - 1}]")
+        return self.placements[index]
 
     def render(self, index: int, passes: frozenset[str] = PASSES
                ) -> tuple[CameraPlacement, RenderOutput]:
