@@ -81,6 +81,13 @@ class CrackNetwork:
         """(N,) segment lengths."""
         return np.linalg.norm(self.points[:, 1] - self.points[:, 0], axis=1)
 
+    def subset(self, keep: np.ndarray) -> "CrackNetwork":
+        """The segments where ``keep`` (N,) bool is true, as a network of their own: the
+        cracks left keep their order, numbered from 0."""
+        ids, crack = np.unique(self.crack[keep], return_inverse=True)
+        return CrackNetwork(self.points[keep], self.widths_m[keep], crack.astype(np.int32),
+                            tuple(self.kinds[k] for k in ids))
+
 
 def empty_network() -> CrackNetwork:
     return CrackNetwork(np.zeros((0, 2, 3)), np.zeros((0, 2)), np.zeros(0, np.int32), ())

@@ -88,22 +88,29 @@ def girder_spans(sweep: GirderSweep, crossbeam_width_m: float) -> list[tuple[flo
 
 
 def _split_at(net: CrackNetwork, cuts: np.ndarray) -> CrackNetwork:
-    """``net`` with every segment split where its x crosses one of ``cuts`` (sorted)."""
+    """``net`` with every segment split where its x crosses one of ``cuts`` (sorted), in
+    order. Few segments cross a cut (137 of 57,977 in demo environment 0): the rest are
+    written at once, through the same arithmetic (p0 + t (p1 - p0), t = 0 and 1)."""
     p, w, c = net.points, net.widths_m, net.crack
     lo, hi = np.minimum(p[:, 0, 0], p[:, 1, 0]), np.maximum(p[:, 0, 0], p[:, 1, 0])
     first, last = np.searchsorted(cuts, lo, "right"), np.searchsorted(cuts, hi, "left")
-    points, widths, crack = [], [], []
-    for i in range(len(p)):
+    counts = 1 + np.maximum(last - first, 0)
+    start = np.cumsum(counts) - counts
+    points = np.empty((int(counts.sum()), 2, 3))
+    widths = np.empty((len(points), 2))
+    whole = counts == 1
+    for end, t in enumerate((0.0, 1.0)):
+        points[start[whole], end] = p[whole, 0] + t * (p[whole, 1] - p[whole, 0])
+        widths[start[whole], end] = w[whole, 0] + t * (w[whole, 1] - w[whole, 0])
+    for i in np.flatnonzero(~whole):
         x0, x1 = p[i, 0, 0], p[i, 1, 0]
-        t = (cuts[first[i]:last[i]] - x0) / (x1 - x0) if last[i] > first[i] else []
-        t = np.sort(np.concatenate([[0.0], t, [1.0]]))
+        t = np.sort(np.concatenate([[0.0], (cuts[first[i]:last[i]] - x0) / (x1 - x0), [1.0]]))
         ends = p[i, 0] + t[:, None] * (p[i, 1] - p[i, 0])
         width = w[i, 0] + t * (w[i, 1] - w[i, 0])
-        points.append(np.stack([ends[:-1], ends[1:]], axis=1))
-        widths.append(np.stack([width[:-1], width[1:]], axis=1))
-        crack.append(np.full(len(t) - 1, c[i], np.int32))
-    return CrackNetwork(np.concatenate(points), np.concatenate(widths),
-                        np.concatenate(crack), net.kinds)
+        rows = slice(start[i], start[i] + counts[i])
+        points[rows] = np.stack([ends[:-1], ends[1:]], axis=1)
+        widths[rows] = np.stack([width[:-1], width[1:]], axis=1)
+    return CrackNetwork(points, widths, np.repeat(c, counts).astype(np.int32), net.kinds)
 
 
 def _edges(profile: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -135,12 +142,7 @@ def on_mesh(sweep: GirderSweep, points: np.ndarray) -> np.ndarray:
 
 def _below_top(net: CrackNetwork, depth_m: float) -> CrackNetwork:
     """``net`` without its segments on the section's top (z = depth / 2), cracks renumbered."""
-    keep = ~np.all(net.points[..., 2] >= depth_m / 2 - _ON_TOP_M, axis=1)
-    used = np.unique(net.crack[keep])
-    renumber = np.full(len(net.kinds), -1, np.int32)
-    renumber[used] = np.arange(len(used), dtype=np.int32)
-    return CrackNetwork(net.points[keep], net.widths_m[keep], renumber[net.crack[keep]],
-                        tuple(net.kinds[k] for k in used))
+    return net.subset(~np.all(net.points[..., 2] >= depth_m / 2 - _ON_TOP_M, axis=1))
 
 
 def _joined(nets: list[CrackNetwork]) -> CrackNetwork:

@@ -369,9 +369,7 @@ def framed(network: CrackNetwork, pose: np.ndarray, cameras: Sequence[Camera]
     keep = np.zeros(len(a), bool)
     for cam in cameras:
         keep |= in_frustum(a, b, cam)
-    ids, crack = np.unique(network.crack[keep], return_inverse=True)
-    return CrackNetwork(network.points[keep], network.widths_m[keep],
-                        crack.astype(np.int32), tuple(network.kinds[k] for k in ids))
+    return network.subset(keep)
 
 
 def bake_for_views(members: Sequence[tuple[CrackNetwork, trimesh.Trimesh, np.ndarray]],
