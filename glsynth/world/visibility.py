@@ -32,17 +32,19 @@ def part_corners(part: Part) -> np.ndarray:
     return box_corners(part.mesh.bounds, part.pose)
 
 
-def seen_by(corners: np.ndarray, camera: Camera) -> np.ndarray:
-    """For boxes (P, 8, 3), whether each may be in this camera's view (P,)."""
+def seen_by(corners: np.ndarray, camera: Camera, margin_px: float = 0.5) -> np.ndarray:
+    """For point sets (P, M, 3) (a box's 8 corners), whether each may be in this camera's view
+    (P,): not all of its points beyond one plane of the frustum, whose sides stand
+    ``margin_px`` beyond the outermost pixel centres (0.5: the image's edges)."""
     view = camera.view()
     c = corners @ view[:3, :3].T + view[:3, 3]
     x, y, d = c[..., 0], c[..., 1], -c[..., 2]
-    k = camera.K
-    planes = (d - camera.znear,                                   # in front of the near plane
-              k[0, 0] * x + (k[0, 2] + 0.5) * d,                  # right of the left edge
-              (camera.width - 0.5 - k[0, 2]) * d - k[0, 0] * x,   # left of the right edge
-              -k[1, 1] * y + (k[1, 2] + 0.5) * d,                 # below the top edge
-              (camera.height - 0.5 - k[1, 2]) * d + k[1, 1] * y)  # above the bottom edge
+    k, m = camera.K, margin_px
+    planes = (d - camera.znear,                                     # in front of the near plane
+              k[0, 0] * x + (k[0, 2] + m) * d,                      # right of the left edge
+              (camera.width - 1 + m - k[0, 2]) * d - k[0, 0] * x,   # left of the right edge
+              -k[1, 1] * y + (k[1, 2] + m) * d,                     # below the top edge
+              (camera.height - 1 + m - k[1, 2]) * d + k[1, 1] * y)  # above the bottom edge
     outside = np.zeros(corners.shape[0], bool)
     for value in planes:
         outside |= np.all(value < 0, axis=1)
@@ -132,12 +134,4 @@ def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera) -> np.ndarray:
     """(N,) False for the segments a-b (world, (N, 3) each) that lie wholly beyond one plane of
     the view's frustum (the near plane, or a side grown by 2 pixels): none of their points can
     land in the image. True for the rest (a conservative test)."""
-    view = camera.view()
-    ca, cb = (p @ view[:3, :3].T + view[:3, 3] for p in (a, b))
-    za, zb = -ca[:, 2], -cb[:, 2]
-    out = (za < camera.znear) & (zb < camera.znear)
-    for axis, size in ((0, camera.width), (1, camera.height)):
-        slope = (size / 2 + 2) / camera.fx  # |x| / depth at the image's edge, plus 2 pixels
-        for sign in (1.0, -1.0):
-            out |= (sign * ca[:, axis] > slope * za) & (sign * cb[:, axis] > slope * zb)
-    return ~out
+    return seen_by(np.stack([a, b], axis=1), camera, margin_px=2.5)
