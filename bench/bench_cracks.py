@@ -49,11 +49,7 @@ from glsynth.appearance.materials import Material  # noqa: E402
 from glsynth.assess.cracks import Intrinsics, error_summary, measure_cracks, width_errors  # noqa: E402
 from glsynth.core.config import LightingConfig, RenderConfig, load_config  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
-from glsynth.data.visible_cracks import (  # noqa: E402
-    DEPTH_TOLERANCE,
-    centreline_samples,
-    project,
-)
+from glsynth.data.visible_cracks import on_surface  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.scene import build_scene  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
@@ -206,11 +202,7 @@ def segments_measured(view: EnvironmentView, camera: Camera, out, measure) -> np
         net = view.dressing.materials.factors(part.name).cracks
         if net is None or not len(net.points):
             continue
-        points, segment, _ = centreline_samples(net, part.pose, camera)
-        col, row, depth = project(points, camera)
-        on = col >= 0
-        rel, ab = DEPTH_TOLERANCE
-        on[on] = np.abs(depth[on] - out.depth[row[on], col[on]]) <= rel * depth[on] + ab
+        row, col, segment, _, on = on_surface(net, part.pose, camera, out.depth)
         for dr in (-1, 0, 1):
             for dc in (-1, 0, 1):
                 r, c = row[on] + dr, col[on] + dc

@@ -66,6 +66,19 @@ def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray,
             np.where(inside, row, -1).astype(np.int64), depth)
 
 
+def on_surface(net: CrackNetwork, pose: np.ndarray, camera: Camera, depth_m: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The network's centreline samples (centreline_samples) in the view: each one's pixel
+    row and column (-1 outside the image), segment and length, and whether it lies on the
+    rendered surface (within DEPTH_TOLERANCE of ``depth_m`` there, not hidden)."""
+    points, segment, weight = centreline_samples(net, pose, camera)
+    col, row, depth = project(points, camera)
+    on = col >= 0
+    rel, ab = DEPTH_TOLERANCE
+    on[on] = np.abs(depth[on] - depth_m[row[on], col[on]]) <= rel * depth[on] + ab
+    return row, col, segment, weight, on
+
+
 def near_crack(crack_width_mm: np.ndarray) -> np.ndarray:
     """Pixels with a labelled crack within one pixel (the 3x3 neighbourhood), bool."""
     cracked = np.pad(crack_width_mm > 0, 1)
@@ -83,12 +96,8 @@ def member_cracks(records: list[dict], net: CrackNetwork, part: Part, camera: Ca
     """The labelled cracks of one member: its dressing records (id, member, type, length and
     widths) with ``labelled_length_m`` and ``pixels`` (of the written crack-width map, whose
     pixels span ``stride`` x ``stride`` render pixels)."""
-    points, segment, weight = centreline_samples(net, part.pose, camera)
-    col, row, depth = project(points, camera)
-    on = col >= 0
-    rel, ab = DEPTH_TOLERANCE
-    on[on] = near[row[on], col[on]] & (
-        np.abs(depth[on] - depth_m[row[on], col[on]]) <= rel * depth[on] + ab)
+    row, col, segment, weight, on = on_surface(net, part.pose, camera, depth_m)
+    on[on] = near[row[on], col[on]]
     crack = net.crack[segment]
     listed = []
     for record in records:
