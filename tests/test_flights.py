@@ -242,6 +242,13 @@ def test_frames_nearer_than_the_frame_rate_allows_are_refused():
     assert len(plan_flight(build_environment(slower, 0, 0), slower)) > 1
 
 
+def test_coinciding_waypoints_are_refused_naming_the_heights():
+    config = _config(arc_deg=0.0, heights_m=[1.5, 1.5])
+    with pytest.raises(UserError, match=r"flight.heights_m = \[1.5, 1.5\]: waypoints 0 and 1 "
+                                        "coincide"):
+        plan_flight(build_environment(config, 0, 0), config)
+
+
 def test_quaternion_matches_scipy_on_every_branch():
     matrices = list(Rotation.random(50, random_state=0).as_matrix())
     matrices += [np.diag(d) for d in ([1, -1, -1], [-1, 1, -1], [-1, -1, 1], [1, 1, 1])]

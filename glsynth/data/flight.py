@@ -44,7 +44,7 @@ from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import EnvironmentView, write_render
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import build_environment
-from glsynth.world.flights import FlightPlan, plan_flight, ring_overlap_pct
+from glsynth.world.flights import FlightPlan, plan_flight, ring_overlap_pct, sensor_height_mm
 from glsynth.world.lens import Lens, resample, source_camera, source_pixels
 from glsynth.world.lighting import LUMINANCE, Lighting
 
@@ -131,15 +131,17 @@ def exposed(view: EnvironmentView, cameras: list[Camera], mode: str) -> Lighting
     return lighting
 
 
-def _render_frames(view: EnvironmentView, out: Path, cameras: list[Camera], lens: Lens,
-                   where: np.ndarray | None, frame_meta: Callable[[int], dict]) -> int:
-    """Render and write the frames without a marker; how many were rendered."""
+def _render_frames(view: EnvironmentView, out: Path, cameras: list[Camera],
+                   sources: list[Camera], where: np.ndarray | None,
+                   frame_meta: Callable[[int], dict]) -> int:
+    """Render the frames without a marker from their ``sources`` (the pinhole cameras the
+    lens resamples, glsynth.world.lens) and write them; how many were rendered."""
     rendered = 0
-    for index, camera in enumerate(cameras):
+    for index, (camera, source) in enumerate(zip(cameras, sources, strict=True)):
         marker = out / "progress" / f"{frame_name(index)}.done"
         if marker.exists():
             continue
-        output = _distorted(view.renderer.render(source_camera(camera, lens)), where)
+        output = _distorted(view.renderer.render(source), where)
         write_render(out / "frames" / frame_name(index), camera, output, frame_meta(index))
         atomic_write_bytes(marker, b"")
         rendered += 1
@@ -187,25 +189,23 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     source_config = replace(config, render=replace(config.render, width=size.width,
                                                    height=size.height),
                             materials=flight_materials(config.materials))
-    view = EnvironmentView.open(source_config, root_seed, env_index, cameras=[
-        source_camera(c, lens) for c in plan.cameras(config)])
-    opened = time.perf_counter() - t0
     cameras = plan.cameras(config)
+    sources = [replace(c, width=size.width, height=size.height) for c in cameras]
+    view = EnvironmentView.open(source_config, root_seed, env_index, cameras=sources)
+    opened = time.perf_counter() - t0
     where = None if lens.pinhole else source_pixels(cameras[0], lens, size)
     t1 = time.perf_counter()
     with view.renderer:
-        lighting = exposed(view, [source_camera(c, lens) for c in cameras], fc.exposure)
+        lighting = exposed(view, sources, fc.exposure)
         meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl",
                 "exposure": lighting.exposure}
-        rendered = _render_frames(view, out, cameras, lens, where,
+        rendered = _render_frames(view, out, cameras, sources, where,
                                   lambda index: _frame_meta(lens, plan, index, meta))
     render_s = time.perf_counter() - t1
     export_environment(view.environment, out / "environment.glb", view.dressing.materials,
                        lighting)
-    rings = {}
-    if plan.plan == "orbit":
-        sensor_h = config.cameras.sensor_mm * r.height / r.width
-        rings = {"ring_overlap_pct": ring_overlap_pct(fc, sensor_h)}
+    rings = ({"ring_overlap_pct": ring_overlap_pct(fc, sensor_height_mm(config))}
+             if plan.plan == "orbit" else {})
     summary = {"plan": plan.plan, "frames": len(plan), "spacing_m": plan.spacing_m, **rings,
                "exposure": lighting.exposure,
                "duration_s": float(plan.times_s[-1]), "parts_built": len(view.scene.parts),

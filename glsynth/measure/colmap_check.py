@@ -1,5 +1,5 @@
 """COLMAP itself on a glsynth flight (glsynth fly): does it reconstruct from the colour images
-alone? Used by bench/bench_flight.py and, at small sizes, by tests/test_flights.py.
+alone? Used by bench/bench_flight.py and, at small sizes, by tests/test_colmap_check.py.
 
 On a flight's folder: SIFT features and sequential matching (each frame with the next
 ``overlap`` in flight order; no loop detection, which needs a vocabulary tree), then

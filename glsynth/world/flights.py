@@ -62,6 +62,11 @@ def frame_spacing_m(flight: FlightConfig, sensor_mm: float) -> float:
         flight.standoff_m, sensor_mm, flight.focal_mm)
 
 
+def sensor_height_mm(config: Config) -> float:
+    """The sensor's height: [cameras] sensor_mm wide, in [render]'s aspect."""
+    return config.cameras.sensor_mm * config.render.height / config.render.width
+
+
 def ring_overlap_pct(flight: FlightConfig, sensor_h_mm: float) -> list[float]:
     """An orbit's consecutive rings: how much of the image height at the stand-off each pair
     shares (0 where they leave a gap). [flight] heights_m places the rings; side_overlap_pct
@@ -176,15 +181,14 @@ def plan_flight(env: Environment, config: Config, validate: bool = False) -> Fli
     ``validate``, refused (validate_flight) where it collides or leaves the ground."""
     flight, sensor = config.flight, config.cameras.sensor_mm
     spacing = frame_spacing_m(flight, sensor)
-    if spacing / flight.speed_mps < 1 / flight.frame_rate_hz:
+    if spacing * flight.frame_rate_hz < flight.speed_mps * (1 - 1e-9):
         raise UserError(f"flight.speed_mps = {flight.speed_mps}: frames {spacing:.3f} m apart "
                         f"would come faster than frame_rate_hz = {flight.frame_rate_hz}; fly "
                         f"at most {spacing * flight.frame_rate_hz:.3f} m/s")
     if flight.plan == "orbit":
         poses = _orbit(env, flight, spacing)
     elif flight.plan == "facade":
-        sensor_h = sensor * config.render.height / config.render.width
-        poses = _facade(env, flight, spacing, sensor_h)
+        poses = _facade(env, flight, spacing, sensor_height_mm(config))
     else:
         poses = _underdeck(env, flight, spacing)
     if flight.max_frames:
@@ -206,6 +210,9 @@ def _check_frame_rate(steps: np.ndarray, flight: FlightConfig) -> None:
     if not steps.size:
         return
     i = int(np.argmin(steps))
+    if steps[i] < 1e-9:  # only an orbit's rings at one height meet (one frame each)
+        raise UserError(f"flight.heights_m = {list(flight.heights_m)}: waypoints {i} and "
+                        f"{i + 1} coincide; give each ring a height of its own")
     if steps[i] * flight.frame_rate_hz < flight.speed_mps * (1 - 1e-9):
         raise UserError(f"flight.speed_mps = {flight.speed_mps}: waypoints {i} and {i + 1} are "
                         f"{steps[i]:.3f} m apart and would come faster than frame_rate_hz = "
