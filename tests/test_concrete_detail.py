@@ -15,7 +15,7 @@ from shader_harness import WIDTH, GlslHarness
 
 from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import dress, open_repository
-from glsynth.appearance.materials import Material, srgb_decode
+from glsynth.appearance.materials import Assignment, Material, srgb_decode
 from glsynth.appearance.texgen import concrete
 from glsynth.cli import main
 from glsynth.core.config import Config, DamageConfig, MaterialsConfig, load_config
@@ -68,7 +68,6 @@ def test_detail_does_not_repeat_at_texture_tile_periods(harness):
     detail at those lags is unrelated to itself (formwork ties repeat every 0.6 m, as real
     formwork's do: lags here are no multiple of them)."""
     a = detail_field(harness, (0.3, 0.2), 0.0015)
-    assert correlation(a, a) == pytest.approx(1.0)
     for lag in (1.0, 2.5, 10.0):
         shifted = detail_field(harness, (0.3 + lag, 0.2), 0.0015)
         assert abs(correlation(a, shifted)) < 0.2, lag
@@ -110,7 +109,8 @@ CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=64),
                              materials=MaterialsConfig(texture_size=32, images_per_category=4))
 
 
-def _seeds(config: Config, env, visible: set[str]) -> dict[str, int | None]:
+def _seeds(config: Config, env, visible: set[str]
+           ) -> tuple[dict[str, int | None], dict[str, Assignment]]:
     d = dress(env, config, open_repository(config), DamageBank(config.damage, 0), visible)
     seeds = {}
     for part in env.parts:

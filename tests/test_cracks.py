@@ -23,7 +23,7 @@ from glsynth.appearance.cracks import (
     yield_curvature,
 )
 from glsynth.appearance.damage_bank import DamageBank
-from glsynth.appearance.dressing import beam_span, clear_spans, dress, open_repository
+from glsynth.appearance.dressing import beam_span, clear_spans, dress, is_girder, open_repository
 from glsynth.core import design
 from glsynth.core.config import Config, DamageConfig, MaterialsConfig, config_from_dict
 from glsynth.core.errors import UserError
@@ -353,7 +353,7 @@ def test_dressing_under_mechanics_cracks_girders_and_cross_and_tie_beams(tmp_pat
     cracked, girders = 0, 0
     for part in beams:
         record, material = d.assignments[part.name].damage, d.materials[part.name]
-        if "_girder_" in part.name:  # glsynth.appearance.girder_cracks; tests/test_girder_cracks
+        if is_girder(part):  # glsynth.appearance.girder_cracks; tests/test_girder_cracks
             assert beam_span(env, part) is None
             if record["damaged"]:
                 girders += 1

@@ -15,6 +15,7 @@ from glsynth.appearance.cracks import (
     CrackNetwork,
     column_demand,
 )
+from glsynth.appearance.dressing import is_girder
 from glsynth.appearance.girder_cracks import girder_cracks, girder_spans, girder_sweep
 from glsynth.appearance.materials import Material
 from glsynth.core.config import Config, DamageConfig
@@ -39,7 +40,7 @@ def curved_env() -> Environment:
 def tightest_girders(env: Environment) -> list[Part]:
     tight = min(env.viaducts, key=lambda v: v.radius_m)
     assert tight.radius_m == pytest.approx(100.0)
-    return [p for p in env.parts if p.viaduct == tight.index and "_girder_" in p.name]
+    return [p for p in env.parts if p.viaduct == tight.index and is_girder(p)]
 
 
 def cracks_of(env: Environment, part: Part, seed: int) -> CrackNetwork:

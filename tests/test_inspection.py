@@ -20,8 +20,10 @@ from glsynth.core.config import (
     load_config,
 )
 from glsynth.core.errors import UserError
+from glsynth.core.labels import Damage
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.filters import crack_rrdr, pixels_per_cm, removal_reason, rrdr, view_rrdr
+from glsynth.render.cracks_index import segment_distance
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import ray_cast
 from glsynth.render.scene import build_scene
@@ -111,13 +113,6 @@ def test_cameras_stand_at_member_faces_within_the_ranges(env0):
     assert min(distances) < 1.0 and max(distances) > 2.3  # spread over the range
 
 
-def segment_point_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray]:
-    ab = b - a
-    t = np.clip(((p - a) * ab).sum(1) / (ab * ab).sum(1), 0.0, 1.0)
-    return np.linalg.norm(a + t[:, None] * ab - p, axis=1), t
-
-
 def test_crack_aimed_cameras_look_at_a_crack_from_where_they_resolve_it(env0):
     """About face_crack_share of the cameras aim at a point on a crack of their member's face,
     and stand where its width there spans face_crack_px pixels (or at the near end)."""
@@ -131,7 +126,7 @@ def test_crack_aimed_cameras_look_at_a_crack_from_where_they_resolve_it(env0):
         local, widths = cracks_of(env0)[p.face.member]
         pose = parts[p.face.member].pose
         a, b = (local[:, k] @ pose[:3, :3].T + pose[:3, 3] for k in (0, 1))
-        gap, t = segment_point_distance(np.array(p.face.point), a, b)
+        gap, t = segment_distance(np.array(p.face.point), a, b)
         k = int(np.argmin(gap))
         assert gap[k] < 1e-9
         width_mm = 1e3 * (widths[k, 0] + t[k] * (widths[k, 1] - widths[k, 0]))
@@ -157,7 +152,7 @@ def test_a_crack_aimed_camera_labels_its_centre_pixel_with_the_crack(tmp_path):
             placement, out = view.render(index, frozenset({"damage"}))
             if placement.face.crack_width_mm is None:
                 continue
-            assert out.damage[27, 48] == 2
+            assert out.damage[27, 48] == Damage.CONCRETE
             assert np.isclose(out.crack_width[27, 48], placement.face.crack_width_mm,
                               rtol=1e-4)
             checked += 1

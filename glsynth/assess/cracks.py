@@ -314,11 +314,12 @@ def _measure_skeleton(labels: np.ndarray, skeleton: np.ndarray, tangents: np.nda
     bound = (np.abs(np.stack([plus, minus, np.ones_like(plus), np.ones_like(plus)])) + 1.0) \
         * np.tan(np.radians(MAX_SLANT_DEG)) / intrinsics.fx
     steps = np.stack([p[:, 2] for p in ends + along]) / z - 1.0
-    continuous = np.all(np.abs(steps) <= bound, axis=0)  # NaN steps fail too
+    smooth = np.abs(steps) <= bound  # NaN steps fail too
+    continuous = np.all(smooth, axis=0)
     tangent3 = along[0] - along[1]
     # Where a step along the crack crosses a silhouette, its length per pixel is the
     # fronto-parallel footprint: the back-projected step would span the two surfaces.
-    smooth_along = np.all(np.abs(steps[2:]) <= bound[2:], axis=0)
+    smooth_along = np.all(smooth[2:], axis=0)
     metres_per_px = np.where(smooth_along, np.linalg.norm(tangent3, axis=1) / 2,
                              z / intrinsics.fx)
     unit = tangent3 / np.linalg.norm(tangent3, axis=1, keepdims=True)

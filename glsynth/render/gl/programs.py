@@ -53,8 +53,6 @@ def with_define(source: str, *macros: str) -> str:
     return f"{version}\n{defines}{rest}"
 
 
-
-
 def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:
     """Compile every program and variant for one context (a GLSL error names the files that
     failed)."""
