@@ -104,6 +104,14 @@ def create_context(platform: str | None = None) -> tuple[moderngl.Context, str]:
                                "GLSYNTH_GL_PLATFORM to a platform that works.")
 
 
+def device_name(ctx: moderngl.Context) -> str:
+    """The device a context draws on, as its driver names it: "llvmpipe (LLVM ...)" for Mesa's
+    CPU rasterizer, the GPU's name for a hardware driver. EGL picks the device with
+    glcontext's GLCONTEXT_DEVICE_INDEX (its position in eglQueryDevicesEXT's list)."""
+    info = ctx.info
+    return f"{info['GL_RENDERER']} ({info['GL_VENDOR']}, GL {ctx.version_code})"
+
+
 def check_render_size(ctx: moderngl.Context, platform: str, width: int, height: int,
                       msaa: int, shadow_map_px: int) -> None:
     """Refuse, with the limit, a render size this GL cannot hold: the context's

@@ -1,0 +1,59 @@
+"""bench/gpu.sh and bench/bench_gpu.py where no GPU is: one clear line, exit 2, nothing
+written; and the device choice that picks the GPU among EGL devices."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "bench"))
+import bench_gpu  # noqa: E402
+
+
+def test_gpu_script_refuses_without_a_gpu(tmp_path):
+    out = tmp_path / "gpu"
+    env = {"PATH": "/usr/bin:/bin"}  # no nvidia-smi on this machine's system path
+    assert subprocess.run(["which", "nvidia-smi"], env=env, capture_output=True).returncode
+    done = subprocess.run(["bash", str(ROOT / "bench" / "gpu.sh"), str(out)], env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no NVIDIA GPU found" in lines[0] and len(lines[0]) < 300
+    assert done.stdout == "" and not out.exists()
+
+
+def test_bench_refuses_software_egl(tmp_path):
+    """This machine's EGL is Mesa's llvmpipe: named, and refused as no GPU."""
+    names = bench_gpu.egl_devices()
+    assert names and "llvmpipe" in names[0]
+    done = subprocess.run([sys.executable, str(ROOT / "bench" / "bench_gpu.py"), "--out",
+                           str(tmp_path / "gpu")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "no EGL device is a GPU" in done.stderr
+    assert not (tmp_path / "gpu").exists()
+
+
+def test_gpu_index_skips_software_devices():
+    names = ["llvmpipe (LLVM 15.0.6, 256 bits) (Mesa/X.org, GL 450)",
+             "NVIDIA H100 80GB HBM3/PCIe/SSE2 (NVIDIA Corporation, GL 460)"]
+    assert bench_gpu.gpu_index(names) == 1
+    with pytest.raises(bench_gpu.NoGPU, match="no EGL device is a GPU"):
+        bench_gpu.gpu_index(names[:1])
+
+
+def test_compare_reports_label_and_depth_agreement(tmp_path):
+    depth = np.full((4, 6), 10.0, np.float32)
+    labels = np.zeros((4, 6), np.uint8)
+    np.savez(tmp_path / "a.npz", component_000=labels, damage_000=labels, depth_000=depth)
+    moved = labels.copy()
+    moved[0, 0] = 3
+    np.savez(tmp_path / "b.npz", component_000=moved, damage_000=labels,
+             depth_000=depth * (1 + 2e-6))
+    result = bench_gpu.compare(tmp_path / "a.npz", tmp_path / "b.npz")
+    assert result["label_share_equal"] == {"component": 23 / 24, "damage": 1.0}
+    assert not result["labels_identical"] and not result["depth_within_rtol"]
+    assert result["depth_max_rel"] == pytest.approx(2e-6, rel=0.05)
+    same = bench_gpu.compare(tmp_path / "a.npz", tmp_path / "a.npz")
+    assert same["labels_identical"] and same["depth_within_rtol"]
