@@ -18,6 +18,6 @@ mkdir -p "$out"
 log="$out/gpu.log"
 nvidia-smi -L | tee "$log"
 # Blender and Chromium serve other benches and tests, not this one: skip their installs.
-GLSYNTH_NO_BLENDER=1 GLSYNTH_NO_CHROMIUM=1 timeout 360 bash scripts/install.sh 2>&1 | tee -a "$log"
-timeout 480 .venv/bin/python bench/bench_gpu.py --out "$out" 2>&1 | tee -a "$log"
+GLSYNTH_NO_BLENDER=1 GLSYNTH_NO_CHROMIUM=1 timeout 270 bash scripts/install.sh 2>&1 | tee -a "$log"
+timeout 300 .venv/bin/python bench/bench_gpu.py --out "$out" 2>&1 | tee -a "$log"
 echo "bench/gpu.sh: results in $out/gpu.json"
