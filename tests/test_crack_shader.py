@@ -175,7 +175,8 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     out = glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
                    "crack_hit(in0.xyz, in1.xyz, in2.xyz).width_mm, "
                    "float(crack_hit(in0.xyz, in1.xyz, in2.xyz).labelled), "
-                   "float(crack_cell(in0.xyz))", *rows, setup=lambda prog: textures.bind(prog, 3))
+                   "float(crack_cell(in0.xyz))", *rows,
+                   setup=lambda prog: textures.bind(prog, glsl.units))
     for texture in textures.textures:
         texture.release()
     p, dpdx, dpdy = (r[:, :3].astype(np.float64) for r in rows)
