@@ -1,12 +1,16 @@
 """The GL programs' wiring (glsynth.render.gl.programs): variants by flags, texture units handed
-out per sampler name, constants shared with GLSL as defines, guarded includes."""
+out per sampler name, constants shared with GLSL as defines, guarded includes; and the pass
+registry (glsynth.render.passes) that the renderer, the viewer's frames and its protocol
+read."""
 
 import re
 
+import numpy as np
 import pytest
-from glhelpers import render_config
+from glhelpers import LIGHT, camera, pixel_plate, render_config, scene_of
 
-from glsynth.appearance.materials import MAX_ZONES
+from glsynth.appearance.materials import MAX_ZONES, Material
+from glsynth.core.labels import Component
 from glsynth.render.gl import programs
 from glsynth.render.gl.programs import (
     MAX_VIS,
@@ -16,7 +20,11 @@ from glsynth.render.gl.programs import (
     shader_source,
     with_defines,
 )
+from glsynth.render.gl.renderer import PASSES as RENDERED
 from glsynth.render.gl.renderer import Renderer
+from glsynth.render.passes import PASSES
+from glsynth.view import protocol
+from glsynth.view.frames import available_passes, legend, pass_image
 
 SAMPLER = re.compile(r"^\s*uniform\s+[iu]?sampler\w*\s+(\w+)\s*;", re.MULTILINE)
 
@@ -96,3 +104,30 @@ def test_a_file_that_includes_itself_is_an_error(shader_folder):
     (shader_folder / "b.glsl").write_text('#include "a.glsl"\n')
     with pytest.raises(RuntimeError, match="'a.glsl' includes itself through a.glsl -> b.glsl"):
         shader_source("a.glsl")
+
+
+def test_one_registry_names_the_passes_everywhere():
+    assert protocol.PASS_NAMES == tuple(PASSES)
+    assert RENDERED == {n for n, p in PASSES.items() if p.target is not None}
+    assert RENDERED == {"color", "component", "damage", "depth"}
+
+
+def test_every_registered_pass_makes_an_image_of_a_real_render(renderer):
+    cam = camera()
+    plate = pixel_plate(cam, 5.0)
+    renderer.load(scene_of(("column_plate", Component.COLUMN, plate,
+                            Material(base_color=(0.6, 0.5, 0.4, 1.0)))), LIGHT)
+    out = renderer.render(cam)
+    assert available_passes(out) == list(PASSES)  # the damage pass brings crack widths
+    for name in PASSES:
+        image = pass_image(name, out, cam.fx)
+        assert image.shape == (cam.height, cam.width, 3) and image.dtype == np.uint8
+        assert isinstance(legend(name), dict)
+    # Each pass shows what it names: the colour itself, the column's colour, near depth.
+    assert np.array_equal(pass_image("color", out, cam.fx), out.color)
+    column = pass_image("component", out, cam.fx)
+    assert (column == column[0, 0]).all()
+    assert {"label": "column", "rgb": [int(c) for c in column[0, 0]]} in \
+        legend("component")["swatches"]
+    no_damage = renderer.render(cam, frozenset({"color"}))
+    assert "crack_width" not in available_passes(no_damage)

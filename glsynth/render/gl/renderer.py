@@ -58,6 +58,7 @@ from glsynth.core.labels import Component, Damage
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import check_render_size, create_context
 from glsynth.render.gl.programs import MAX_VIS, ProgramKey, Programs, TextureUnits, Variant
+from glsynth.render.passes import DRAWN, LABEL_PASSES
 from glsynth.render.scene import PartInfo, RenderScene
 from glsynth.world.cameras import Camera
 from glsynth.world.lighting import (
@@ -70,8 +71,8 @@ from glsynth.world.lighting import (
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
 from glsynth.world.visibility import box_corners, in_clip_xy, seen_by
 
-PASSES = frozenset({"color", "component", "damage", "depth"})
-_LABEL_PASSES = frozenset({"component", "damage", "depth"})
+PASSES = DRAWN
+"""The passes render draws (glsynth.render.passes)."""
 _GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
 _DEPTH_MAP_OFFSET = (2.0, 4.0)
 """Slope-scaled polygon offset of the depth maps (sun, sky) against acne on grazed surfaces."""
@@ -1048,7 +1049,7 @@ class Renderer:
         """The passes asked for, as arrays with image rows top to bottom."""
         width, height = self.size
         out: dict[str, np.ndarray] = {}
-        if passes & _LABEL_PASSES:
+        if passes & LABEL_PASSES:
             raw = self.label_fbo.read(components=4, dtype="f4")
             labels = np.frombuffer(raw, np.float32).reshape(height, width, 4)[::-1]
             if "component" in passes:
