@@ -61,7 +61,7 @@ _SAMPLER = re.compile(r"^\s*uniform\s+[iu]?sampler\w*\s+(\w+)\s*;", re.MULTILINE
 
 
 def program_keys() -> Iterator[ProgramKey]:
-    """Every program and variant, plain forms first."""
+    """Every program and variant, each program's plain form first."""
     for name, (_, _, flags) in PROGRAMS.items():
         members = list(flags)
         for bits in range(1 << len(members)):
