@@ -54,11 +54,8 @@ ivec3 crack_grid(vec3 p) {
     return ivec3(floor(p / u_crack_cell_m));
 }
 
-// The grid cell holding p (relative to the grid's lower corner; x fastest), or -1 outside the
-// grid.
-int crack_cell(vec3 p) {
-    ivec3 c = crack_grid(p);
-    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, u_crack_dims))) return -1;
+// The index of grid cell c (inside the grid) in the cell texture: x fastest.
+int crack_cell_index(ivec3 c) {
     return c.x + u_crack_dims.x * (c.y + u_crack_dims.y * c.z);
 }
 
@@ -68,8 +65,8 @@ struct CrackHit {
     bool labelled;   // a crack covers the pixel's centre or its centreline crosses the pixel
 };
 
-// The segments listed in grid cell ``cell`` (x fastest) into ``hit``; ``nearest``: the
-// distance to the nearest labelling crack so far. A segment seen again changes nothing.
+// The segments listed in grid cell ``cell`` (crack_cell_index) into ``hit``; ``nearest``:
+// the distance to the nearest labelling crack so far. A segment seen again changes nothing.
 void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
                 inout float nearest) {
     int cell_row = textureSize(u_crack_cells, 0).x, entry_row = textureSize(u_crack_entries, 0).x;
@@ -105,7 +102,6 @@ CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     for (int z = lo.z; z <= hi.z; ++z)
         for (int y = lo.y; y <= hi.y; ++y)
             for (int x = lo.x; x <= hi.x; ++x)
-                crack_walk(x + u_crack_dims.x * (y + u_crack_dims.y * z), p, dpdx, dpdy, hit,
-                           nearest);
+                crack_walk(crack_cell_index(ivec3(x, y, z)), p, dpdx, dpdy, hit, nearest);
     return hit;
 }

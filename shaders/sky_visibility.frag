@@ -11,9 +11,10 @@ in vec3 v_normal;
 // the map's depth; its weight is the sky's luminance there times the cosine to the normal.
 uniform int u_vis_count;                // 0: no sky occlusion
 uniform sampler2DShadow u_vis_map;
-uniform mat4 u_vis_from_view[16];       // atlas coordinates and depth from camera space
-uniform vec3 u_vis_dir[16];             // camera space, towards the sky
-uniform float u_vis_weight[16];
+// MAX_VIS (#defined by glsynth.render.gl.programs): the most maps a config may ask for.
+uniform mat4 u_vis_from_view[MAX_VIS];  // atlas coordinates and depth from camera space
+uniform vec3 u_vis_dir[MAX_VIS];        // camera space, towards the sky
+uniform float u_vis_weight[MAX_VIS];
 uniform float u_vis_offset_m;
 // Where a direction is hidden, the light of what hides it: the emitted radiance of the first
 // part seen from the sky along that direction (scene panels), in the same atlas layout, stored

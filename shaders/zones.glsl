@@ -1,6 +1,6 @@
 // Damage zones (glsynth.appearance.materials.DamageZones): a damage material's maps apply only
 // where the mesh-frame z lies in one of u_zone_count intervals (x: z0, y: z1, both included).
-uniform vec2 u_zones[4];  // materials.MAX_ZONES
+uniform vec2 u_zones[MAX_ZONES];  // #defined from materials.MAX_ZONES (gl.programs)
 uniform int u_zone_count;
 
 bool in_zones(float z) {

@@ -148,9 +148,9 @@ def _brute_force(p, dpdx, dpdy, network):
 
 
 def test_crack_hit_through_the_grid_matches_every_segment(glsl):
-    """The grid lookup (crack_cell, the cell lists and the neighbours that large pixels read)
-    finds what a search of every segment finds, for pixel footprints up to four cell edges
-    (|dpdx| + |dpdy| <= 20 cm)."""
+    """The grid lookup (crack_grid and crack_cell_index, as crack_hit calls them; the cell
+    lists and the neighbours that large pixels read) finds what a search of every segment
+    finds, for pixel footprints up to four cell edges (|dpdx| + |dpdy| <= 20 cm)."""
     rng = make_rng(4, 0, Stream.DAMAGE)
     network = _column_network(rng)
     index = pack_cracks(network)
@@ -175,7 +175,8 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     out = glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
                    "crack_hit(in0.xyz, in1.xyz, in2.xyz).width_mm, "
                    "float(crack_hit(in0.xyz, in1.xyz, in2.xyz).labelled), "
-                   "float(crack_cell(in0.xyz))", *rows, setup=lambda prog: textures.bind(prog, 3))
+                   "float(crack_cell_index(crack_grid(in0.xyz)))", *rows,
+                   setup=lambda prog: textures.bind(prog, glsl.units))
     for texture in textures.textures:
         texture.release()
     p, dpdx, dpdy = (r[:, :3].astype(np.float64) for r in rows)

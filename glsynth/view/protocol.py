@@ -14,6 +14,7 @@ import numpy as np
 
 from glsynth.core.errors import UserError
 from glsynth.data.quality import QUALITY
+from glsynth.render.passes import PASSES
 
 MAX_MESSAGE_BYTES = 256 * 1024
 """Room for a config file's text; a camera message is about 400 bytes."""
@@ -23,7 +24,7 @@ FOCAL_MM = (4.0, 800.0)
 MAX_COORDINATE_M = 100_000.0
 MAX_SEED = 2 ** 32 - 1
 MAX_ENV = 1_000_000
-PASS_NAMES = ("color", "component", "damage", "depth", "labels", "rrdr", "crack_width")
+PASS_NAMES = tuple(PASSES)
 LIGHTING_FIELDS = ("sun_elevation_deg", "sun_azimuth_deg", "turbidity", "exposure")
 
 

@@ -1,70 +1,168 @@
-"""GLSL programs from the shader files in glsynth.shaders (the top-level shaders/ folder)."""
+"""GLSL programs from the shader files in glsynth.shaders (the top-level shaders/ folder): their
+compile-time variants, the constants they share with Python, and their samplers' texture units.
 
+After pyrender's ShaderProgramCache and ProgramFlags: a program is compiled once per set of
+defines, a draw names its variant by Variant flags, and every sampler gets its texture unit
+from one TextureUnits when its program is compiled, so no caller counts units by hand."""
+
+import enum
 import re
+import typing
+from collections.abc import Iterator
 from functools import cache
 
 import moderngl
 
+from glsynth.appearance.materials import MAX_ZONES
+from glsynth.core.config import RenderConfig
 from glsynth.core.paths import shader_dir
 
-# Program name -> (vertex shader file, fragment shader file).
-PROGRAMS = {"color": ("mesh.vert", "color.frag"), "labels": ("mesh.vert", "labels.frag"),
-            "msaa": ("mesh.vert", "msaa.frag"),
-            "msaa_interior": ("fullscreen.vert", "msaa_interior.frag"),
-            "msaa_resolve": ("fullscreen.vert", "msaa_resolve.frag"),
-            "sky_visibility": ("mesh.vert", "sky_visibility.frag"),
-            "shadow": ("shadow.vert", "shadow.frag"), "sky": ("fullscreen.vert", "sky.frag"),
-            "ssao": ("fullscreen.vert", "ssao.frag"),
-            "ssao_blur": ("fullscreen.vert", "ssao_blur.frag")}
+
+class Variant(enum.Flag):
+    """The code compiled into a mesh program beyond its plain form, one ``#define`` each (the
+    member's name): draws without cracks, damage zones or concrete detail run programs without
+    any of that code."""
+    NONE = 0
+    CRACKS = enum.auto()
+    SPALL = enum.auto()
+    DETAIL = enum.auto()
+
+    @classmethod
+    def of(cls, cracks: bool = False, spall: bool = False, detail: bool = False) -> "Variant":
+        """The flags of a draw with cracks, damage zones and concrete detail as given."""
+        return ((cls.CRACKS if cracks else cls.NONE) | (cls.SPALL if spall else cls.NONE)
+                | (cls.DETAIL if detail else cls.NONE))
 
 
-def variant(base: str, cracks: bool, spall: bool, detail: bool = False) -> str:
-    """The name of program ``base`` ("color" or "labels") with crack, zone and concrete detail
-    code as asked."""
-    return base + "_cracks" * cracks + "_spall" * spall + "_detail" * detail
+PROGRAMS: dict[str, tuple[str, str, Variant]] = {
+    "color": ("mesh.vert", "color.frag", Variant.CRACKS | Variant.SPALL | Variant.DETAIL),
+    "labels": ("mesh.vert", "labels.frag", Variant.CRACKS | Variant.SPALL),
+    "msaa": ("mesh.vert", "msaa.frag", Variant.NONE),
+    "msaa_interior": ("fullscreen.vert", "msaa_interior.frag", Variant.NONE),
+    "msaa_resolve": ("fullscreen.vert", "msaa_resolve.frag", Variant.NONE),
+    "sky_visibility": ("mesh.vert", "sky_visibility.frag", Variant.NONE),
+    "shadow": ("shadow.vert", "shadow.frag", Variant.NONE),
+    "sky": ("fullscreen.vert", "sky.frag", Variant.NONE),
+    "ssao": ("fullscreen.vert", "ssao.frag", Variant.NONE),
+    "ssao_blur": ("fullscreen.vert", "ssao_blur.frag", Variant.NONE)}
+"""Program name -> (vertex shader file, fragment shader file, the variants it has: every
+combination of these flags is compiled)."""
 
+ProgramKey = tuple[str, Variant]
+"""(program name, variant): one compiled program."""
 
-_VARIANT_MACROS = {"color": ("CRACKS", "SPALL", "DETAIL"), "labels": ("CRACKS", "SPALL")}
-"""The macros each program has variants for (the labels have no concrete detail)."""
-VARIANTS = {variant(base, *(m in chosen for m in ("CRACKS", "SPALL", "DETAIL"))): (base, chosen)
-            for base, macros in _VARIANT_MACROS.items()
-            for chosen in (tuple(m for i, m in enumerate(macros) if bits >> i & 1)
-                           for bits in range(1, 1 << len(macros)))}
-"""Variant name -> (program, the macros it defines): compile-time variants, so that draws
-without cracks, damage zones or concrete detail run the programs without any of that code."""
+MAX_VIS = max(typing.get_args(typing.get_type_hints(RenderConfig)["sky_visibility_maps"]))
+"""The most sky-visibility maps a config may ask for: the length of the shaders' arrays."""
+GLSL_CONSTANTS = {"MAX_ZONES": MAX_ZONES, "MAX_VIS": MAX_VIS}
+"""Constants that the shaders read as macros, defined here (in Python) only."""
+
 _INCLUDE = re.compile(r'^#include "([\w.]+)"$', re.MULTILINE)
+_SAMPLER = re.compile(r"^\s*uniform\s+[iu]?sampler\w*\s+(\w+)\s*;", re.MULTILINE)
+
+
+def program_keys() -> Iterator[ProgramKey]:
+    """Every program and variant, each program's plain form first."""
+    for name, (_, _, flags) in PROGRAMS.items():
+        members = list(flags)
+        for bits in range(1 << len(members)):
+            yield name, Variant(sum(m.value for i, m in enumerate(members) if bits >> i & 1))
 
 
 @cache
 def shader_source(name: str) -> str:
     """A shader file with each ``#include "file"`` line replaced by that file (GLSL has no
-    includes; this keeps shared functions, such as the tone map, in one file)."""
+    includes; this keeps shared functions, such as the tone map, in one file). Each included
+    file is wrapped in an include guard, so a second inclusion adds nothing."""
+    return _expand(name, ())
+
+
+def _expand(name: str, within: tuple[str, ...]) -> str:
+    """File ``name`` with its includes expanded; ``within``: the files that include it."""
+    if name in within:
+        raise RuntimeError(f"shader {name!r} includes itself through {' -> '.join(within)}")
     path = shader_dir() / name
     if not path.is_file():
         raise FileNotFoundError(f"shader {name!r} is missing from glsynth.shaders")
-    return _INCLUDE.sub(lambda m: shader_source(m.group(1)), path.read_text(encoding="utf-8"))
+
+    def include(match: re.Match) -> str:
+        guard = "GLSYNTH_" + re.sub(r"\W", "_", match.group(1)).upper()
+        body = _expand(match.group(1), (*within, name))
+        return f"#ifndef {guard}\n#define {guard}\n{body.rstrip()}\n#endif"
+    return _INCLUDE.sub(include, path.read_text(encoding="utf-8"))
 
 
-def with_define(source: str, *macros: str) -> str:
-    """``source`` with ``#define macro`` for each of ``macros`` after its #version line (which
-    must come first)."""
+def defines(variant: Variant = Variant.NONE) -> str:
+    """The ``#define`` lines of the shared constants and of ``variant``'s flags."""
+    lines = [f"#define {name} {value}\n" for name, value in GLSL_CONSTANTS.items()]
+    return "".join(lines + [f"#define {flag.name}\n" for flag in variant])
+
+
+def with_defines(source: str, variant: Variant = Variant.NONE) -> str:
+    """``source`` with defines(variant) after its #version line (which must come first)."""
     version, rest = source.split("\n", 1)
-    defines = "".join(f"#define {macro}\n" for macro in macros)
-    return f"{version}\n{defines}{rest}"
+    return f"{version}\n{defines(variant)}{rest}"
 
 
-def compile_programs(ctx: moderngl.Context) -> dict[str, moderngl.Program]:
-    """Compile every program and variant for one context (a GLSL error names the files that
-    failed)."""
-    builds = {name: (vert, frag, ()) for name, (vert, frag) in PROGRAMS.items()}
-    builds |= {name: (*PROGRAMS[base], macros) for name, (base, macros) in VARIANTS.items()}
-    programs = {}
-    for name, (vert, frag, macros) in builds.items():
-        sources = [shader_source(vert), shader_source(frag)]
-        if macros:
-            sources = [with_define(source, *macros) for source in sources]
-        try:
-            programs[name] = ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
-        except moderngl.Error as err:
-            raise RuntimeError(f"GLSL program {name!r} ({vert} + {frag}) failed: {err}") from err
-    return programs
+class TextureUnits:
+    """One texture unit per sampler name, for all of a context's programs, handed out in the
+    order the names are first met. pyrender's _bind_texture counts units per draw; one unit
+    per name instead means that no program's samplers share a unit (GL forbids it for samplers
+    of different types, even unread ones) and a texture bound once for a view serves every
+    program that reads it."""
+
+    def __init__(self, limit: int) -> None:
+        """``limit``: the first unit not to hand out (moderngl binds textures it creates or
+        writes at ctx.default_texture_unit, the last one)."""
+        self._limit = limit
+        self._units: dict[str, int] = {}
+
+    def unit(self, sampler: str) -> int:
+        if sampler not in self._units:
+            if len(self._units) >= self._limit:
+                raise RuntimeError(f"no texture unit left for {sampler!r}: the programs have "
+                                   f"more than {self._limit} sampler names")
+            self._units[sampler] = len(self._units)
+        return self._units[sampler]
+
+    def wire(self, prog: moderngl.Program, source: str) -> None:
+        """Point each sampler that ``source`` declares, and ``prog`` kept, at its unit."""
+        for name in _SAMPLER.findall(source):
+            uniform = prog.get(name, None)
+            if uniform is not None:
+                uniform.value = self.unit(name)
+
+    def bind(self, sampler: str, texture: moderngl.Texture) -> None:
+        """``texture`` into the unit of ``sampler``."""
+        texture.use(self.unit(sampler))
+
+
+class Programs:
+    """A context's programs, each compiled once per set of defines (program_keys)."""
+
+    def __init__(self, ctx: moderngl.Context, units: TextureUnits) -> None:
+        """Compile every program and variant (a GLSL error names the files that failed)."""
+        self._programs = {key: _compile(ctx, units, *key) for key in program_keys()}
+
+    def get(self, name: str, variant: Variant = Variant.NONE) -> moderngl.Program:
+        return self._programs[name, variant]
+
+    def keys(self) -> list[ProgramKey]:
+        return list(self._programs)
+
+    def variants(self, name: str) -> list[tuple[Variant, moderngl.Program]]:
+        """Program ``name``'s variants, the plain form first."""
+        return [(v, prog) for (n, v), prog in self._programs.items() if n == name]
+
+
+def _compile(ctx: moderngl.Context, units: TextureUnits, name: str,
+             variant: Variant) -> moderngl.Program:
+    vert, frag, _ = PROGRAMS[name]
+    sources = [with_defines(shader_source(file), variant) for file in (vert, frag)]
+    try:
+        prog = ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
+    except moderngl.Error as err:
+        raise RuntimeError(f"GLSL program {name!r} {variant} ({vert} + {frag}) failed: "
+                           f"{err}") from err
+    for source in sources:
+        units.wire(prog, source)
+    return prog

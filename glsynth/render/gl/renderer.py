@@ -35,9 +35,9 @@ textures per part, uploaded the first time a view shows the part (packing is mos
 scene's load: an interactive viewer opens it sooner, and a render packs only what its cameras
 see; the bytes are the same), and evaluated in the fragment shader
 (shaders/cracks.glsl); the crack code is compiled only into the programs' crack variants
-(programs.VARIANTS), which only views and parts with cracks use, so a scene without cracks
+(programs.Variant.CRACKS), which only views and parts with cracks use, so a scene without cracks
 runs the very programs it ran before. Likewise a material's damage zones (a spalled column's
-hinge zones) are drawn by the zone variants (#define SPALL), which confine its damage mask and
+hinge zones) are drawn by the zone variants (Variant.SPALL), which confine its damage mask and
 damaged material to mesh-frame z intervals and show its intact concrete elsewhere.
 """
 
@@ -57,7 +57,8 @@ from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import check_render_size, create_context
-from glsynth.render.gl.programs import VARIANTS, compile_programs, variant
+from glsynth.render.gl.programs import MAX_VIS, ProgramKey, Programs, TextureUnits, Variant
+from glsynth.render.passes import DRAWN, LABEL_PASSES
 from glsynth.render.scene import PartInfo, RenderScene
 from glsynth.world.cameras import Camera
 from glsynth.world.lighting import (
@@ -70,12 +71,11 @@ from glsynth.world.lighting import (
 from glsynth.world.sunlight import shadow_matrix, shadow_texel_m
 from glsynth.world.visibility import box_corners, in_clip_xy, seen_by
 
-PASSES = frozenset({"color", "component", "damage", "depth"})
-_LABEL_PASSES = frozenset({"component", "damage", "depth"})
+PASSES = DRAWN
+"""The passes render draws (glsynth.render.passes)."""
 _GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
 _DEPTH_MAP_OFFSET = (2.0, 4.0)
 """Slope-scaled polygon offset of the depth maps (sun, sky) against acne on grazed surfaces."""
-_MAX_VIS = 16  # the length of the sky-visibility arrays in sky_visibility.frag
 _ATTRIBUTES = {"color": ("3f 3f 2f", "in_position", "in_normal", "in_uv"),
                "labels": ("3f 12x 2f", "in_position", "in_uv"),
                "shadow": ("3f 20x", "in_position"),
@@ -83,9 +83,9 @@ _ATTRIBUTES = {"color": ("3f 3f 2f", "in_position", "in_normal", "in_uv"),
                "sky_visibility": ("3f 3f 8x", "in_position", "in_normal")}
 """The vertex layout and attributes each mesh program reads of (position, normal, uv)."""
 _CRACK_SAMPLERS = ("u_crack_segments", "u_crack_cells", "u_crack_entries")
-_SPALL_UNITS = {"u_intact_map": 9, "u_spall_map": 10}
-"""The zone variant's colour samplers (units 0-8 hold the colour pass's other inputs)."""
-_COLOR_PROGRAMS = ("color", *(name for name, (base, _) in VARIANTS.items() if base == "color"))
+_MATERIAL_SAMPLERS = {"base": "u_base_color_map", "emissive": "u_emissive_map",
+                      "normal": "u_normal_map", "intact": "u_intact_map", "spall": "u_spall_map"}
+"""A draw's texture slot -> the colour programs' sampler that reads it."""
 _CLIP_TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
 
 
@@ -120,12 +120,10 @@ class CrackTextures:
     """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
     demo environment's would add 155 MB to the RSS)."""
 
-    def bind(self, prog: moderngl.Program, first_unit: int) -> None:
-        """Bind the textures to units first_unit.. and set ``prog``'s crack uniforms."""
-        for unit, (name, texture) in enumerate(zip(_CRACK_SAMPLERS, self.textures, strict=True),
-                                               start=first_unit):
-            prog[name].value = unit
-            texture.use(unit)
+    def bind(self, prog: moderngl.Program, units: TextureUnits) -> None:
+        """Bind the textures to their samplers' units and set ``prog``'s crack uniforms."""
+        for name, texture in zip(_CRACK_SAMPLERS, self.textures, strict=True):
+            units.bind(name, texture)
         # Read by the vertex stage (shaders/mesh.vert); a program of cracks.glsl alone (the
         # shader harness) takes positions relative to the origin and has no such uniform.
         origin = prog.get("u_crack_origin", None)
@@ -178,7 +176,7 @@ class DetailUniforms:
 class _Draw:
     name: str
     pose: np.ndarray
-    vaos: dict[str, moderngl.VertexArray]
+    vaos: dict[ProgramKey, moderngl.VertexArray]
     buffers: tuple[moderngl.Buffer, ...]
     """Vertex and index buffers: the VAOs use them, the scene owns them (release_scene)."""
     material: Material
@@ -200,14 +198,14 @@ class _Draw:
     """Where the part's damage material applies (textures "intact" and "spall" with it)."""
     detail: DetailUniforms | None = None
 
-    def program(self, base: str, view_has_cracks: bool) -> str:
+    def program(self, base: str, view_has_cracks: bool) -> ProgramKey:
         """The variant of ``base`` that draws this part: with crack code in a view with
         cracks (labels) or for a part with cracks (colour), with zone code for a part with
         zones, and (colour) with detail code for a part with concrete detail."""
         if base == "labels":
-            return variant(base, view_has_cracks, self.zones is not None)
-        return variant(base, self.cracks is not None, self.zones is not None,
-                       self.detail is not None)
+            return base, Variant.of(view_has_cracks, self.zones is not None)
+        return base, Variant.of(self.cracks is not None, self.zones is not None,
+                                self.detail is not None)
 
 
 @dataclass(frozen=True)
@@ -325,7 +323,8 @@ class Renderer:
         except UserError:
             self.ctx.release()
             raise
-        self.programs = compile_programs(self.ctx)
+        self.units = TextureUnits(self.ctx.default_texture_unit)
+        self.programs = Programs(self.ctx, self.units)
         self.size = (config.width, config.height)
         self._draws: list[_Draw] = []
         # Uploaded textures by the ids of their source arrays (colour, alpha); the arrays are
@@ -343,13 +342,16 @@ class Renderer:
             "white": self._make_texture(np.full((1, 1, 3), 255, np.uint8)),
             "flat": self._make_texture(np.array([[[128, 128, 255]]], np.uint8)),
         }
+        self._default_maps = {"base": self._defaults["white"],
+                              "emissive": self._defaults["white"], "normal": self._defaults["flat"]}
+        """What a colour draw binds where its part has no such map."""
         self.lighting: Lighting | None = None
         self._sky_maps: _SkyMaps | None = None
         self._radiance_scale = 1.0
         """The loaded scene's brightest emitted radiance: the sky maps' radiance is over it."""
         self._make_targets()
         # Fullscreen passes: one triangle from gl_VertexID, no vertex buffer.
-        self._fullscreen_vaos = {name: self.ctx.vertex_array(self.programs[name], [])
+        self._fullscreen_vaos = {name: self.ctx.vertex_array(self.programs.get(name), [])
                                  for name in ("sky", "ssao", "ssao_blur", "msaa_interior",
                                               "msaa_resolve")}
 
@@ -557,8 +559,8 @@ class Renderer:
         if any(d.cracks is not None for d in self._draws):
             # A view with cracks draws every part's labels through a crack variant.
             for draw in self._draws:
-                name = draw.program("labels", True)
-                draw.vaos[name] = self._vertex_array(name, draw.buffers[0], draw.buffers[1])
+                key = draw.program("labels", True)
+                draw.vaos[key] = self._vertex_array(key, draw.buffers[0], draw.buffers[1])
         # Kept textures of earlier scenes that this one does not draw.
         self._free_textures(lambda key, _: key in self._used)
         self._bake_sky_visibility(extent)
@@ -583,15 +585,16 @@ class Renderer:
         if material.zones is not None:
             zones = zone_uniforms(material)
             textures |= self._zone_textures(material)
-            vaos["labels_spall"] = self._vertex_array("labels_spall", vbo, ibo)
+            vaos["labels", Variant.SPALL] = self._vertex_array(("labels", Variant.SPALL), vbo,
+                                                               ibo)
         detail = None
         if material.detail_seed is not None:
             detail = DetailUniforms(material.detail_seed,
                                     tuple(float(v) for v in primitive.positions.min(0)))
         if material.cracks is not None or zones is not None or detail is not None:
-            name = variant("color", material.cracks is not None, zones is not None,
-                           detail is not None)
-            vaos[name] = self._vertex_array(name, vbo, reversed_ibo)
+            key = ("color", Variant.of(material.cracks is not None, zones is not None,
+                                       detail is not None))
+            vaos[key] = self._vertex_array(key, vbo, reversed_ibo)
         base = self._base_texture(material)
         if base is not None:
             textures["base"] = base
@@ -615,19 +618,20 @@ class Renderer:
         return {"intact": self._upload_texture(material.zones.intact_map), "spall": spall}
 
 
-    def _vertex_array(self, program: str, vbo: moderngl.Buffer,
+    def _vertex_array(self, program: ProgramKey, vbo: moderngl.Buffer,
                       indices: moderngl.Buffer) -> moderngl.VertexArray:
         """A primitive's vertex array for ``program``, reading the attributes it needs from
         the interleaved position, normal and uv."""
-        layout, *names = _ATTRIBUTES[VARIANTS[program][0] if program in VARIANTS else program]
-        return self.ctx.vertex_array(self.programs[program], [(vbo, layout, *names)], indices,
-                                     4)
+        layout, *names = _ATTRIBUTES[program[0]]
+        return self.ctx.vertex_array(self.programs.get(*program), [(vbo, layout, *names)],
+                                     indices, 4)
 
     def _vertex_arrays(self, vbo: moderngl.Buffer, ibo: moderngl.Buffer,
-                       reversed_ibo: moderngl.Buffer) -> dict[str, moderngl.VertexArray]:
-        """One primitive's vertex array for each program that draws meshes (the colour pass's
-        with the triangles reversed)."""
-        return {name: self._vertex_array(name, vbo, reversed_ibo if name == "color" else ibo)
+                       reversed_ibo: moderngl.Buffer) -> dict[ProgramKey, moderngl.VertexArray]:
+        """One primitive's vertex array for each program that draws meshes, in its plain form
+        (the colour pass's with the triangles reversed)."""
+        return {(name, Variant.NONE): self._vertex_array(
+                    (name, Variant.NONE), vbo, reversed_ibo if name == "color" else ibo)
                 for name in _ATTRIBUTES}
 
     def make_current(self) -> None:
@@ -681,16 +685,15 @@ class Renderer:
     def _set_lighting(self, lighting: Lighting) -> None:
         """The uniforms that stay the same for every camera of an environment: all of them
         from ``lighting`` (the SH ambient light, the sky, the sun's strength, the exposure)."""
-        sky = self.programs["sky"]
+        sky = self.programs.get("sky")
         sky["u_exposure"].value = lighting.exposure
         sky_sh, ground_sh = lighting.irradiance_sh()
-        for name in _COLOR_PROGRAMS:
-            color = self.programs[name]
+        for variant, color in self.programs.variants("color"):
             color["u_exposure"].value = lighting.exposure
             color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
             color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
             color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
-            if "_cracks" in name:
+            if Variant.CRACKS in variant:
                 color["u_crack_contrast"].value = CRACK_CONTRAST
         sky["u_sky_model"].value = 0 if lighting.sky == "preetham" else 1
         sky["u_sky_strength"].value = lighting.sky_strength
@@ -823,23 +826,23 @@ class Renderer:
     def _draw_depth(self, light: np.ndarray, draws: list[_Draw]) -> None:
         """Depth of ``draws`` through the clip-from-world matrix ``light`` into the bound
         framebuffer (sun shadows, sky visibility)."""
-        prog = self.programs["shadow"]
+        prog = self.programs.get("shadow")
         # Parts wholly beyond the map's sides make no fragment.
         inside = in_clip_xy(np.stack([d.corners for d in draws]), light) if draws else []
         for draw in (d for d, keep in zip(draws, inside, strict=True) if keep):
             prog["u_light_mvp"].write(_gl_matrix(light @ draw.pose))
             prog["u_radiance"].value = tuple(draw.radiance / self._radiance_scale)
-            draw.vaos["shadow"].render()
+            draw.vaos["shadow", Variant.NONE].render()
 
     def _draw_surfaces(self, program: str, camera: Camera, placed: list[_Placed]) -> None:
         """``placed`` through ``program`` (mesh.vert, positions and normals) from ``camera``,
         into the bound framebuffer, with no per-part uniforms beyond the matrices."""
-        prog = self.programs[program]
+        prog = self.programs.get(program)
         prog["u_projection"].write(_gl_matrix(camera.projection()))
         for item in placed:
             prog["u_modelview"].write(item.modelview)
             prog["u_normal_matrix"].write(item.normal)
-            item.draw.vaos[program].render()
+            item.draw.vaos[program, Variant.NONE].render()
 
     # --- the passes, in render's order ------------------------------------------------------
     def _sky_visibility_pass(self, camera: Camera, placed: list[_Placed]) -> None:
@@ -847,15 +850,13 @@ class Renderer:
         maps = self._sky_maps
         if maps is None:
             return
-        prog = self.programs["sky_visibility"]
+        prog = self.programs.get("sky_visibility")
         self.sky_fbo.use()
         self.sky_fbo.clear(0.0, 0.0, 0.0, 0.0)
-        prog["u_vis_map"].value = 0
-        self.vis_map.use(0)
-        prog["u_vis_radiance"].value = 1
-        self.vis_radiance.use(1)
+        self.units.bind("u_vis_map", self.vis_map)
+        self.units.bind("u_vis_radiance", self.vis_radiance)
         count = len(maps.directions)
-        pad = _MAX_VIS - count  # the shader's arrays hold 16
+        pad = MAX_VIS - count  # the shader's arrays hold MAX_VIS
         prog["u_vis_count"].value = count
         prog["u_vis_from_view"].write(_gl_matrix(np.concatenate(
             [maps.atlas_from_world @ camera.pose, np.zeros((pad, 4, 4))])))
@@ -896,46 +897,39 @@ class Renderer:
         if cracked:
             self.crack_fbo.clear(0.0, 0.0)
             self.label_crack_fbo.use()
-        for prog in (self.programs[name] for name in names):
-            if cracked:
-                # Samplers of different types may not share a unit, even unread.
-                for unit, sampler in enumerate(_CRACK_SAMPLERS, start=1):
-                    prog[sampler].value = unit
+        for prog in (self.programs.get(*key) for key in names):
             prog["u_projection"].write(_gl_matrix(camera.projection()))
-            prog["u_damage_mask"].value = 0
         with _depth_state(self.ctx):
             for item in placed:
                 draw = item.draw
-                name = draw.program("labels", cracked)
-                prog = self.programs[name]
+                key = draw.program("labels", cracked)
+                prog = self.programs.get(*key)
                 prog["u_modelview"].write(item.modelview)
                 prog["u_component"].value = draw.component
                 prog["u_has_damage_mask"].value = draw.damage_mask is not None
                 if draw.damage_mask is not None:
-                    draw.damage_mask.use(0)
+                    self.units.bind("u_damage_mask", draw.damage_mask)
                 if cracked:
                     prog["u_has_cracks"].value = draw.cracks is not None
                     if draw.cracks is not None:
-                        draw.crack_textures.bind(prog, 1)
+                        draw.crack_textures.bind(prog, self.units)
                 if draw.zones is not None:
                     draw.zones.set(prog)
-                draw.vaos[name].render()
+                draw.vaos[key].render()
 
     def _ao_pass(self, camera: Camera) -> None:
         """Occlusion from the label texture (drawn for this camera) into self.ao."""
-        cfg, prog = self.config, self.programs["ssao"]
+        cfg, prog = self.config, self.programs.get("ssao")
         self.ctx.disable(moderngl.DEPTH_TEST)
         self.ao_raw_fbo.use()
-        self.label_target.use(0)
-        prog["u_labels"].value = 0
+        self.units.bind("u_labels", self.label_target)
         prog["u_intrinsics"].value = self._intrinsics(camera)
         prog["u_size"].value = (float(self.size[0]), float(self.size[1]))
         prog["u_radius"].value = cfg.ao_radius_m
         prog["u_samples"].value = cfg.ao_samples
         self._fullscreen("ssao")
         self.ao_fbo.use()
-        self.ao_raw.use(0)
-        self.programs["ssao_blur"]["u_raw"].value = 0
+        self.units.bind("u_raw", self.ao_raw)
         self._fullscreen("ssao_blur")
 
     def _color_pass(self, camera: Camera, placed: list[_Placed], shadow: np.ndarray | None,
@@ -969,8 +963,8 @@ class Renderer:
         with _depth_state(self.ctx, depth_func="<="):
             for item in reversed(placed):
                 draw, mat = item.draw, item.draw.material
-                name = draw.program("color", self._view_has_cracks)
-                prog = self.programs[name]
+                key = draw.program("color", self._view_has_cracks)
+                prog = self.programs.get(*key)
                 prog["u_modelview"].write(item.modelview)
                 prog["u_normal_matrix"].write(item.normal)
                 prog["u_base_color"].value = tuple(float(c) for c in mat.base_color)
@@ -978,57 +972,44 @@ class Renderer:
                 prog["u_roughness"].value = float(mat.roughness)
                 prog["u_emissive"].value = tuple(float(c) for c in mat.emissive)
                 prog["u_has_normal_map"].value = "normal" in draw.textures
-                draw.textures.get("base", self._defaults["white"]).use(0)
-                draw.textures.get("emissive", self._defaults["white"]).use(1)
-                draw.textures.get("normal", self._defaults["flat"]).use(2)
+                for slot, texture in (self._default_maps | draw.textures).items():
+                    self.units.bind(_MATERIAL_SAMPLERS[slot], texture)
                 if draw.zones is not None:
                     draw.zones.set(prog)
                     prog["u_intact_uv_ratio"].value = draw.zones.intact_uv_ratio
-                    draw.textures["intact"].use(_SPALL_UNITS["u_intact_map"])
-                    draw.textures["spall"].use(_SPALL_UNITS["u_spall_map"])
                 if draw.detail is not None:
                     draw.detail.set(prog)
-                draw.vaos[name].render()
+                draw.vaos[key].render()
             self._draw_sky(camera)
 
     def _set_view_uniforms(self, camera: Camera, placed: list[_Placed],
                            shadow: np.ndarray | None, ao: bool) -> None:
         """The colour programs' inputs for one view (the targets of the passes before them:
-        shadow map, ambient occlusion, sky visibility, bound to units 3 to 7; the label pass's
-        crack coverage to 8) and their uniforms, in every variant the view's parts draw by."""
-        self.shadow_map.use(3)
-        self.ao.use(4)
-        for unit, target in enumerate(self.sky_targets, start=5):
-            target.use(unit)
-        names = {"color"} | {item.draw.program("color", self._view_has_cracks)
-                             for item in placed}
-        for name in sorted(names):
-            prog = self.programs[name]
-            self._set_color_view_uniforms(prog, camera, shadow, ao)
-            if "_cracks" in name:
-                prog["u_crack"].value = 8
-            if "_spall" in name:
-                for sampler, unit in _SPALL_UNITS.items():
-                    prog[sampler].value = unit
+        shadow map, ambient occlusion, sky visibility; the label pass's crack coverage) and
+        their uniforms, in every variant the view's parts draw by."""
+        inputs = {"u_shadow_map": self.shadow_map, "u_ao": self.ao,
+                  **dict(zip(("u_sky_light", "u_sky_surface", "u_sky_open"), self.sky_targets,
+                             strict=True))}
         if self._view_has_cracks:
-            self.crack_target.use(8)
+            inputs["u_crack"] = self.crack_target
+        for sampler, texture in inputs.items():
+            self.units.bind(sampler, texture)
+        keys = {("color", Variant.NONE)} | {item.draw.program("color", self._view_has_cracks)
+                                            for item in placed}
+        for key in keys:
+            self._set_color_view_uniforms(self.programs.get(*key), camera, shadow, ao)
 
     def _set_color_view_uniforms(self, prog: moderngl.Program, camera: Camera,
                                  shadow: np.ndarray | None, ao: bool) -> None:
-        """One colour program's uniforms for one view: the camera, the sun, the units of the
-        inputs that _set_view_uniforms binds."""
+        """One colour program's uniforms for one view: the camera, the sun, which of the
+        inputs that _set_view_uniforms binds it reads."""
         prog["u_projection"].write(_gl_matrix(camera.projection()))
         prog["u_sun_dir"].value = tuple(camera.view()[:3, :3] @ self.lighting.sun_direction)
         prog["u_world_from_view"].write(_gl_matrix(camera.pose[:3, :3]))
-        for unit, name in enumerate(("u_base_color_map", "u_emissive_map", "u_normal_map",
-                                     "u_shadow_map", "u_ao")):
-            prog[name].value = unit
         prog["u_has_shadows"].value = shadow is not None
         prog["u_has_ao"].value = ao
         prog["u_vis_count"].value = 0 if self._sky_maps is None else len(
             self._sky_maps.directions)
-        for unit, name in enumerate(("u_sky_light", "u_sky_surface", "u_sky_open"), start=5):
-            prog[name].value = unit
         if shadow is not None:
             px = self.config.shadow_map_px
             prog["u_shadow_from_view"].write(_gl_matrix(_CLIP_TO_TEXTURE @ shadow @ camera.pose))
@@ -1038,7 +1019,7 @@ class Renderer:
 
     def _draw_sky(self, camera: Camera) -> None:
         """The sky where the colour pass drew nothing (depth still at the far plane)."""
-        prog = self.programs["sky"]
+        prog = self.programs.get("sky")
         prog["u_intrinsics"].value = self._intrinsics(camera)
         prog["u_height"].value = float(self.size[1])
         prog["u_world_from_view"].write(_gl_matrix(camera.pose[:3, :3]))
@@ -1056,14 +1037,11 @@ class Renderer:
         inputs = (("u_sample_surface", self.sample_targets[0]),
                   ("u_sample_depth", self.sample_targets[1]), ("u_labels", self.label_target),
                   ("u_normals", self.normal_target), ("u_shaded", self.color_target))
-        for unit, (_, texture) in enumerate(inputs):
-            texture.use(unit)
+        for name, texture in inputs:
+            self.units.bind(name, texture)
         with _depth_state(self.ctx, depth_func="1"):  # every pixel writes its mark
             for step in ("msaa_interior", "msaa_resolve"):
-                prog = self.programs[step]
-                for unit, (name, _) in enumerate(inputs):
-                    prog[name].value = unit
-                prog["u_samples"].value = self.config.msaa
+                self.programs.get(step)["u_samples"].value = self.config.msaa
                 self._fullscreen(step)
                 self.ctx.depth_func = "<="  # the full resolve where the mark is 1
 
@@ -1071,7 +1049,7 @@ class Renderer:
         """The passes asked for, as arrays with image rows top to bottom."""
         width, height = self.size
         out: dict[str, np.ndarray] = {}
-        if passes & _LABEL_PASSES:
+        if passes & LABEL_PASSES:
             raw = self.label_fbo.read(components=4, dtype="f4")
             labels = np.frombuffer(raw, np.float32).reshape(height, width, 4)[::-1]
             if "component" in passes:
