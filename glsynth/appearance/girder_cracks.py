@@ -67,11 +67,11 @@ class GirderSweep:
 
 
 def girder_sweep(env: Environment, part: Part) -> GirderSweep:
-    """The sweep of girder ``part`` (beam_vXX_girder_l or _r) of ``env``."""
+    """The sweep of girder ``part`` (PartKind.GIRDER, on side l or r) of ``env``."""
     d, traj = env.config.design, env.trajectory
     s = viaduct_samples(env.config, traj, part.viaduct)
     path, _, across = traj.frame(s)
-    profile = girder_profile(d, part.name[-1])
+    profile = girder_profile(d, part.side)
     centre = profile.mean(axis=0)
     line = path + centre[0] * across + centre[1] * _UP
     g = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(line, axis=0), axis=1))])
