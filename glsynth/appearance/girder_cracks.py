@@ -35,6 +35,7 @@ import numpy as np
 
 from glsynth.appearance.cracks import CrackNetwork, beam_cracks, empty_network
 from glsynth.core.config import DamageConfig
+from glsynth.core.geometry import segment_distance
 from glsynth.world.environment import Environment, Part, girder_profile, viaduct_samples
 
 _UP = np.array([0.0, 0.0, 1.0])
@@ -116,10 +117,7 @@ def _split_at(net: CrackNetwork, cuts: np.ndarray) -> CrackNetwork:
 def _edges(profile: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For section points ``q`` (n, 2) on the rectangle's outline: the edge j (from corner j to
     j + 1) each lies on, and its parameter e in [0, 1] along it."""
-    a, b = profile, np.roll(profile, -1, axis=0)
-    ab = b - a
-    e = np.clip(np.einsum("njk,jk->nj", q[:, None] - a, ab) / np.sum(ab * ab, 1), 0.0, 1.0)
-    gap = np.linalg.norm(q[:, None] - (a + e[..., None] * ab), axis=2)
+    gap, e = segment_distance(q[:, None], profile, np.roll(profile, -1, axis=0))
     j = np.argmin(gap, axis=1)
     return j, e[np.arange(len(q)), j]
 

@@ -15,6 +15,7 @@ import trimesh
 
 from glsynth.core import design
 from glsynth.core.config import Config
+from glsynth.core.geometry import transform_points
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.world import meshes
@@ -78,7 +79,7 @@ class Part:
         return self.kind.component
 
     def world_vertices(self) -> np.ndarray:
-        return self.mesh.vertices @ self.pose[:3, :3].T + self.pose[:3, 3]
+        return transform_points(self.pose, self.mesh.vertices)
 
 
 @dataclass(frozen=True)

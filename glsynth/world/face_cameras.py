@@ -37,6 +37,7 @@ import numpy as np
 
 from glsynth.core.config import CameraConfig, RenderConfig
 from glsynth.core.errors import UserError
+from glsynth.core.geometry import transform_points
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.world.cameras import (
     Camera,
@@ -270,7 +271,7 @@ def crack_aims(parts: Sequence[Part], faces: list[MemberFace], cracks: Cracks
         if not mine or not len(local):
             continue
         pose = parts[index[name]].pose
-        world = local @ pose[:3, :3].T + pose[:3, 3]
+        world = transform_points(pose, local)
         rel = world.mean(axis=1)[:, None, :] - np.array([faces[k].centre for k in mine])
         normal = np.array([faces[k].normal for k in mine])
         tangents = np.array([faces[k].tangents for k in mine])  # (F, 2, 3)
