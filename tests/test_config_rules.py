@@ -58,3 +58,14 @@ def test_a_list_field_checks_each_item():
         FlightConfig(heights_m=())
     with pytest.raises(UserError, match=r"flight\.heights_m = -2\.0: must be in \[0\.0, 1000"):
         FlightConfig(heights_m=(1.0, -2.0))
+
+
+def test_crack_widths_in_metres_and_their_bound_are_the_configs():
+    from glsynth.appearance.cracks import MAX_WIDTH_M
+    from glsynth.core.config import MAX_CRACK_WIDTH_MM, DamageConfig
+
+    assert DamageConfig(crack_width_mm=(0.1, 2.0)).crack_width_m == (0.1 / 1e3, 2.0 / 1e3)
+    assert MAX_WIDTH_M * 1e3 == MAX_CRACK_WIDTH_MM
+    DamageConfig(crack_width_mm=(0.1, MAX_CRACK_WIDTH_MM))
+    with pytest.raises(UserError, match=r"damage\.crack_width_mm = \(0\.1, 10\.5\)"):
+        DamageConfig(crack_width_mm=(0.1, MAX_CRACK_WIDTH_MM + 0.5))

@@ -227,6 +227,10 @@ SEVERITIES = ("slight", "medium", "severe")
 """Section 3.3's damage severities, in this order (seeded draws index into it)."""
 
 
+MAX_CRACK_WIDTH_MM = 10.0
+"""The widest crack [damage] crack_width_mm may allow."""
+
+
 @dataclass(frozen=True)
 class DamageConfig:
     """Procedural concrete damage and exposed rebar of the columns (paper Section 3.3).
@@ -269,7 +273,8 @@ class DamageConfig:
     textures spread uniformly over a column; "mechanics", crack networks with a width in mm on
     the columns and the cross and tie beams, placed by their moment and shear in double
     curvature under a drift. The fields below apply to "mechanics" only."""
-    crack_width_mm: tuple[float, float] = bounded((0.05, 5.0), PositiveInterval(10.0, "mm"))
+    crack_width_mm: tuple[float, float] = bounded(
+        (0.05, 5.0), PositiveInterval(MAX_CRACK_WIDTH_MM, "mm"))
     """Range of crack widths: a crack tapers to the lower bound at its tips, and no crack is
     wider than the upper bound."""
     slight_drift_pct: tuple[float, float] = bounded((0.2, 0.5), Interval(0.0, 20.0))
@@ -340,6 +345,12 @@ class DamageConfig:
         self.area_range(severity)  # validates the name
         lo, hi = getattr(self, f"{severity}_depth_cm")
         return (lo / 100.0, hi / 100.0)
+
+    @property
+    def crack_width_m(self) -> tuple[float, float]:
+        """crack_width_mm in metres, the unit of the crack networks."""
+        lo, hi = self.crack_width_mm
+        return (lo / 1e3, hi / 1e3)
 
     def drift_range(self, severity: str) -> tuple[float, float]:
         """Lateral drift ratio range (not %) of a severity under ``model = "mechanics"``."""
