@@ -48,13 +48,12 @@ from glsynth.appearance.cracks import CrackNetwork  # noqa: E402
 from glsynth.appearance.materials import Material  # noqa: E402
 from glsynth.assess.cracks import Intrinsics, error_summary, measure_cracks, width_errors  # noqa: E402
 from glsynth.core.config import LightingConfig, RenderConfig, load_config  # noqa: E402
-from glsynth.core.labels import Component  # noqa: E402
 from glsynth.data.visible_cracks import on_surface  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
 from glsynth.render.scene import build_scene  # noqa: E402
 from glsynth.render.view import EnvironmentView  # noqa: E402
 from glsynth.world.cameras import Camera  # noqa: E402
-from glsynth.world.environment import Part  # noqa: E402
+from glsynth.world.environment import Part, PartKind  # noqa: E402
 from glsynth.world.lighting import environment_lighting  # noqa: E402
 
 LIGHT = environment_lighting(LightingConfig(sun_elevation_deg=(50.0, 50.0),
@@ -96,7 +95,7 @@ def cracks_across(centre: np.ndarray, u: np.ndarray, v: np.ndarray, width_m: flo
 
 def render(renderer: Renderer, mesh: trimesh.Trimesh, cracks: CrackNetwork | None,
            camera: Camera):
-    part = Part("wall", Component.COLUMN, None, mesh, np.eye(4))
+    part = Part("wall", PartKind.COLUMN, None, mesh, np.eye(4))
     renderer.load(build_scene([part], {"wall": Material(base_color=(0.3, 0.3, 0.3, 1.0),
                                                         cracks=cracks)}), LIGHT)
     return renderer.render(camera)

@@ -30,10 +30,11 @@ def measure(n_envs: int) -> dict:
     for env in range(n_envs):
         view = EnvironmentView.open(config, 0, env, renderer)
         renderer = view.renderer
+        parts = {p.name: p for p in view.environment.parts}
         for index in range(config.cameras.total):
             placement, out = view.render(index)
             tries.append(placement.face.tries)
-            members[placement.face.member.split("_")[0]] += 1
+            members[parts[placement.face.member].component.name.lower()] += 1
             bridge = out.component > Component.NONBRIDGE
             for name, rule in rules.items():
                 reason = removal_reason(out.color, out.component, out.depth, rule)

@@ -12,7 +12,7 @@ from glsynth.core.labels import Component
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera
-from glsynth.world.environment import Environment, Part
+from glsynth.world.environment import Environment, Part, PartKind
 from glsynth.world.lighting import Lighting
 
 LIGHT = Lighting(sun_elevation_deg=50.0, sun_azimuth_deg=30.0, sun_irradiance=3.0,
@@ -30,8 +30,15 @@ def quad(corners: np.ndarray, uv: np.ndarray | None = None) -> trimesh.Trimesh:
 
 
 def scene_of(*items: tuple[str, Component, trimesh.Trimesh, Material]):
-    parts = [Part(name, comp, None, mesh, np.eye(4)) for name, comp, mesh, _ in items]
+    """A scene of plain parts; each is of the first part kind labelled with its component
+    (these scenes need a part's label, not what it is)."""
+    parts = [Part(name, _first_kind(comp), None, mesh, np.eye(4))
+             for name, comp, mesh, _ in items]
     return build_scene(parts, {name: mat for name, _, _, mat in items})
+
+
+def _first_kind(component: Component) -> PartKind:
+    return next(k for k in PartKind if k.component is component)
 
 
 def camera(width: int = 64, height: int = 48, focal_mm: float = 36.0,
@@ -72,5 +79,5 @@ def render_config(width: int = 64, height: int = 48, msaa: int = 0) -> RenderCon
 
 def plain_materials(env: Environment) -> dict[str, Material]:
     """Untextured materials for every part of an environment (scene panels emissive)."""
-    return {p.name: plain_material(p.component, emissive=p.name.startswith("scene"))
+    return {p.name: plain_material(p.component, emissive=p.kind is PartKind.SCENE)
             for p in env.parts}

@@ -6,10 +6,9 @@ import pytest
 
 from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import dress, open_repository
-from glsynth.appearance.materials import part_kind
 from glsynth.core.config import Config, DamageConfig, MaterialsConfig
-from glsynth.core.labels import Damage
-from glsynth.world.environment import build_environment
+from glsynth.core.labels import Component, Damage
+from glsynth.world.environment import PartKind, build_environment
 
 CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=64),
                              materials=MaterialsConfig(texture_size=32, images_per_category=4))
@@ -22,7 +21,7 @@ def dressed():
     out = []
     for env in envs:
         bank = DamageBank(CONFIG.damage, 0)
-        columns = {p.name for p in env.parts if p.name.startswith("column")}
+        columns = {p.name for p in env.parts if p.kind is PartKind.COLUMN}
         out.append((env, dress(env, CONFIG, repo, bank, columns), bank))
     return out
 
@@ -32,21 +31,22 @@ def test_section_3_2_rules(dressed):
     for env, d, _ in dressed:
         for part in env.parts:
             a, m = d.assignments[part.name], d.materials[part.name]
-            kind = part_kind(part.name)
-            if kind in ("slab", "beam") or (kind == "column" and not a.damage["damaged"]):
+            kind = part.kind
+            if kind.component in (Component.SLAB, Component.BEAM) or (
+                    kind is PartKind.COLUMN and not a.damage["damaged"]):
                 assert (a.category, a.metallic, a.roughness) == ("concrete", 0.0, 1.0)
                 assert 0.1 <= a.scale <= 1.0 and m.uv_scale == a.scale
-            elif kind in ("rail", "wire"):
+            elif kind in (PartKind.RAIL, PartKind.WIRE):
                 assert a.category == "steel" and a.metallic == 1.0 and 0 <= a.roughness <= 1
-            elif kind == "painted":
+            elif kind in (PartKind.FENCE, PartKind.POLE, PartKind.PORTAL):
                 assert a.category == "painted" and 0 <= a.metallic <= 1 and 0 <= a.roughness <= 1
-            elif kind == "ground":
+            elif kind is PartKind.GROUND:
                 assert a.category == "ground" and 0.0 <= a.scale <= 0.1
                 assert (a.metallic, a.roughness) == (0.0, 1.0)
-            elif kind == "scene":
+            elif kind is PartKind.SCENE:
                 assert m.base_color[:3] == (0.0, 0.0, 0.0) and m.emissive == (0.5, 0.5, 0.5)
                 assert m.emissive_map is not None
-            elif kind == "sleeper":
+            elif kind is PartKind.SLEEPER:
                 key = (env.env_index, part.viaduct)
                 sleeper_by_viaduct.setdefault(key, set()).add((a.category, a.image, a.scale))
                 if a.category == "steel":
@@ -62,7 +62,7 @@ def test_section_3_2_rules(dressed):
 
 def test_column_damage_assignment(dressed):
     records = [d.assignments[p.name].damage for env, d, _ in dressed for p in env.parts
-               if p.name.startswith("column")]
+               if p.kind is PartKind.COLUMN]
     n = len(records)
     undamaged = sum(not r["damaged"] for r in records)
     assert abs(undamaged / n - 0.1) < 4 * np.sqrt(0.09 / n)
@@ -89,8 +89,8 @@ def test_damage_textures_only_for_visible_columns_and_cached(tmp_path):
     assert bank.generated == 0 and bank.loaded == 0
     assert all(d.materials[p.name].damage_mask is None for p in env.parts)
     assert any(d.assignments[p.name].damage["damaged"] for p in env.parts
-               if p.name.startswith("column"))
-    some = {p.name for p in env.parts if p.name.startswith("column_v00")}
+               if p.kind is PartKind.COLUMN)
+    some = {p.name for p in env.parts if p.kind is PartKind.COLUMN and p.viaduct == 0}
     first = dress(env, CONFIG, repo, bank, visible=some)
     made = bank.generated
     assert 0 < made <= len(some) and len(list(tmp_path.rglob("*.npz"))) == made
@@ -106,7 +106,7 @@ def test_damage_textures_only_for_visible_columns_and_cached(tmp_path):
 def test_dressing_is_reproducible_and_independent_of_visibility():
     repo = open_repository(CONFIG)
     env = build_environment(CONFIG, 2, 1)
-    all_columns = {p.name for p in env.parts if p.name.startswith("column")}
+    all_columns = {p.name for p in env.parts if p.kind is PartKind.COLUMN}
     a = dress(env, CONFIG, repo, DamageBank(CONFIG.damage, 2), all_columns)
     b = dress(env, CONFIG, repo, DamageBank(CONFIG.damage, 2), set())
     for p in env.parts:
@@ -126,7 +126,7 @@ def test_damage_materials_are_built_when_read_and_not_kept(tmp_path):
     factors come without maps and without building."""
     repo = open_repository(CONFIG)
     env = build_environment(CONFIG, 3, 0)
-    columns = {p.name for p in env.parts if p.name.startswith("column")}
+    columns = {p.name for p in env.parts if p.kind is PartKind.COLUMN}
     maker = DamageBank(CONFIG.damage, 3, cache_dir=tmp_path)
     dress(env, CONFIG, repo, maker, columns)  # makes the entries
     bank = DamageBank(CONFIG.damage, 3, cache_dir=tmp_path)
@@ -144,7 +144,7 @@ def test_damage_materials_are_built_when_read_and_not_kept(tmp_path):
     assert light.base_color_map is None and light.damage_mask is None
     assert (light.uv_scale, light.metallic, light.roughness) == (
         first.uv_scale, first.metallic, first.roughness)
-    plain = next(p.name for p in env.parts if p.name.startswith("slab"))
+    plain = next(p.name for p in env.parts if p.kind is PartKind.SLAB)
     assert d.materials.factors(plain) is d.materials[plain]
     record = d.assignments[name].damage
     entry = bank.entry(record["severity"], record["bank_index"], repo)

@@ -22,7 +22,7 @@ from glsynth.core.config import Config, DamageConfig, MaterialsConfig, load_conf
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.flight import MID_GREY, flight_materials
-from glsynth.world.environment import build_environment
+from glsynth.world.environment import PartKind, build_environment
 from glsynth.world.lighting import LUMINANCE
 
 
@@ -122,7 +122,7 @@ def _seeds(config: Config, env, visible: set[str]
 def test_detail_is_drawn_in_flights_only_by_default():
     assert load_config("paper").materials.concrete_detail == "flights"
     env = build_environment(CONFIG, 0, 0)
-    column = next(p.name for p in env.parts if p.name.startswith("column"))
+    column = next(p.name for p in env.parts if p.kind is PartKind.COLUMN)
     seeds, _ = _seeds(CONFIG, env, {column})
     assert all(s is None for s in seeds.values())  # generate and render: as before
     flying = dataclasses.replace(CONFIG, materials=flight_materials(CONFIG.materials))

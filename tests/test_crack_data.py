@@ -35,7 +35,7 @@ from glsynth.data.tokaido import (
 )
 from glsynth.data.visible_cracks import member_cracks, project
 from glsynth.world.cameras import Camera
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.visibility import in_frustum
 
 
@@ -176,7 +176,7 @@ def test_a_crack_counts_where_labelled_unhidden_and_in_the_image():
     camera = Camera(210, 99, 36.0, 36.0, np.eye(4), 0.1, 100.0)  # fx = 210 px
     net = CrackNetwork(np.array([[[-0.5, 0.0, -5.0], [1.5, 0.0, -5.0]]]),
                        np.array([[2e-4, 2e-4]]), np.zeros(1, np.int32), ("flexural",))
-    part = Part("column_0_0_0", 4, 0, None, np.eye(4))
+    part = Part("column_0_0_0", PartKind.COLUMN, 0, None, np.eye(4))
     records = [{"id": 0, "member": part.name, "type": "flexural", "length_m": 2.0,
                 "mean_width_mm": 0.2, "max_width_mm": 0.2}]
     # u = 210 x / 5 + 104.5 and row 49: the crack covers pixel columns 84 .. 167.

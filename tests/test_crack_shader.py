@@ -7,8 +7,9 @@ import pytest
 from shader_harness import GlslHarness
 
 from glsynth.appearance.cracks import CrackNetwork
+from glsynth.core.geometry import segment_distance
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.render.cracks_index import pack_cracks, segment_distance
+from glsynth.render.cracks_index import pack_cracks
 from glsynth.render.gl.renderer import upload_cracks
 
 EPS = float(np.finfo(np.float32).eps)

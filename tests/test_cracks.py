@@ -23,12 +23,13 @@ from glsynth.appearance.cracks import (
     yield_curvature,
 )
 from glsynth.appearance.damage_bank import DamageBank
-from glsynth.appearance.dressing import beam_span, clear_spans, dress, is_girder, open_repository
+from glsynth.appearance.dressing import beam_span, clear_spans, dress, open_repository
 from glsynth.core import design
 from glsynth.core.config import Config, DamageConfig, MaterialsConfig, config_from_dict
 from glsynth.core.errors import UserError
+from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.world.environment import build_environment
+from glsynth.world.environment import PartKind, build_environment
 
 CFG = DamageConfig(model="mechanics")
 SEVERITIES = ("slight", "medium", "severe")
@@ -259,7 +260,7 @@ def test_dressing_under_mechanics_puts_cracks_on_seen_damaged_columns(tmp_path):
     paper = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64))
     mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
     env = build_environment(mech, 4, 0)
-    columns = [p for p in env.parts if p.name.startswith("column")]
+    columns = [p for p in env.parts if p.kind is PartKind.COLUMN]
     seen = {p.name for p in columns[::2]}
     repo = open_repository(mech)
     a = dress(env, paper, repo, DamageBank(paper.damage, 4, cache_dir=tmp_path), seen)
@@ -347,13 +348,13 @@ def test_soffit_cracks_follow_the_gravity_moment():
 def test_dressing_under_mechanics_cracks_girders_and_cross_and_tie_beams(tmp_path):
     mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
     env = build_environment(mech, 5, 0)
-    beams = [p for p in env.parts if p.name.startswith("beam_")]
+    beams = [p for p in env.parts if p.component is Component.BEAM]
     d = dress(env, mech, open_repository(mech), DamageBank(mech.damage, 5, cache_dir=tmp_path),
               {p.name for p in beams})
     cracked, girders = 0, 0
     for part in beams:
         record, material = d.assignments[part.name].damage, d.materials[part.name]
-        if is_girder(part):  # glsynth.appearance.girder_cracks; tests/test_girder_cracks
+        if part.kind is PartKind.GIRDER:  # appearance.girder_cracks; tests/test_girder_cracks
             assert beam_span(env, part) is None
             if record["damaged"]:
                 girders += 1

@@ -14,12 +14,11 @@ from glhelpers import LIGHT, camera, quad, render_config
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.appearance.materials import Material, srgb_decode
 from glsynth.cli import main
-from glsynth.core.labels import Component
 from glsynth.render.cracks_index import CRACK_CONTRAST
 from glsynth.render.cycles import display, render_linear
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.scene import build_scene
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 
 BLENDER = shutil.which("blender")
 needs_blender = pytest.mark.skipif(
@@ -38,8 +37,8 @@ def _matte_scene() -> tuple[list[Part], dict[str, Material]]:
     """A floor and a column 10 m away, lit by a low sun that throws its shadow forwards."""
     floor = quad([[-80, -80, 0], [80, -80, 0], [80, 80, 0], [-80, 80, 0]])
     column = quad([[-1, 10, 0], [1, 10, 0], [1, 10, 6], [-1, 10, 6]])
-    parts = [Part("ground_plane", Component.NONBRIDGE, None, floor, np.eye(4)),
-             Part("column_face", Component.COLUMN, None, column, np.eye(4))]
+    parts = [Part("ground_plane", PartKind.GROUND, None, floor, np.eye(4)),
+             Part("column_face", PartKind.COLUMN, None, column, np.eye(4))]
     return parts, {p.name: MATTE for p in parts}
 
 
@@ -117,7 +116,7 @@ def _crack_scene(cam) -> tuple[list[Part], Material, CrackNetwork]:
     widths = np.repeat([[w / 1000] for _, w, _ in CRACKS], 2, axis=1)
     net = CrackNetwork(points, widths, np.arange(4, dtype=np.int32), ("flexural",) * 4)
     plane = quad([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]])
-    return [Part("column_face", Component.COLUMN, None, plane, np.eye(4))], MATTE, net
+    return [Part("column_face", PartKind.COLUMN, None, plane, np.eye(4))], MATTE, net
 
 
 def _darkening(cracked: np.ndarray, plain: np.ndarray) -> np.ndarray:

@@ -7,13 +7,13 @@ from conftest import env_config
 
 from glsynth.core.config import Config
 from glsynth.core.labels import Component
-from glsynth.world.environment import build_environment
+from glsynth.world.environment import PartKind, build_environment
 
-PREFIXES = {"column", "beam", "slab", "rail", "sleeper", "nonstructural", "ground", "scene"}
 EXPECTED_COMPONENT = {"column": Component.COLUMN, "beam": Component.BEAM, "slab": Component.SLAB,
                       "rail": Component.RAIL, "sleeper": Component.SLEEPER,
                       "nonstructural": Component.NONSTRUCTURAL,
                       "ground": Component.NONBRIDGE, "scene": Component.NONBRIDGE}
+"""The component of a part by the first word of its name (the naming convention)."""
 
 
 def local_extents(vertices: np.ndarray, heading: float) -> np.ndarray:
@@ -28,20 +28,22 @@ def test_every_part_is_named_tagged_and_finite(env0):
     names = [p.name for p in env0.parts]
     assert len(names) == len(set(names))
     for part in env0.parts:
-        prefix = part.name.split("_")[0]
-        assert prefix in PREFIXES
-        assert part.component == EXPECTED_COMPONENT[prefix]
+        words = part.name.split("_")
+        assert part.component == EXPECTED_COMPONENT[words[0]]
+        assert part.kind.value in words
+        if part.side is not None:
+            assert part.side in ("l", "r") and part.side in words[-1]
         assert np.all(np.isfinite(part.world_vertices()))
         assert part.mesh.visual.uv.shape == (len(part.mesh.vertices), 2)
-    kinds = {p.name.split("_")[0] for p in env0.parts}
-    assert kinds == PREFIXES
-    for word in ("fence", "pole", "wire", "portal"):
-        assert any(word in n for n in names if n.startswith("nonstructural"))
+    assert {p.kind for p in env0.parts} == set(PartKind)
+    assert {p.name for p in env0.parts if p.kind is PartKind.GIRDER and p.side == "l"} \
+        == {f"beam_v{v.index:02d}_girder_l" for v in env0.viaducts}
 
 
 def test_closed_parts_wind_outwards(env0):
     for part in env0.parts:
-        if part.name.split("_")[0] in {"column", "beam", "slab", "rail", "sleeper"}:
+        if part.component in {Component.COLUMN, Component.BEAM, Component.SLAB,
+                              Component.RAIL, Component.SLEEPER}:
             assert part.mesh.volume > 0, part.name
 
 
@@ -73,7 +75,7 @@ def test_column_extents_equal_table3_sections_and_heights(env0):
 def test_viaduct_heights_and_sections_match_table3(env0):
     for v, h, r in zip(env0.viaducts, env0.trajectory.heights_m, env0.trajectory.radii_m):
         assert v.height_m == h and v.radius_m == r
-        ties = [p for p in env0.parts if p.viaduct == v.index and "_tie_" in p.name]
+        ties = [p for p in env0.parts if p.viaduct == v.index and p.kind is PartKind.TIE_BEAM]
         assert (len(ties) == 10) == (h > 10.0)
 
 
@@ -89,7 +91,7 @@ def test_table3_boundaries_end_to_end(height, row, column_cm, ties):
     for v in env.viaducts:
         assert v.height_m == height and v.sections.row == row
         assert v.sections.straight and v.sections.column_cm == column_cm
-        assert sum("_tie_" in p.name for p in env.parts if p.viaduct == v.index) == ties
+        assert sum(p.kind is PartKind.TIE_BEAM for p in env.parts if p.viaduct == v.index) == ties
         col = next(p for p in env.parts if p.name == v.columns[0].name)
         assert np.allclose(local_extents(col.world_vertices(), 0.0)[:2],
                            np.array(column_cm) / 100)
@@ -104,10 +106,10 @@ def test_straight_and_tightest_curve_environments_are_finite(radius):
                for v in env.viaducts)
     if math.isinf(radius):
         d = env.config.design
-        for part in (p for p in env.parts if p.name.startswith("rail")):
-            track, side = part.name.split("_")[2][1:]  # e.g. rail_v03_t0l
+        for part in (p for p in env.parts if p.kind is PartKind.RAIL):
+            track = part.name.split("_")[2][1]  # e.g. rail_v03_t0l
             u = ((1 if track == "0" else -1) * d.track_spacing_m / 2
-                 + (1 if side == "l" else -1) * (d.gauge_m + d.rail_head_width_m) / 2)
+                 + (1 if part.side == "l" else -1) * (d.gauge_m + d.rail_head_width_m) / 2)
             y = part.world_vertices()[:, 1]
             # Straight track: each rail keeps its lateral offset, foot width wide.
             assert np.ptp(y) == pytest.approx(d.rail_foot_width_m, abs=1e-9)
@@ -117,7 +119,7 @@ def test_straight_and_tightest_curve_environments_are_finite(radius):
 def test_columns_stand_on_the_ground_mesh(env0):
     ground = trimesh.util.concatenate(
         [trimesh.Trimesh(p.world_vertices(), p.mesh.faces, process=False)
-         for p in env0.parts if p.name.startswith("ground")])
+         for p in env0.parts if p.kind is PartKind.GROUND])
     for v in env0.viaducts[:3]:
         for col in v.columns:
             origin = np.array([[*col.center_xy, 100.0]])
@@ -136,8 +138,8 @@ def test_same_seed_identical_meshes_other_env_differs():
     for pa, pb in zip(a.parts, b.parts):
         assert pa.mesh.vertices.tobytes() == pb.mesh.vertices.tobytes()
         assert pa.pose.tobytes() == pb.pose.tobytes()
-    col_a = next(p for p in a.parts if p.name.startswith("column"))
-    col_c = next(p for p in c.parts if p.name.startswith("column"))
+    col_a = next(p for p in a.parts if p.kind is PartKind.COLUMN)
+    col_c = next(p for p in c.parts if p.kind is PartKind.COLUMN)
     assert col_a.world_vertices().tobytes() != col_c.world_vertices().tobytes()
 
 
@@ -146,7 +148,7 @@ def test_panels_stand_at_the_configured_distance(env0):
     s = np.linspace(0, traj.total_length_m, 2001)
     centre, _, _ = traj.frame(s)
     for part in env0.parts:
-        if part.name.startswith("scene_v"):
+        if part.kind is PartKind.SCENE and part.viaduct is not None:
             xy = part.world_vertices()[:, :2]
             dist = np.min(np.linalg.norm(xy[:, None] - centre[None, :, :2], axis=2), axis=1)
             assert np.allclose(dist, 30.0, atol=0.05), part.name

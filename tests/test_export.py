@@ -149,6 +149,8 @@ def dressed(tmp_path_factory):
 def test_dressed_export_round_trips_every_texture(dressed):
     from PIL import Image
 
+    from glsynth.world.environment import PartKind
+
     env, materials, _, glb = dressed
     gltf, binary = _glb_parts(glb.read_bytes())
     nodes = {n["name"]: n for n in gltf["nodes"] if "mesh" in n}
@@ -174,7 +176,7 @@ def test_dressed_export_round_trips_every_texture(dressed):
 
     damaged = [p for p in env.parts if materials[p.name].damage_mask is not None]
     assert damaged
-    for part in damaged[:3] + [p for p in env.parts if p.name.startswith("slab")][:2]:
+    for part in damaged[:3] + [p for p in env.parts if p.kind is PartKind.SLAB][:2]:
         m = materials[part.name]
         node = nodes[part.name]
         assert node["extras"] == {"component": part.component.name.lower(),

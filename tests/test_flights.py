@@ -24,7 +24,7 @@ from glsynth.data.flight import flight_materials
 from glsynth.data.flight_export import label_interior, ply_bytes, read_ply, rotation_quaternion
 from glsynth.render.view import EnvironmentView
 from glsynth.world.cameras import Camera
-from glsynth.world.environment import build_environment
+from glsynth.world.environment import PartKind, build_environment
 from glsynth.world.flights import (
     FlightPlan,
     environment_columns,
@@ -108,8 +108,8 @@ def test_facade_rows_cover_the_side_at_the_stand_off():
     plan = plan_flight(env, config)
     validate_flight(env, plan, config.flight.clearance_m)
     pos = plan.poses[:, :3, 3]
-    left = {p.name for p in env.parts if p.name.startswith("column_v00_") and
-            p.name.endswith("l")} | {"beam_v00_girder_l"}
+    left = {p.name for p in env.parts if p.viaduct == 0 and p.side == "l"
+            and p.kind in (PartKind.COLUMN, PartKind.GIRDER)}
     # Horizontally, the outermost of the left columns' and girder's faces is 3 m away.
     across = []
     for name in left:

@@ -15,14 +15,13 @@ from glsynth.appearance.cracks import (
     CrackNetwork,
     column_demand,
 )
-from glsynth.appearance.dressing import is_girder
 from glsynth.appearance.girder_cracks import girder_cracks, girder_spans, girder_sweep
 from glsynth.appearance.materials import Material
 from glsynth.core.config import Config, DamageConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.gl.renderer import Renderer
-from glsynth.world.environment import Environment, Part, build_environment
+from glsynth.world.environment import Environment, Part, PartKind, build_environment
 from glsynth.world.flights import surface_distance
 
 CFG = DamageConfig(model="mechanics")
@@ -40,7 +39,7 @@ def curved_env() -> Environment:
 def tightest_girders(env: Environment) -> list[Part]:
     tight = min(env.viaducts, key=lambda v: v.radius_m)
     assert tight.radius_m == pytest.approx(100.0)
-    return [p for p in env.parts if p.viaduct == tight.index and is_girder(p)]
+    return [p for p in env.parts if p.viaduct == tight.index and p.kind is PartKind.GIRDER]
 
 
 def cracks_of(env: Environment, part: Part, seed: int) -> CrackNetwork:

@@ -20,17 +20,17 @@ from glsynth.core.config import (
     load_config,
 )
 from glsynth.core.errors import UserError
-from glsynth.core.labels import Damage
+from glsynth.core.geometry import segment_distance
+from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.filters import crack_rrdr, pixels_per_cm, removal_reason, rrdr, view_rrdr
-from glsynth.render.cracks_index import segment_distance
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import ray_cast
 from glsynth.render.scene import build_scene
 from glsynth.world.cameras import sample_camera
+from glsynth.world.environment import BOX_BEAMS, OPEN_KINDS, PartKind
 from glsynth.world.face_cameras import (
     GROUND_CLEARANCE_M,
-    OPEN_SURFACES,
     member_faces,
     place_camera,
     place_cameras,
@@ -93,8 +93,7 @@ def check_geometry(env, p, cameras: CameraConfig) -> None:
     assert cameras.focal_mm[0] <= cam.focal_mm <= cameras.focal_mm[1]
     assert p.kind == "closeup"
     for q in env.parts:  # inside no box part: the members and the portal beams
-        if q.name.startswith("column_") or "_cross_" in q.name or "_tie_" in q.name \
-                or q.name.endswith("_portal"):
+        if q.kind in BOX_BEAMS | {PartKind.COLUMN, PartKind.PORTAL}:
             inner = np.linalg.inv(q.pose) @ np.append(position, 1.0)
             assert np.any(np.abs(inner[:3]) > q.mesh.extents / 2)
     assert position[2] >= env.trajectory.ground_at(np.array([p.s_m]))[0] + \
@@ -106,8 +105,8 @@ def test_cameras_stand_at_member_faces_within_the_ranges(env0):
     found = placements(env0, cameras)
     for p in found:
         check_geometry(env0, p, cameras)
-    kinds = {p.face.member.split("_")[0] for p in found}
-    assert kinds == {"column", "beam"}
+    parts = {q.name: q for q in env0.parts}
+    assert {parts[p.face.member].component for p in found} == {Component.COLUMN, Component.BEAM}
     assert {p.face.face for p in found} >= {"+x", "-x", "+y", "-y"}
     distances = [p.face.distance_m for p in found]
     assert min(distances) < 1.0 and max(distances) > 2.3  # spread over the range
@@ -274,7 +273,7 @@ def test_solid_parts_are_closed(env0):
     and scene panels must be closed."""
     for part in env0.parts:
         merged = trimesh.Trimesh(part.mesh.vertices, part.mesh.faces)  # merges seam vertices
-        assert merged.is_watertight == (not part.name.startswith(OPEN_SURFACES)), part.name
+        assert merged.is_watertight == (part.kind not in OPEN_KINDS), part.name
 
 
 def test_member_faces_are_the_inspected_faces_of_each_member(env0):

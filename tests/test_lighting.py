@@ -15,7 +15,7 @@ from glsynth.core.config import LightingConfig, RenderConfig
 from glsynth.core.labels import Component
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.tonemap import tone_map
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.lighting import (
     XYZ_TO_REC709,
     Preetham,
@@ -287,7 +287,7 @@ def test_surface_albedo_is_the_mean_texel_colour_under_the_uvs():
     whole = Material(base_color=(0.5, 1.0, 1.0, 1.0), base_color_map=texture)
     left = Material(base_color=(1.0, 1.0, 1.0, 1.0), base_color_map=texture,
                     uv_scale=0.4)  # u in [0, 0.4]: the red half
-    part = Part("ground_x", Component.NONBRIDGE, None, plane, np.eye(4))
+    part = Part("ground_x", PartKind.GROUND, None, plane, np.eye(4))
     red, green = srgb_decode(np.array([200, 40, 40])), srgb_decode(np.array([40, 200, 40]))
     assert np.allclose(surface_albedo([part], {"ground_x": whole}),
                        (red + green) / 2 * [0.5, 1.0, 1.0], atol=5e-3)
@@ -374,7 +374,7 @@ def test_cycles_sky_is_glsynths_sky(tmp_path):
     lighting = dataclasses.replace(LIGHT, sun_elevation_deg=25.0, sun_azimuth_deg=80.0,
                                    exposure=2.0)
     speck = quad([[-0.1, 5, -0.1], [0.1, 5, -0.1], [0.1, 5, 0.1], [-0.1, 5, 0.1]])
-    parts = [Part("speck_plane", Component.NONBRIDGE, None, speck, np.eye(4))]
+    parts = [Part("speck_plane", PartKind.SCENE, None, speck, np.eye(4))]
     result = render_linear(parts, {"speck_plane": Material()}, lighting, [cam], [1],
                            16, tmp_path / "work", BLENDER)
     cycles = display(result.linear[0], lighting).astype(int)

@@ -11,7 +11,7 @@ from glsynth.core.labels import Component
 from glsynth.data.plates import plate_mesh, plate_shot
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import ray_cast
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 
 CONFIG = dataclasses.replace(Config(), damage=DamageConfig(resolution=128),
                              render=render_config(96, 54))
@@ -44,7 +44,7 @@ def test_a_plate_image_builds_only_the_plate_and_shows_its_damage(setup):
         # The plate shows a window of its damage texture: its labels are those of the mask
         # under each pixel centre, as an independent ray cast finds them.
         node = next(iter(shot.scene.scene.mesh_nodes))
-        part = Part(node.name, Component.COLUMN, None, plate_mesh(CONFIG.damage.tile_m),
+        part = Part(node.name, PartKind.COLUMN, None, plate_mesh(CONFIG.damage.tile_m),
                     shot.scene.scene.get_pose(node))
         truth = ray_cast([part], {node.name: shot.scene.parts[node.name].material}, shot.camera)
         assert (truth.damage == out.damage).mean() > 0.999

@@ -9,7 +9,7 @@ from glhelpers import quad
 from glsynth.appearance.materials import plain_material
 from glsynth.core.labels import Component
 from glsynth.render.scene import build_scene
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 
 
 def test_pinned_version():
@@ -23,7 +23,7 @@ def test_scene_graph_keeps_names_poses_and_vertex_data():
     pose[:3, 3] = (1.0, 2.0, 3.0)
     mesh = quad([[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]])
     material = plain_material(Component.SLAB)
-    scene = build_scene([Part("slab_0", Component.SLAB, None, mesh, pose)],
+    scene = build_scene([Part("slab_0", PartKind.SLAB, None, mesh, pose)],
                         {"slab_0": material})
     assert isinstance(scene.scene, pyrender.Scene)
     (node,) = scene.scene.mesh_nodes
@@ -42,4 +42,4 @@ def test_scene_graph_keeps_names_poses_and_vertex_data():
 def test_a_part_without_material_is_an_error():
     mesh = quad([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     with pytest.raises(ValueError, match="has no material"):
-        build_scene([Part("beam_0", Component.BEAM, None, mesh, np.eye(4))], {})
+        build_scene([Part("beam_0", PartKind.CROSS_BEAM, None, mesh, np.eye(4))], {})

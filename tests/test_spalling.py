@@ -35,7 +35,7 @@ from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import ray_cast
-from glsynth.world.environment import Part, build_environment
+from glsynth.world.environment import Part, PartKind, build_environment
 from glsynth.world.meshes import box
 
 W, H = 128, 256
@@ -140,7 +140,7 @@ def test_rendered_spalling_and_rebar_only_in_the_zones_intact_concrete_outside(r
     assert change[hit & inside & damaged].mean() > 5
     # The label pass agrees with ray casting, which applies the zones in numpy, as well as
     # on any textured part (a texel edge may fall either side of a pixel centre).
-    part = Part("column", Component.COLUMN, None, box((*SECTION, HEIGHT)), np.eye(4))
+    part = Part("column", PartKind.COLUMN, None, box((*SECTION, HEIGHT)), np.eye(4))
     truth = ray_cast([part], {"column": material}, side_camera())
     assert (truth.damage == out.damage)[~near].mean() > 0.999
 
@@ -201,7 +201,7 @@ def test_zones_validation():
 def test_dressing_spalls_medium_and_severe_seen_columns_in_their_hinge_zones(tmp_path):
     mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
     env = build_environment(mech, 4, 0)
-    columns = [p for p in env.parts if p.name.startswith("column")]
+    columns = [p for p in env.parts if p.kind is PartKind.COLUMN]
     seen = {p.name for p in columns[::2]}
     bank = DamageBank(mech.damage, 4, cache_dir=tmp_path)
     dressing = dress(env, mech, open_repository(mech), bank, seen)
@@ -240,7 +240,7 @@ def test_spalling_severities_choose_which_columns_spall(tmp_path, spalling):
                        spalling_severities=spalling, undamaged_probability=0.2)
     config = dataclasses.replace(SMALL, damage=cfg)
     env = build_environment(config, 4, 0)
-    columns = [p for p in env.parts if p.name.startswith("column")]
+    columns = [p for p in env.parts if p.kind is PartKind.COLUMN]
     seen = {p.name for p in columns[::2]}
     dressing = dress(env, config, open_repository(config),
                      DamageBank(cfg, 4, cache_dir=tmp_path), seen)

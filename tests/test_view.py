@@ -12,7 +12,6 @@ import trimesh
 
 from glsynth.core.config import Config
 from glsynth.core.errors import UserError
-from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB
 from glsynth.view.camera import camera_from_json, camera_json
 from glsynth.view.protocol import (
@@ -22,7 +21,7 @@ from glsynth.view.protocol import (
     parse_message,
 )
 from glsynth.world.cameras import Camera, euler_xyz
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 
 POSE = np.eye(4)
 POSE[:3, :3] = euler_xyz(1.4, 0.1, 0.3)
@@ -114,7 +113,7 @@ def test_the_picker_finds_the_nearest_part_and_its_axial_depth():
     def box(name, x):
         pose = np.eye(4)
         pose[:3, 3] = (x, 0.0, 0.0)
-        return Part(name, Component.COLUMN, 0, trimesh.creation.box((1.0, 1.0, 1.0)), pose)
+        return Part(name, PartKind.COLUMN, 0, trimesh.creation.box((1.0, 1.0, 1.0)), pose)
 
     # From the origin along world +x: camera x, y, z are world -y, +z, -x.
     pose = np.eye(4)

@@ -2,14 +2,13 @@ import numpy as np
 import pytest
 from glhelpers import camera
 
-from glsynth.core.labels import Component
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.meshes import box, pose
 from glsynth.world.visibility import visible_parts
 
 
 def part(name, xyz, size=1.0):
-    return Part(name, Component.COLUMN, None, box((size, size, size)), pose(0.3, xyz))
+    return Part(name, PartKind.COLUMN, None, box((size, size, size)), pose(0.3, xyz))
 
 
 @pytest.mark.parametrize("name, xyz, seen", [
@@ -35,7 +34,7 @@ def test_union_over_cameras_and_environment_columns(env0):
     cams = [environment_camera(env0.trajectory, cfg.cameras, cfg.render, 0, 0, i).camera
             for i in range(100)]
     seen = visible_parts(env0.parts, cams)
-    columns = [p.name for p in env0.parts if p.name.startswith("column")]
+    columns = [p.name for p in env0.parts if p.kind is PartKind.COLUMN]
     assert seen & set(columns)
     assert seen == set().union(*(visible_parts(env0.parts, [c]) for c in cams))
     one = visible_parts(env0.parts, cams[:1])

@@ -15,7 +15,7 @@ from glsynth.core.labels import Component
 from glsynth.render.cycles import render_linear
 from glsynth.render.gltf import gltf_binary
 from glsynth.render.zone_split import zone_pieces
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.meshes import box
 
 ZONES = ((-2.0, -1.4), (-1.4, -0.9), (0.3, 0.8), (1.2, 2.0))
@@ -71,7 +71,7 @@ def test_pieces_cover_the_mesh_once_split_at_the_zones_ends():
 
 def test_the_glb_confines_the_damage_material_to_the_zones():
     material, _ = spalled(1, "medium", ZONES)
-    part = Part("column", Component.COLUMN, None, box((*SECTION, HEIGHT)), np.eye(4))
+    part = Part("column", PartKind.COLUMN, None, box((*SECTION, HEIGHT)), np.eye(4))
     gltf, binary = _glb(gltf_binary([part], {"column": material}))
     (mesh,) = gltf["meshes"]
     damaged, intact = [], []
@@ -99,7 +99,7 @@ def test_the_cycles_twin_shows_spalling_only_in_the_zones(tmp_path):
     """The twin of a spalled column against the twin of its intact concrete: outside the
     zones the same light (one seed: the same samples), inside them the damage."""
     material, concrete = spalled(2, "severe", ZONES)
-    part = Part("column", Component.COLUMN, None, box((*SECTION, HEIGHT)), np.eye(4))
+    part = Part("column", PartKind.COLUMN, None, box((*SECTION, HEIGHT)), np.eye(4))
     cam = side_camera()
     out = {name: render_linear([part], {"column": m}, LIGHT, [cam], [3], 16,
                                tmp_path / name, BLENDER).linear[0]

@@ -10,8 +10,8 @@ turning a corner is two segments meeting on the shared edge.
 Placement follows a column in double curvature under a lateral drift (docs/design.md, "Damage
 by mechanics", gives every rule and its source): flexural cracks across the axis where the
 moment exceeds the cracking moment, widest in the plastic-hinge zones at both ends; shear
-cracks at 30-60 degrees to the axis on the faces parallel to the drift, where the shear-span
-ratio makes shear govern.
+cracks within SHEAR_BAND_DEG of the axis on the faces parallel to the drift, where the
+shear-span ratio makes shear govern.
 """
 
 from collections.abc import Sequence
@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glsynth.core.config import DamageConfig
+from glsynth.core.config import MAX_CRACK_WIDTH_MM, DamageConfig
 
 KINDS = ("flexural", "shear")
-MAX_WIDTH_M = 0.01
-"""No crack is wider than [damage] crack_width_mm allows at most (10 mm)."""
+MAX_WIDTH_M = MAX_CRACK_WIDTH_MM / 1e3
+"""No crack is wider than [damage] crack_width_mm allows at most."""
 STEEL_MODULUS_MPA = 200_000.0
 YIELD_CURVATURE_FACTOR = 2.10
 """phi_y = 2.10 eps_y / h for rectangular columns (Priestley, Calvi and Kowalsky 2007)."""
@@ -49,7 +49,8 @@ class CrackNetwork:
     """(N, 2, 3) float64: the end points of N straight segments, on the member's surface."""
     widths_m: np.ndarray
     """(N, 2) float64: the crack's width at each end point, in metres, measured across the
-    crack on the surface; linear in between. 0.05 mm .. 5 mm."""
+    crack on the surface; linear in between. Within [damage] crack_width_mm, at most
+    MAX_WIDTH_M."""
     crack: np.ndarray
     """(N,) int32: the crack (0 .. K-1) each segment belongs to."""
     kinds: tuple[str, ...]
@@ -128,12 +129,13 @@ def column_demand(cfg: DamageConfig, severity: str, rng: np.random.Generator
 
 
 def strain_penetration_m(cfg: DamageConfig) -> float:
-    """L_sp = 0.022 fy d_b: how far the bars' yielding reaches into the footing or joint."""
+    """L_sp = hinge_bar_factor fy d_b: how far the bars' yielding reaches into the footing or
+    joint."""
     return cfg.hinge_bar_factor * cfg.fy_mpa * cfg.bar_diameter_mm / 1e3
 
 
 def hinge_length_m(cfg: DamageConfig, shear_span_m: float) -> float:
-    """Priestley and Park (1987): Lp = 0.08 L + 0.022 fy d_b (L, d_b in m; fy in MPa)."""
+    """Priestley and Park (1987): Lp = hinge_span_factor L + L_sp (L in m)."""
     if shear_span_m < 0:
         raise ValueError(f"shear_span_m = {shear_span_m!r}: must be >= 0")
     return cfg.hinge_span_factor * shear_span_m + strain_penetration_m(cfg)
@@ -151,7 +153,7 @@ def hinge_zones(cfg: DamageConfig, spans: Sequence[tuple[float, float]]
 
 
 def yield_curvature(cfg: DamageConfig, depth_m: float) -> float:
-    """phi_y = 2.10 eps_y / h of a rectangular section (Priestley, Calvi and Kowalsky 2007)."""
+    """phi_y = YIELD_CURVATURE_FACTOR eps_y / h of a rectangular section, eps_y = fy / Es."""
     return YIELD_CURVATURE_FACTOR * cfg.fy_mpa / STEEL_MODULUS_MPA / depth_m
 
 
@@ -341,7 +343,7 @@ def _flexural(cfg: DamageConfig, sec: _Section, face: int, z_at: float, width_m:
     """A crack across tension face ``face`` at width_m, turning both corners onto the side
     faces for 15-45 % of their width and tapering there to the smallest width: the strain
     falls towards the neutral axis. Within FLEXURAL_BAND_DEG of horizontal at every step."""
-    w_lo = cfg.crack_width_mm[0] / 1e3
+    w_lo = cfg.crack_width_m[0]
     start = float(sec.starts[face])
     end = start + sec.face_width(face)
     side = sec.face_width(face + 1)
@@ -358,7 +360,7 @@ def _shear(cfg: DamageConfig, sec: _Section, face: int, z_at: float, width_m: fl
            rng: np.random.Generator) -> _Polyline:
     """A diagonal crack across face ``face`` (parallel to the drift), at 35-55 degrees to the
     axis with either sense (the load reverses), widest mid-face, tapering to both tips."""
-    w_lo = cfg.crack_width_mm[0] / 1e3
+    w_lo = cfg.crack_width_m[0]
     start, wide = float(sec.starts[face]), sec.face_width(face)
     lo, hi = start + rng.uniform(0.02, 0.1) * wide, start + wide - rng.uniform(0.02, 0.1) * wide
     n = _steps((hi - lo) * 1.5)
@@ -386,7 +388,7 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
                  spacing_m: float, rng: np.random.Generator) -> _Raw:
     """Flexural cracks from both ends of a span, on both faces across the drift (the load
     reverses), and shear cracks on both faces along it where shear governs."""
-    w_lo, w_hi = (w / 1e3 for w in cfg.crack_width_mm)
+    w_lo, w_hi = cfg.crack_width_m
     across = (0, 2) if demand.axis == 0 else (1, 3)  # faces whose normal is the drift's
     along = (1, 3) if demand.axis == 0 else (0, 2)
     cracks: _Raw = []
@@ -419,7 +421,7 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
         lines = [line]
         if rng.random() < cfg.branch_probability:
             middle = float(line[0][len(line[0]) // 2])
-            fork = _branch(line, sec.face_bounds(middle), cfg.crack_width_mm[0] / 1e3, rng)
+            fork = _branch(line, sec.face_bounds(middle), cfg.crack_width_m[0], rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
                 lines.append(fork)
         out.append((kind, lines))
@@ -462,7 +464,7 @@ def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
 def _soffit_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, spacing_m: float,
                    rng: np.random.Generator) -> _Raw:
     """Gravity cracks across the soffit (face 3) around midspan, turning up the sides."""
-    w_lo, w_hi = (w / 1e3 for w in cfg.crack_width_mm)
+    w_lo, w_hi = cfg.crack_width_m
     x = _positions(span.z1 - span.z0, spacing_m, rng)
     widths = soffit_width_m(cfg, span, x, spacing_m)
     return [("flexural", _flexural(cfg, sec, 3, span.z0 + xi, min(wi, w_hi), rng))

@@ -45,13 +45,13 @@ from glsynth.appearance.materials import (
     DamageZones,
     Material,
     Materials,
-    part_kind,
     sample_assignment,
 )
 from glsynth.appearance.repository import TextureRepository, builtin_repository
 from glsynth.core.config import Config, DamageConfig
+from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng, make_seed
-from glsynth.world.environment import Environment, Part
+from glsynth.world.environment import BOX_BEAMS, Environment, Part, PartKind
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
 _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
@@ -104,7 +104,7 @@ def clear_spans(env: Environment, part: Part) -> list[tuple[float, float]]:
     centre = (info.top_z + info.bottom_z) / 2
     z0, z1 = info.bottom_z - centre, info.top_z - env.config.design.embed_m - centre
     tie = next((p for p in env.parts if p.viaduct == part.viaduct
-                and p.name.startswith("beam_") and "_tie_" in p.name), None)
+                and p.kind is PartKind.TIE_BEAM), None)
     if tie is None:
         return [(z0, z1)]
     middle, half = float(tie.pose[2, 3]) - centre, float(tie.mesh.extents[2]) / 2
@@ -115,7 +115,7 @@ def beam_span(env: Environment, part: Part) -> tuple[int, tuple[float, float]] |
     """A cross or tie beam's long axis in its mesh frame (0: x, 1: y) and its clear span on
     that axis, between the faces of the columns that carry it; None for the girders (swept
     along the track, not boxes) and any other beam."""
-    if "_cross_" not in part.name and "_tie_" not in part.name:
+    if part.kind not in BOX_BEAMS:
         return None
     viaduct = next(v for v in env.viaducts if v.index == part.viaduct)
     along, across = viaduct.columns[0].section_m
@@ -130,7 +130,7 @@ def beam_span(env: Environment, part: Part) -> tuple[int, tuple[float, float]] |
 def _beam_network(env: Environment, cfg: DamageConfig, part: Part, drift: float,
                   rng: np.random.Generator) -> CrackNetwork:
     """The cracks of a girder (glsynth.appearance.girder_cracks) or a cross or tie beam."""
-    if is_girder(part):
+    if part.kind is PartKind.GIRDER:
         d = env.config.design
         sweep = girder_sweep(env, part)
         return girder_cracks(cfg, sweep, girder_spans(sweep, d.crossbeam_width_m),
@@ -139,14 +139,10 @@ def _beam_network(env: Environment, cfg: DamageConfig, part: Part, drift: float,
     return beam_cracks(cfg, tuple(float(e) for e in part.mesh.extents), axis, span, drift, rng)
 
 
-def is_girder(part: Part) -> bool:
-    return part.name.startswith("beam_") and "_girder_" in part.name
-
-
 def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
                  material: Material, seen: bool) -> tuple[dict | None, Material]:
     """A girder's or a cross or tie beam's record and material under model = "mechanics"."""
-    if not is_girder(part) and beam_span(env, part) is None:
+    if part.kind is not PartKind.GIRDER and beam_span(env, part) is None:
         return None, material
     rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
     severity = _severity(cfg, rng)
@@ -194,14 +190,13 @@ def crack_segments(env: Environment, config: Config
         return {}
     out = {}
     for ordinal, part in enumerate(env.parts):
-        kind = part_kind(part.name)
-        if kind == "column":
+        if part.kind is PartKind.COLUMN:
             damage = _column_damage(config, env.root_seed, env.env_index, ordinal)
             if not damage["damaged"]:
                 continue
             _, material = _mechanics_damage(env, config.damage, part, ordinal,
                                             {**damage, "built": True}, Material())
-        elif kind == "beam" and not is_girder(part):  # no camera aims at a girder
+        elif part.kind in BOX_BEAMS:  # none aims at a girder
             _, material = _beam_damage(env, config.damage, part, ordinal, Material(), True)
         else:
             continue
@@ -264,8 +259,8 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
     deferred: dict[str, tuple[Material, Callable[[], Material]]] = {}
     assignments = {}
     for ordinal, part in enumerate(env.parts):
-        kind = part_kind(part.name)
-        if kind == "sleeper":
+        kind = part.kind
+        if kind is PartKind.SLEEPER:
             rng = make_rng(root, index, Stream.MATERIALS, _SLEEPER_ITEM + part.viaduct)
             category = SLEEPER_CATEGORIES[int(rng.integers(len(SLEEPER_CATEGORIES)))]
         else:
@@ -273,13 +268,13 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             category = ""
         a = sample_assignment(kind, cfg, rng, category, repository.count)
         image = repository.image(a.category, a.image)
-        if kind == "scene":
+        if kind is PartKind.SCENE:
             material = Material(base_color=(0.0, 0.0, 0.0, 1.0), roughness=1.0,
                                 emissive=(cfg.panel_emission,) * 3, emissive_map=image)
         else:
             material = Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=a.metallic,
                                 roughness=a.roughness, uv_scale=a.scale, base_color_map=image)
-        if kind == "column":
+        if kind is PartKind.COLUMN:
             damage = _column_damage(config, root, index, ordinal)
             if damage["damaged"]:
                 damage["built"] = part.name in visible
@@ -298,7 +293,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                                            functools.partial(bank.material, *key,
                                                              repository, damage["scale"]))
             a = replace(a, damage=damage)
-        elif kind == "beam" and config.damage.model == "mechanics":
+        elif kind.component is Component.BEAM and config.damage.model == "mechanics":
             damage, material = _beam_damage(env, config.damage, part, ordinal, material,
                                             part.name in visible)
             a = replace(a, damage=damage)

@@ -35,6 +35,7 @@ import numpy as np
 
 from glsynth.appearance.cracks import CrackNetwork, beam_cracks, empty_network
 from glsynth.core.config import DamageConfig
+from glsynth.core.geometry import segment_distance
 from glsynth.world.environment import Environment, Part, girder_profile, viaduct_samples
 
 _UP = np.array([0.0, 0.0, 1.0])
@@ -67,11 +68,11 @@ class GirderSweep:
 
 
 def girder_sweep(env: Environment, part: Part) -> GirderSweep:
-    """The sweep of girder ``part`` (beam_vXX_girder_l or _r) of ``env``."""
+    """The sweep of girder ``part`` (PartKind.GIRDER, on side l or r) of ``env``."""
     d, traj = env.config.design, env.trajectory
     s = viaduct_samples(env.config, traj, part.viaduct)
     path, _, across = traj.frame(s)
-    profile = girder_profile(d, part.name[-1])
+    profile = girder_profile(d, part.side)
     centre = profile.mean(axis=0)
     line = path + centre[0] * across + centre[1] * _UP
     g = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(line, axis=0), axis=1))])
@@ -89,8 +90,9 @@ def girder_spans(sweep: GirderSweep, crossbeam_width_m: float) -> list[tuple[flo
 
 def _split_at(net: CrackNetwork, cuts: np.ndarray) -> CrackNetwork:
     """``net`` with every segment split where its x crosses one of ``cuts`` (sorted), in
-    order. Few segments cross a cut (137 of 57,977 in demo environment 0): the rest are
-    written at once, through the same arithmetic (p0 + t (p1 - p0), t = 0 and 1)."""
+    order. Few segments cross a cut (docs/results.md, "Measurements behind code choices"):
+    the rest are written at once, through the same arithmetic (p0 + t (p1 - p0), t = 0 and
+    1)."""
     p, w, c = net.points, net.widths_m, net.crack
     lo, hi = np.minimum(p[:, 0, 0], p[:, 1, 0]), np.maximum(p[:, 0, 0], p[:, 1, 0])
     first, last = np.searchsorted(cuts, lo, "right"), np.searchsorted(cuts, hi, "left")
@@ -116,10 +118,7 @@ def _split_at(net: CrackNetwork, cuts: np.ndarray) -> CrackNetwork:
 def _edges(profile: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For section points ``q`` (n, 2) on the rectangle's outline: the edge j (from corner j to
     j + 1) each lies on, and its parameter e in [0, 1] along it."""
-    a, b = profile, np.roll(profile, -1, axis=0)
-    ab = b - a
-    e = np.clip(np.einsum("njk,jk->nj", q[:, None] - a, ab) / np.sum(ab * ab, 1), 0.0, 1.0)
-    gap = np.linalg.norm(q[:, None] - (a + e[..., None] * ab), axis=2)
+    gap, e = segment_distance(q[:, None], profile, np.roll(profile, -1, axis=0))
     j = np.argmin(gap, axis=1)
     return j, e[np.arange(len(q)), j]
 

@@ -19,7 +19,7 @@ import numpy as np
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 
 MAX_ZONES = 4
 """Damage zones a material may have: the hinge zones at both ends of a column's two clear
@@ -221,37 +221,35 @@ class Assignment:
     bank's entry with its hinge zones."""
 
 
-def part_kind(name: str) -> str:
-    """slab, beam, column, sleeper, rail, wire, painted (fence, pole, portal), ground, scene."""
-    prefix = name.split("_")[0]
-    if prefix == "nonstructural":
-        return "wire" if "_wire_" in name else "painted"
-    return prefix
+CONCRETE_KINDS = frozenset({PartKind.SLAB, PartKind.GIRDER, PartKind.CROSS_BEAM,
+                            PartKind.TIE_BEAM, PartKind.COLUMN})
+STEEL_KINDS = frozenset({PartKind.RAIL, PartKind.WIRE})
+PAINTED_KINDS = frozenset({PartKind.FENCE, PartKind.POLE, PartKind.PORTAL})
 
 
-def sample_assignment(kind: str, cfg: MaterialsConfig, rng: np.random.Generator,
+def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Generator,
                       sleeper_category: str, count: Callable[[str], int]) -> Assignment:
     """Section 3.2 for one part (columns here are the undamaged case)."""
     u = rng.uniform
-    if kind in ("slab", "beam", "column"):
+    if kind in CONCRETE_KINDS:
         return Assignment("concrete", int(rng.integers(count("concrete"))), 0.0, 1.0,
                           u(*cfg.concrete_scale))
-    if kind == "sleeper":
+    if kind is PartKind.SLEEPER:
         steel = sleeper_category == "steel"
         return Assignment(sleeper_category, int(rng.integers(count(sleeper_category))),
                           1.0 if steel else 0.0, u(*cfg.steel_roughness) if steel else 1.0,
                           u(*cfg.concrete_scale))
-    if kind in ("rail", "wire"):
+    if kind in STEEL_KINDS:
         return Assignment("steel", int(rng.integers(count("steel"))), 1.0,
                           u(*cfg.steel_roughness), u(*cfg.concrete_scale))
-    if kind == "painted":
+    if kind in PAINTED_KINDS:
         return Assignment("painted", int(rng.integers(count("painted"))),
                           u(*cfg.painted_metallic), u(*cfg.painted_roughness),
                           u(*cfg.concrete_scale))
-    if kind == "ground":
+    if kind is PartKind.GROUND:
         return Assignment("ground", int(rng.integers(count("ground"))), 0.0, 1.0,
                           u(*cfg.ground_scale))
-    if kind == "scene":
+    if kind is PartKind.SCENE:
         return Assignment("scene", int(rng.integers(count("scene"))), 0.0, 1.0, 1.0)
     raise ValueError(f"part kind {kind!r} has no material rule")
 

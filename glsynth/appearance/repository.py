@@ -6,10 +6,10 @@ photos in this layout; by default glsynth generates a procedural one
 (glsynth.appearance.texgen) once, deterministically from a seed, and caches it under
 $GLSYNTH_CACHE (default ~/.cache/glsynth).
 
-Decoding and resizing a 1024-pixel PNG takes about 25 ms, 1.5 s for an environment's images;
-each image is kept, decoded at the size asked for, as a .npy under $GLSYNTH_CACHE/decoded
-(0.4 ms to read), keyed by the SHA-256 of the file's bytes and the size, so an edited image is
-decoded again.
+Decoding and resizing is slow next to reading an array (docs/results.md, "Decoded repository
+images"), so each image is kept, decoded at the size asked for, as a .npy under
+$GLSYNTH_CACHE/decoded, keyed by the SHA-256 of the file's bytes and the size, so an edited
+image is decoded again.
 
 An image that cannot be read is skipped with a warning naming it, and the next readable image
 of its category is used instead, so a bad file never stops a long run; a category with no

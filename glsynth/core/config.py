@@ -15,12 +15,14 @@ from typing import Any, Literal
 
 from glsynth.core import design
 from glsynth.core.checks import (
-    check_interval,
-    check_literal,
-    check_number,
-    check_positive_interval,
-    check_vector,
+    Interval,
+    Number,
+    Numbers,
+    PositiveInterval,
+    Vector,
+    bounded,
     fail,
+    validate,
 )
 from glsynth.core.design import StandardDesign
 from glsynth.core.errors import UserError
@@ -31,63 +33,51 @@ from glsynth.core.surfaces import MAX_SLANT_DEG
 class EnvironmentConfig:
     """Random trajectories and their meshes (paper Section 3.1, Table 4)."""
 
-    n_viaducts: int = 10
+    n_viaducts: int = bounded(10, Number(1, 1000, integer=True))
     """N, viaducts per environment."""
-    initial_height_m: tuple[float, float] = (6.5, 12.0)
+    initial_height_m: tuple[float, float] = bounded(
+        (6.5, 12.0), Interval(lambda c: c.height_limits_m[0], lambda c: c.height_limits_m[1]))
     """Range of the first viaduct's height (ground to deck top at its centre)."""
-    cutoff_factor: float = 2.0
+    cutoff_factor: float = bounded(2.0, Number(0.0, lambda c: c.n_viaducts / 2))
     """Cutoff frequency of the rectangular spectra, as cutoff_factor / N cycles per viaduct."""
-    ground_amplitude_m: float = 1.0
+    ground_amplitude_m: float = bounded(1.0, Number(0.0, 100.0))
     """Spectrum amplitude of the ground-height increments (unitary DFT)."""
-    height_amplitude_m: float = 0.2
+    height_amplitude_m: float = bounded(0.2, Number(0.0, 100.0))
     """Spectrum amplitude of the viaduct-height increments (unitary DFT)."""
-    min_radius_m: tuple[float, float] = (500.0, 5000.0)
+    min_radius_m: tuple[float, float] = bounded((500.0, 5000.0), Interval(100.0, math.inf))
     """Range of the smallest radius of curvature along the trajectory; (inf, inf) is straight."""
-    height_limits_m: tuple[float, float] = (design.HEIGHT_MIN_M, design.HEIGHT_MAX_M)
+    height_limits_m: tuple[float, float] = bounded(
+        (design.HEIGHT_MIN_M, design.HEIGHT_MAX_M),
+        Interval(design.HEIGHT_MIN_M, design.HEIGHT_MAX_M))
     """Table 4: 5.0 <= H <= 14 m."""
-    max_slope: float = 0.02
+    max_slope: float = bounded(0.02, Number(0.0, 0.2, lo_open=True))
     """Table 4: |S| < 0.02 between neighbouring viaducts."""
-    panel_distance_m: float = 30.0
+    panel_distance_m: float = bounded(30.0, Number(15.0, 1000.0))
     """Scene panels stand this far from the centre line (paper: 30 m)."""
-    panel_height_m: float = 30.0
-    end_margin_m: float = 30.0
+    panel_height_m: float = bounded(30.0, Number(1.0, 1000.0))
+    end_margin_m: float = bounded(30.0, Number(0.0, 1000.0))
     """Ground and panels run on past both ends of the trajectory by this much."""
-    sweep_step_m: float = 1.0
+    sweep_step_m: float = bounded(1.0, Number(0.01, 6.0))
     """Arc-length step of curved sweeps (slab, rails, ground...); chord error step^2 / 8R."""
-    cylinder_segments: int = 12
+    cylinder_segments: int = bounded(12, Number(3, 256, integer=True))
     """Facets around poles and wires."""
 
     def __post_init__(self) -> None:
-        s = "environment"
-        check_number(s, "n_viaducts", self.n_viaducts, 1, 1000, integer=True)
-        check_interval(s, "height_limits_m", self.height_limits_m,
-                        design.HEIGHT_MIN_M, design.HEIGHT_MAX_M)
-        check_interval(s, "initial_height_m", self.initial_height_m, *self.height_limits_m)
-        check_number(s, "cutoff_factor", self.cutoff_factor, 0.0, self.n_viaducts / 2)
-        check_number(s, "ground_amplitude_m", self.ground_amplitude_m, 0.0, 100.0)
-        check_number(s, "height_amplitude_m", self.height_amplitude_m, 0.0, 100.0)
-        check_interval(s, "min_radius_m", self.min_radius_m, 100.0, math.inf)
+        _validate(self)
         if math.isinf(self.min_radius_m[1]) and not math.isinf(self.min_radius_m[0]):
-            fail(s, "min_radius_m", self.min_radius_m,
-                 "finite, or [inf, inf] for straight track")
-        check_number(s, "max_slope", self.max_slope, 0.0, 0.2, lo_open=True)
-        check_number(s, "panel_distance_m", self.panel_distance_m, 15.0, 1000.0)
-        check_number(s, "panel_height_m", self.panel_height_m, 1.0, 1000.0)
-        check_number(s, "end_margin_m", self.end_margin_m, 0.0, 1000.0)
-        check_number(s, "sweep_step_m", self.sweep_step_m, 0.01, 6.0)
-        check_number(s, "cylinder_segments", self.cylinder_segments, 3, 256, integer=True)
+            _reject(self, "min_radius_m", "finite, or [inf, inf] for straight track")
 
 
 @dataclass(frozen=True)
 class CameraConfig:
     """Synthetic cameras (paper Section 3.4)."""
 
-    n_regular: int = 50
+    n_regular: int = bounded(50, Number(0, 100000, integer=True))
     """Regular cameras per environment (global views)."""
-    n_closeup: int = 50
+    n_closeup: int = bounded(50, Number(0, 100000, integer=True))
     """Close-up cameras per environment (mostly columns)."""
-    focal_mm: tuple[float, float] = (15.0, 55.0)
-    sensor_mm: float = 36.0
+    focal_mm: tuple[float, float] = bounded((15.0, 55.0), Interval(1.0, 1000.0))
+    sensor_mm: float = bounded(36.0, Number(1.0, 100.0))
     """Sensor width; it spans the image width."""
     placement: Literal["within", "at", "faces"] = "within"
     """How D is read (docs/design.md): 'within', a camera anywhere within D of the centre line
@@ -95,65 +85,47 @@ class CameraConfig:
     'at', exactly D to one side. 'faces' is not the paper's: every camera is a close-up
     aimed at a point on a column's or a cross or tie beam's face (the inspection preset;
     glsynth.world.face_cameras), by the face_* fields below, and n_regular must be 0."""
-    regular_distance_m: float = 10.0
+    regular_distance_m: float = bounded(10.0, Number(0.0, 1000.0))
     """D of the regular cameras."""
     height_from: Literal["origin", "ground"] = "origin"
     """What [h0, h1] is measured from (docs/design.md): 'origin', the world's z = 0, which is
     the ground under the first viaduct (a Blender location); 'ground', the ground under the
     camera."""
-    regular_height_m: tuple[float, float] = (1.0, 10.0)
+    regular_height_m: tuple[float, float] = bounded((1.0, 10.0), Interval(0.0, 1000.0))
     """[h0, h1] of the regular cameras."""
-    closeup_distance_m: float = 5.0
-    closeup_height_m: tuple[float, float] = (1.0, 6.5)
-    rot_x_deg: tuple[float, float] = (45.0, 135.0)
+    closeup_distance_m: float = bounded(5.0, Number(0.0, 1000.0))
+    closeup_height_m: tuple[float, float] = bounded((1.0, 6.5), Interval(0.0, 1000.0))
+    rot_x_deg: tuple[float, float] = bounded((45.0, 135.0), Interval(0.0, 180.0))
     """Blender XYZ Euler X: 90 looks horizontally."""
-    rot_y_deg: tuple[float, float] = (-15.0, 15.0)
-    rot_z_deg: tuple[float, float] = (-90.0, 90.0)
+    rot_y_deg: tuple[float, float] = bounded((-15.0, 15.0), Interval(-180.0, 180.0))
+    rot_z_deg: tuple[float, float] = bounded((-90.0, 90.0), Interval(-180.0, 180.0))
     """Relative to the direction that points to the viaduct centre line."""
-    face_distance_m: tuple[float, float] = (0.3, 3.0)
+    face_distance_m: tuple[float, float] = bounded((0.3, 3.0), PositiveInterval(1000.0, "metres"))
     """placement = "faces": range of the distance from the camera to the aimed point on the
     face, along the optical axis."""
-    face_angle_deg: float = 30.0
+    face_angle_deg: float = bounded(30.0, Number(0.0, MAX_SLANT_DEG))
     """placement = "faces": largest angle between the optical axis and the face's normal."""
-    face_roll_deg: float = 5.0
+    face_roll_deg: float = bounded(5.0, Number(0.0, 45.0))
     """placement = "faces": largest roll about the optical axis from level (the image's x axis
     horizontal): the camera is held upright."""
-    face_crack_share: float = 0.0
+    face_crack_share: float = bounded(0.0, Number(0.0, 1.0))
     """placement = "faces": the share of cameras aimed at a point on a crack (uniform along the
     environment's cracks on inspected faces, as an inspector photographs the damage), the rest
     at a point uniform on a face. Needs [damage] model = "mechanics"; an environment without
     cracks aims every camera at a face point."""
-    face_crack_px: float = 0.0
+    face_crack_px: float = bounded(0.0, Number(0.0, 100.0))
     """placement = "faces": a camera aimed at a crack stands no farther than makes the crack's
     width at the aimed point span this many pixels (within face_distance_m); 0: anywhere in
     face_distance_m."""
 
     def __post_init__(self) -> None:
-        s = "cameras"
-        check_number(s, "n_regular", self.n_regular, 0, 100000, integer=True)
-        check_number(s, "n_closeup", self.n_closeup, 0, 100000, integer=True)
-        check_literal(s, CameraConfig, "placement", self.placement)
-        check_literal(s, CameraConfig, "height_from", self.height_from)
-        check_interval(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
-        check_number(s, "sensor_mm", self.sensor_mm, 1.0, 100.0)
-        check_number(s, "regular_distance_m", self.regular_distance_m, 0.0, 1000.0)
-        check_number(s, "closeup_distance_m", self.closeup_distance_m, 0.0, 1000.0)
-        check_interval(s, "regular_height_m", self.regular_height_m, 0.0, 1000.0)
-        check_interval(s, "closeup_height_m", self.closeup_height_m, 0.0, 1000.0)
-        check_interval(s, "rot_x_deg", self.rot_x_deg, 0.0, 180.0)
-        check_interval(s, "rot_y_deg", self.rot_y_deg, -180.0, 180.0)
-        check_interval(s, "rot_z_deg", self.rot_z_deg, -180.0, 180.0)
-        check_positive_interval(s, "face_distance_m", self.face_distance_m, 1000.0, "metres")
-        check_number(s, "face_angle_deg", self.face_angle_deg, 0.0, MAX_SLANT_DEG)
-        check_number(s, "face_roll_deg", self.face_roll_deg, 0.0, 45.0)
-        check_number(s, "face_crack_share", self.face_crack_share, 0.0, 1.0)
-        check_number(s, "face_crack_px", self.face_crack_px, 0.0, 100.0)
+        _validate(self)
         if self.face_crack_share and self.placement != "faces":
-            fail(s, "face_crack_share", self.face_crack_share,
-                 '0 unless placement = "faces" (only face cameras aim at cracks)')
+            _reject(self, "face_crack_share",
+                    '0 unless placement = "faces" (only face cameras aim at cracks)')
         if self.placement == "faces" and self.n_regular:
-            fail(s, "n_regular", self.n_regular, '0 under placement = "faces" (every camera '
-                 "is a close-up at a member face; set n_closeup instead)")
+            _reject(self, "n_regular", '0 under placement = "faces" (every camera is a close-up '
+                    "at a member face; set n_closeup instead)")
 
     @property
     def total(self) -> int:
@@ -166,53 +138,40 @@ class RenderConfig:
     """Image size, antialiasing, clip planes, shadows and ambient occlusion of the GL renderer,
     and which renderer colours the images."""
 
-    width: int = 1920
-    height: int = 1080
+    width: int = bounded(1920, Number(1, 16384, integer=True))
+    height: int = bounded(1080, Number(1, 16384, integer=True))
     msaa: Literal[0, 2, 4, 8, 16] = 4
     """Samples for the colour pass (0: none; llvmpipe supports up to 4). Labels and depth are
     never multisampled."""
-    znear_m: float = 0.05
-    zfar_m: float = 2000.0
+    znear_m: float = bounded(0.05, Number(1e-4, 10.0))
+    zfar_m: float = bounded(2000.0, Number(lambda c: c.znear_m, 1e7, lo_open=True))
     """Also the depth of pixels that see no geometry (sky)."""
     renderer: Literal["gl", "cycles"] = "gl"
     """Colour by "gl" (the rasterizer) or "cycles" (the Cycles twin, glsynth.render.cycles;
     needs Blender; [cycles]). Labels and depth always come from GL."""
-    shadow_map_px: int = 2048
+    shadow_map_px: int = bounded(2048, Number(0, 16384, integer=True))
     """Side of the sun's shadow map (0: no shadows). Its texel, in metres, is the footprint of
     the shadowed range divided by this."""
-    shadow_distance_m: float = 60.0
+    shadow_distance_m: float = bounded(60.0, Number(1.0, 1e5))
     """Shadows are drawn on surfaces nearer than this to the camera; farther ones are lit."""
     sky_visibility_maps: Literal[0, 4, 9, 16] = 16
     """Directions of the sky whose visibility the rasterizer bakes once per environment, as
     orthographic depth maps (0: off): the sky light under the deck is then occluded by it."""
-    sky_visibility_px: int = 1024
+    sky_visibility_px: int = bounded(1024, Number(64, 4096, integer=True))
     """Side of each sky-visibility map."""
     ao: Literal["ssao", "off"] = "off"
     """Screen-space ambient occlusion of the rasterizer: "ssao" (from the label pass's depth)
     or "off". Off by default: against Cycles it adds no accuracy at the default exposure and
     costs render time (bench/bench_lighting.py, docs/results.md); the sky-visibility maps do the
     occlusion that matters."""
-    ao_radius_m: float = 1.0
+    ao_radius_m: float = bounded(1.0, Number(0.01, 100.0))
     """World radius within which geometry occludes ambient light."""
-    ao_samples: int = 16
+    ao_samples: int = bounded(16, Number(1, 64, integer=True))
 
     def __post_init__(self) -> None:
-        s = "render"
-        check_number(s, "width", self.width, 1, 16384, integer=True)
-        check_number(s, "height", self.height, 1, 16384, integer=True)
-        check_literal(s, RenderConfig, "msaa", self.msaa)
-        check_number(s, "znear_m", self.znear_m, 1e-4, 10.0)
-        check_number(s, "zfar_m", self.zfar_m, self.znear_m, 1e7, lo_open=True)
-        check_literal(s, RenderConfig, "renderer", self.renderer)
-        check_number(s, "shadow_map_px", self.shadow_map_px, 0, 16384, integer=True)
+        _validate(self)
         if 0 < self.shadow_map_px < 64:
-            fail(s, "shadow_map_px", self.shadow_map_px, "0 (no shadows) or 64 to 16384")
-        check_number(s, "shadow_distance_m", self.shadow_distance_m, 1.0, 1e5)
-        check_literal(s, RenderConfig, "sky_visibility_maps", self.sky_visibility_maps)
-        check_number(s, "sky_visibility_px", self.sky_visibility_px, 64, 4096, integer=True)
-        check_literal(s, RenderConfig, "ao", self.ao)
-        check_number(s, "ao_radius_m", self.ao_radius_m, 0.01, 100.0)
-        check_number(s, "ao_samples", self.ao_samples, 1, 64, integer=True)
+            _reject(self, "shadow_map_px", "0 (no shadows) or 64 to 16384")
 
 
 @dataclass(frozen=True)
@@ -221,61 +180,55 @@ class LightingConfig:
     ambient light of the rasterizer is always the irradiance of the sky and of the lit ground,
     as spherical harmonics; the tone map is always Blender's Standard view transform."""
 
-    sun_elevation_deg: tuple[float, float] = (20.0, 70.0)
+    sun_elevation_deg: tuple[float, float] = bounded((20.0, 70.0), Interval(-90.0, 90.0))
     """Range of the sun's elevation, drawn once per environment."""
-    sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
+    sun_azimuth_deg: tuple[float, float] = bounded((0.0, 360.0), Interval(-360.0, 360.0))
     """Range of the sun's azimuth, from +x (the initial track direction), counter-clockwise."""
-    sun_irradiance: tuple[float, float] = (2.5, 3.5)
+    sun_irradiance: tuple[float, float] = bounded((2.5, 3.5), Interval(0.0, 100.0))
     """Range of the sun's irradiance on a plane facing it (linear units; Blender's sun
     strength)."""
     sky: Literal["preetham", "uniform"] = "preetham"
     """Sky model: "preetham" (Blender's Preetham sky texture, scaled by sky_strength) or
     "uniform" (sky_rgb x uniform_sky_strength in every direction)."""
-    turbidity: tuple[float, float] = (2.0, 4.0)
+    turbidity: tuple[float, float] = bounded((2.0, 4.0), Interval(2.0, 10.0))
     """Range of the Preetham sky's turbidity (2: very clear, 10: hazy)."""
-    sky_strength: float = 1.0
+    sky_strength: float = bounded(1.0, Number(0.0, 100.0))
     """Scale of the Preetham sky (the strength of Blender's Background node)."""
-    sky_rgb: tuple[float, float, float] = (0.62, 0.74, 0.88)
+    sky_rgb: tuple[float, float, float] = bounded((0.62, 0.74, 0.88), Vector(3, 0.0, 1.0))
     """Colour of the uniform sky (linear RGB)."""
-    uniform_sky_strength: float = 0.6
+    uniform_sky_strength: float = bounded(0.6, Number(0.0, 100.0))
     """Scale of the uniform sky (the strength of Blender's Background node)."""
-    ground_albedo: float = 0.2
+    ground_albedo: float = bounded(0.2, Number(0.0, 1.0))
     """Albedo of the ground that lights surfaces from below in the ambient light, where the
     scene has no ground of its own (pure-texture plates); an environment uses its dressed
     ground's mean colour."""
-    exposure: float = 2.0
+    exposure: float = bounded(2.0, Number(0.0, 100.0, lo_open=True))
     """Scale of linear radiance before the tone map (clip, then the sRGB curve). The paper
     gives no light levels; at 2 (one stop over 1) the Section 3.4 dark filter removes about as
     many views of each camera kind as the paper's did, in GL and in Cycles alike
     (bench/bench_views.py, README "Camera placement")."""
 
     def __post_init__(self) -> None:
-        s = "lighting"
-        check_interval(s, "sun_elevation_deg", self.sun_elevation_deg, -90.0, 90.0)
-        check_interval(s, "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 360.0)
-        check_interval(s, "sun_irradiance", self.sun_irradiance, 0.0, 100.0)
-        check_literal(s, LightingConfig, "sky", self.sky)
-        check_interval(s, "turbidity", self.turbidity, 2.0, 10.0)
-        check_number(s, "sky_strength", self.sky_strength, 0.0, 100.0)
-        check_vector(s, "sky_rgb", self.sky_rgb, 3, 0.0, 1.0)
-        check_number(s, "uniform_sky_strength", self.uniform_sky_strength, 0.0, 100.0)
-        check_number(s, "ground_albedo", self.ground_albedo, 0.0, 1.0)
-        check_number(s, "exposure", self.exposure, 0.0, 100.0, lo_open=True)
+        _validate(self)
 
 
 @dataclass(frozen=True)
 class CyclesConfig:
     """The Cycles twin ([render] renderer = "cycles", and the benches that compare with it)."""
 
-    samples: int = 128
+    samples: int = bounded(128, Number(1, 1 << 16, integer=True))
     """Samples per pixel."""
 
     def __post_init__(self) -> None:
-        check_number("cycles", "samples", self.samples, 1, 1 << 16, integer=True)
+        _validate(self)
 
 
 SEVERITIES = ("slight", "medium", "severe")
 """Section 3.3's damage severities, in this order (seeded draws index into it)."""
+
+
+MAX_CRACK_WIDTH_MM = 10.0
+"""The widest crack [damage] crack_width_mm may allow."""
 
 
 @dataclass(frozen=True)
@@ -288,69 +241,70 @@ class DamageConfig:
     area.
     """
 
-    resolution: int = 1024
+    resolution: int = bounded(1024, Number(16, 8192, integer=True))
     """Damage texture size in pixels (paper: 2048; the paper preset uses 2048)."""
-    octaves: int = 8
-    frequency: tuple[float, float] = (0.2, 2.0)
+    octaves: int = bounded(8, Number(1, 16, integer=True))
+    frequency: tuple[float, float] = bounded((0.2, 2.0), Interval(0.001, 100.0))
     """First-octave feature size as a fraction of the texture size (paper: 20-200 %)."""
-    tile_m: float = 1.0
+    tile_m: float = bounded(1.0, Number(0.0, 100.0, lo_open=True))
     """Physical size of one damage texture at texture scale 1.0."""
-    slight_area: tuple[float, float] = (0.0, 0.01)
-    slight_depth_cm: tuple[float, float] = (1.0, 2.0)
-    medium_intact: tuple[float, float] = (0.90, 0.99)
-    medium_depth_cm: tuple[float, float] = (1.0, 10.0)
-    severe_intact: tuple[float, float] = (0.70, 0.90)
-    severe_depth_cm: tuple[float, float] = (2.0, 10.0)
-    axial_cover_cm: tuple[float, float] = (2.5, 7.5)
-    stirrup_cover_offset_cm: float = 2.0
+    slight_area: tuple[float, float] = bounded((0.0, 0.01), Interval(0.0, 1.0))
+    slight_depth_cm: tuple[float, float] = bounded((1.0, 2.0), Interval(0.0, 1000.0))
+    medium_intact: tuple[float, float] = bounded((0.90, 0.99), Interval(0.0, 1.0))
+    medium_depth_cm: tuple[float, float] = bounded((1.0, 10.0), Interval(0.0, 1000.0))
+    severe_intact: tuple[float, float] = bounded((0.70, 0.90), Interval(0.0, 1.0))
+    severe_depth_cm: tuple[float, float] = bounded((2.0, 10.0), Interval(0.0, 1000.0))
+    axial_cover_cm: tuple[float, float] = bounded((2.5, 7.5), Interval(0.0, 1000.0))
+    stirrup_cover_offset_cm: float = bounded(2.0, Number(0.0, lambda c: c.axial_cover_cm[0]))
     """c_s = c_a - 2 cm."""
-    axial_radius: float = 1 / 200
+    axial_radius: float = bounded(1 / 200, Number(0.0, 0.25, lo_open=True))
     """Rebar radius as a fraction of the texture size."""
-    stirrup_radius: float = 1 / 300
-    spacing_diameters: tuple[float, float] = (3.0, 10.0)
-    ripple: float = 0.1
+    stirrup_radius: float = bounded(1 / 300, Number(0.0, 0.25, lo_open=True))
+    spacing_diameters: tuple[float, float] = bounded((3.0, 10.0), Interval(1.0, 1000.0))
+    ripple: float = bounded(0.1, Number(0.0, 0.9))
     """Sinusoidal ripple amplitude as a fraction of the bar radius."""
-    undamaged_probability: float = 0.1
-    scale: tuple[float, float] = (0.2, 1.0)
+    undamaged_probability: float = bounded(0.1, Number(0.0, 1.0))
+    scale: tuple[float, float] = bounded((0.2, 1.0), Interval(0.0, 100.0))
     """Texture scale of a damaged column (the texture repeats every 1/scale * tile_m metres)."""
-    bank_size: int = 1000
+    bank_size: int = bounded(1000, Number(1, 10**6, integer=True))
     """Damage textures per severity (made lazily, on first use, and cached)."""
     model: Literal["paper", "mechanics"] = "paper"
     """Where damage goes (docs/design.md, "Damage by mechanics"): "paper", Section 3.3's noise
     textures spread uniformly over a column; "mechanics", crack networks with a width in mm on
     the columns and the cross and tie beams, placed by their moment and shear in double
     curvature under a drift. The fields below apply to "mechanics" only."""
-    crack_width_mm: tuple[float, float] = (0.05, 5.0)
+    crack_width_mm: tuple[float, float] = bounded(
+        (0.05, 5.0), PositiveInterval(MAX_CRACK_WIDTH_MM, "mm"))
     """Range of crack widths: a crack tapers to the lower bound at its tips, and no crack is
     wider than the upper bound."""
-    slight_drift_pct: tuple[float, float] = (0.2, 0.5)
+    slight_drift_pct: tuple[float, float] = bounded((0.2, 0.5), Interval(0.0, 20.0))
     """Lateral drift ratio of a slightly damaged column, in %: first cracking to about yield
     (a Table 3 column yields at about 0.3-0.7 %)."""
-    medium_drift_pct: tuple[float, float] = (0.5, 2.0)
+    medium_drift_pct: tuple[float, float] = bounded((0.5, 2.0), Interval(0.0, 20.0))
     """Of a medium one: past yield, up to cover spalling (about 2 %, Berry and Eberhard
     2003)."""
-    severe_drift_pct: tuple[float, float] = (2.0, 5.0)
+    severe_drift_pct: tuple[float, float] = bounded((2.0, 5.0), Interval(0.0, 20.0))
     """Of a severe one: spalling, up to bar buckling (about 5-6 %, Berry and Eberhard 2003)."""
-    fy_mpa: float = 345.0
+    fy_mpa: float = bounded(345.0, Number(100.0, 2000.0))
     """Yield strength of the longitudinal bars (SD345, JIS G 3112)."""
-    bar_diameter_mm: float = 25.0
+    bar_diameter_mm: float = bounded(25.0, Number(1.0, 100.0))
     """Diameter d_b of the longitudinal bars (D25), for the hinge length's strain penetration."""
-    stirrup_spacing_m: tuple[float, float] = (0.10, 0.30)
+    stirrup_spacing_m: tuple[float, float] = bounded((0.10, 0.30), Interval(0.01, 2.0))
     """Range of the hoop spacing of a column, which sets the crack spacing: hoops at about
     300 mm in the 1960s Tokaido designs, 100-150 mm in later ones."""
-    hinge_span_factor: float = 0.08
+    hinge_span_factor: float = bounded(0.08, Number(0.0, 1.0))
     """Plastic-hinge length Lp = hinge_span_factor L + hinge_bar_factor fy d_b (Priestley and
     Park 1987), L the shear span."""
-    hinge_bar_factor: float = 0.022
+    hinge_bar_factor: float = bounded(0.022, Number(0.0, 1.0))
     """Strain-penetration term of Lp, per MPa of fy (d_b in m)."""
-    cracking_moment_ratio: float = 0.4
+    cracking_moment_ratio: float = bounded(0.4, Number(0.0, 1.0, lo_open=True))
     """M_cr / M_y of a column section: flexural cracks form where the moment exceeds it."""
-    shear_span_ratio: float = 2.5
+    shear_span_ratio: float = bounded(2.5, Number(0.0, 100.0))
     """Shear governs a column whose shear span over effective depth, a / d, is below this
     (Kani's valley: about 2.5)."""
-    branch_probability: float = 0.5
+    branch_probability: float = bounded(0.5, Number(0.0, 1.0))
     """Chance that a crack forks once."""
-    beam_service_moment_ratio: float = 0.5
+    beam_service_moment_ratio: float = bounded(0.5, Number(0.0, 1.0))
     """M / M_y of a beam's midspan section under the service load (gravity): allowable-stress
     design keeps the bars' service stress near half their yield strength."""
     severities: tuple[str, ...] = SEVERITIES
@@ -362,56 +316,21 @@ class DamageConfig:
     inspection preset adds "slight" for the early spalling of long-term monitoring."""
 
     def __post_init__(self) -> None:
-        s = "damage"
-        check_number(s, "resolution", self.resolution, 16, 8192, integer=True)
-        check_number(s, "octaves", self.octaves, 1, 16, integer=True)
-        check_interval(s, "frequency", self.frequency, 0.001, 100.0)
-        check_number(s, "tile_m", self.tile_m, 0.0, 100.0, lo_open=True)
-        check_interval(s, "slight_area", self.slight_area, 0.0, 1.0)
-        for name in ("medium_intact", "severe_intact"):
-            check_interval(s, name, getattr(self, name), 0.0, 1.0)
-        for name in ("slight_depth_cm", "medium_depth_cm", "severe_depth_cm"):
-            check_interval(s, name, getattr(self, name), 0.0, 1000.0)
-        check_interval(s, "axial_cover_cm", self.axial_cover_cm, 0.0, 1000.0)
-        check_number(s, "stirrup_cover_offset_cm", self.stirrup_cover_offset_cm, 0.0,
-                     self.axial_cover_cm[0])
-        check_number(s, "axial_radius", self.axial_radius, 0.0, 0.25, lo_open=True)
-        check_number(s, "stirrup_radius", self.stirrup_radius, 0.0, 0.25, lo_open=True)
-        check_interval(s, "spacing_diameters", self.spacing_diameters, 1.0, 1000.0)
-        check_number(s, "ripple", self.ripple, 0.0, 0.9)
-        check_number(s, "undamaged_probability", self.undamaged_probability, 0.0, 1.0)
-        check_interval(s, "scale", self.scale, 0.0, 100.0)
+        _validate(self)
         if self.scale[0] <= 0:
-            fail(s, "scale", self.scale, "an interval of positive scales")
-        check_number(s, "bank_size", self.bank_size, 1, 10**6, integer=True)
-        check_literal(s, DamageConfig, "model", self.model)
-        check_positive_interval(s, "crack_width_mm", self.crack_width_mm, 10.0, "mm")
-        for severity in ("slight", "medium", "severe"):
-            check_interval(s, f"{severity}_drift_pct", getattr(self, f"{severity}_drift_pct"),
-                           0.0, 20.0)
-        check_number(s, "fy_mpa", self.fy_mpa, 100.0, 2000.0)
-        check_number(s, "bar_diameter_mm", self.bar_diameter_mm, 1.0, 100.0)
-        check_interval(s, "stirrup_spacing_m", self.stirrup_spacing_m, 0.01, 2.0)
-        check_number(s, "hinge_span_factor", self.hinge_span_factor, 0.0, 1.0)
-        check_number(s, "hinge_bar_factor", self.hinge_bar_factor, 0.0, 1.0)
-        check_number(s, "cracking_moment_ratio", self.cracking_moment_ratio, 0.0, 1.0,
-                     lo_open=True)
-        check_number(s, "shear_span_ratio", self.shear_span_ratio, 0.0, 100.0)
-        check_number(s, "branch_probability", self.branch_probability, 0.0, 1.0)
-        check_number(s, "beam_service_moment_ratio", self.beam_service_moment_ratio, 0.0, 1.0)
+            _reject(self, "scale", "an interval of positive scales")
         if (not isinstance(self.severities, tuple) or not self.severities
                 or len(set(self.severities)) != len(self.severities)
                 or not set(self.severities) <= set(SEVERITIES)):
-            fail(s, "severities", self.severities,
-                 f"a list of distinct names from {list(SEVERITIES)}")
+            _reject(self, "severities", f"a list of distinct names from {list(SEVERITIES)}")
         if (not isinstance(self.spalling_severities, tuple)
                 or len(set(self.spalling_severities)) != len(self.spalling_severities)
                 or not set(self.spalling_severities) <= set(SEVERITIES)):
-            fail(s, "spalling_severities", self.spalling_severities,
-                 f"a list of distinct names from {list(SEVERITIES)} (may be empty)")
+            _reject(self, "spalling_severities",
+                    f"a list of distinct names from {list(SEVERITIES)} (may be empty)")
         if self.model == "paper" and self.severities != SEVERITIES:
-            fail(s, "severities", self.severities,
-                 f'{list(SEVERITIES)} under model = "paper" (Section 3.3 draws all three)')
+            _reject(self, "severities",
+                    f'{list(SEVERITIES)} under model = "paper" (Section 3.3 draws all three)')
 
     def area_range(self, severity: str) -> tuple[float, float]:
         """Damaged-area fraction range of a severity, under the documented reading."""
@@ -426,6 +345,12 @@ class DamageConfig:
         self.area_range(severity)  # validates the name
         lo, hi = getattr(self, f"{severity}_depth_cm")
         return (lo / 100.0, hi / 100.0)
+
+    @property
+    def crack_width_m(self) -> tuple[float, float]:
+        """crack_width_mm in metres, the unit of the crack networks."""
+        lo, hi = self.crack_width_mm
+        return (lo / 1e3, hi / 1e3)
 
     def drift_range(self, severity: str) -> tuple[float, float]:
         """Lateral drift ratio range (not %) of a severity under ``model = "mechanics"``."""
@@ -457,23 +382,23 @@ class MaterialsConfig:
     repository: str = ""
     """Folder with concrete/, steel/, painted/, wood/, ground/, scene/ images; empty: the
     built-in procedural repository (generated once and cached)."""
-    texture_size: int = 512
+    texture_size: int = bounded(512, Number(*TEXTURE_PX, integer=True))
     """Repository images are resized to this many pixels square."""
-    builtin_size: int = 1024
+    builtin_size: int = bounded(1024, Number(*TEXTURE_PX, integer=True))
     """Pixel size the built-in repository is generated at. Every texture_size is resized
     from these same images, so quality presets differ in resolution, not in content."""
-    images_per_category: int = 12
+    images_per_category: int = bounded(12, Number(1, 10000, integer=True))
     """Size of the built-in procedural repository."""
-    repository_seed: int = 0
+    repository_seed: int = bounded(0, Number(0, 2**63 - 1, integer=True))
     """Seed of the built-in procedural repository."""
-    concrete_scale: tuple[float, float] = (0.1, 1.0)
+    concrete_scale: tuple[float, float] = bounded((0.1, 1.0), Interval(0.0, 100.0))
     """Slabs, beams, undamaged columns, sleepers, rails, wires, fences, poles."""
-    ground_scale: tuple[float, float] = (0.0, 0.1)
+    ground_scale: tuple[float, float] = bounded((0.0, 0.1), Interval(0.0, 100.0))
     """Ground (a scale of 0 shows a single texel colour)."""
-    steel_roughness: tuple[float, float] = (0.0, 1.0)
-    painted_metallic: tuple[float, float] = (0.0, 1.0)
-    painted_roughness: tuple[float, float] = (0.0, 1.0)
-    panel_emission: float = 0.5
+    steel_roughness: tuple[float, float] = bounded((0.0, 1.0), Interval(0.0, 1.0))
+    painted_metallic: tuple[float, float] = bounded((0.0, 1.0), Interval(0.0, 1.0))
+    painted_roughness: tuple[float, float] = bounded((0.0, 1.0), Interval(0.0, 1.0))
+    panel_emission: float = bounded(0.5, Number(0.0, 100.0))
     """Emission strength of the scene panels (paper: 0.5)."""
     concrete_detail: Literal["off", "flights", "on"] = "flights"
     """Concrete's millimetre-scale detail on the concrete parts (cement paste, sand, pores,
@@ -483,46 +408,28 @@ class MaterialsConfig:
     everywhere, "off" nowhere."""
 
     def __post_init__(self) -> None:
-        s = "materials"
         if not isinstance(self.repository, str):
-            fail(s, "repository", self.repository, "a folder path (string)")
-        check_number(s, "texture_size", self.texture_size, *TEXTURE_PX, integer=True)
-        check_number(s, "builtin_size", self.builtin_size, *TEXTURE_PX, integer=True)
-        check_number(s, "images_per_category", self.images_per_category, 1, 10000,
-                     integer=True)
-        check_number(s, "repository_seed", self.repository_seed, 0, 2**63 - 1, integer=True)
-        for name in ("concrete_scale", "ground_scale"):
-            check_interval(s, name, getattr(self, name), 0.0, 100.0)
-        for name in ("steel_roughness", "painted_metallic", "painted_roughness"):
-            check_interval(s, name, getattr(self, name), 0.0, 1.0)
-        check_number(s, "panel_emission", self.panel_emission, 0.0, 100.0)
-        check_literal(s, MaterialsConfig, "concrete_detail", self.concrete_detail)
+            _reject(self, "repository", "a folder path (string)")
+        _validate(self)
 
 
 @dataclass(frozen=True)
 class DatasetConfig:
     """How many environments a run makes and which are held out."""
 
-    n_environments: int = 200
+    n_environments: int = bounded(200, Number(1, 10**6, integer=True))
     """Paper: 200 environments."""
-    n_test_environments: int = 25
+    n_test_environments: int = bounded(25, Number(0, lambda c: c.n_environments, integer=True))
     """The last ones are the test split (paper: 25 of 200)."""
-    n_plates: int = 3000
+    n_plates: int = bounded(3000, Number(0, 10**7, integer=True))
     """Pure-texture plate images (paper: 3,000)."""
-    n_test_plates: int = 300
+    n_test_plates: int = bounded(300, Number(0, lambda c: c.n_plates, integer=True))
     """The last ones are the test split (paper: 300)."""
-    plates_per_task: int = 50
+    plates_per_task: int = bounded(50, Number(1, 10**6, integer=True))
     """Plates per unit of work (a unit is resumed or redone as a whole)."""
 
     def __post_init__(self) -> None:
-        check_number("dataset", "n_environments", self.n_environments, 1, 10**6, integer=True)
-        check_number("dataset", "n_test_environments", self.n_test_environments,
-                     0, self.n_environments, integer=True)
-        check_number("dataset", "n_plates", self.n_plates, 0, 10**7, integer=True)
-        check_number("dataset", "n_test_plates", self.n_test_plates, 0, self.n_plates,
-                     integer=True)
-        check_number("dataset", "plates_per_task", self.plates_per_task, 1, 10**6,
-                     integer=True)
+        _validate(self)
 
 
 @dataclass(frozen=True)
@@ -530,33 +437,26 @@ class FiltersConfig:
     """Which rendered views ``generate`` keeps (Section 3.4) and where their damage labels count:
     the region of reliable damage recognition, RRDR (Section 4.2; docs/design.md)."""
 
-    min_intensity: float = 30.0
+    min_intensity: float = bounded(30.0, Number(0.0, 255.0))
     """A view whose mean intensity (0-255) is below this is removed (paper: 30)."""
-    min_components: int = 2
+    min_components: int = bounded(2, Number(1, 9, integer=True))
     """A view showing fewer component labels is removed (paper: 2, i.e. views of a single
     label go); 1 keeps a close-up that one member fills."""
-    min_depth_m: float = 0.5
+    min_depth_m: float = bounded(0.5, Number(0.0, 100.0))
     """A view whose nearest pixel is this near or nearer is removed (paper: 0.5 m)."""
-    rrdr_px_per_cm: float = 1.5
+    rrdr_px_per_cm: float = bounded(1.5, Number(0.0, 1000.0, lo_open=True))
     """The paper's RRDR: a pixel is reliable where the image resolves at least this many
     pixels per cm on a fronto-parallel surface, f_px / (100 depth)."""
-    rrdr_crack_mm: float = 0.0
+    rrdr_crack_mm: float = bounded(0.0, Number(0.0, 10.0))
     """0: the paper's RRDR. Above 0, the RRDR for cracks replaces it: a pixel is reliable
     where its footprint, depth / f_px, is at most rrdr_footprint_factor times this crack
     width, the narrowest crack of interest."""
-    rrdr_footprint_factor: float = 2.0
+    rrdr_footprint_factor: float = bounded(2.0, Number(0.0, 100.0, lo_open=True))
     """k of the RRDR for cracks: a crack of width w is resolved by pixels of footprint up to
     k w, i.e. where it covers at least 1/k of a pixel's width (docs/design.md)."""
 
     def __post_init__(self) -> None:
-        s = "filters"
-        check_number(s, "min_intensity", self.min_intensity, 0.0, 255.0)
-        check_number(s, "min_components", self.min_components, 1, 9, integer=True)
-        check_number(s, "min_depth_m", self.min_depth_m, 0.0, 100.0)
-        check_number(s, "rrdr_px_per_cm", self.rrdr_px_per_cm, 0.0, 1000.0, lo_open=True)
-        check_number(s, "rrdr_crack_mm", self.rrdr_crack_mm, 0.0, 10.0)
-        check_number(s, "rrdr_footprint_factor", self.rrdr_footprint_factor, 0.0, 100.0,
-                     lo_open=True)
+        _validate(self)
 
 
 @dataclass(frozen=True)
@@ -567,94 +467,70 @@ class FlightConfig:
     plan: Literal["orbit", "facade", "underdeck"] = "orbit"
     """"orbit": rings around one column; "facade": a lawnmower along one side of a viaduct,
     columns and beams; "underdeck": along the centre line under the deck."""
-    column: int = 0
+    column: int = bounded(0, Number(0, 100000, integer=True))
     """Orbit: the column, counted over the environment in build order (viaduct by viaduct,
     row by row, left then right)."""
-    viaduct: int = 0
+    viaduct: int = bounded(0, Number(0, 1000, integer=True))
     """Facade and underdeck: the viaduct flown along."""
     side: Literal["left", "right"] = "left"
     """Facade: the side of the track (walking along it) the drone flies."""
-    standoff_m: float = 2.0
+    standoff_m: float = bounded(2.0, Number(0.0, 1000.0, lo_open=True))
     """Distance to the inspected surface: orbit, to the column's edges (its nearest points);
     facade, across to the outermost column or girder face; underdeck, down from the slab's
     underside. Columns stand 6 m apart across and along the track ([design]
     column_spacing_m), so with the default clearance an orbit wider than 4 m meets a
     neighbouring column and is refused (seed 0, environment 0: 4 m passes, 4.5 m not)."""
-    heights_m: tuple[float, ...] = (1.5, 3.0)
+    heights_m: tuple[float, ...] = bounded(
+        (1.5, 3.0), Numbers(0.0, 1000.0, "a non-empty list of heights in metres"))
     """Orbit: the rings' heights above the column's foot, flown in this order. flight.json
     reports how much consecutive rings overlap (ring_overlap_pct; side_overlap_pct does not
     place them)."""
-    arc_deg: float = 360.0
+    arc_deg: float = bounded(360.0, Number(0.0, 360.0))
     """Orbit: the angle each ring sweeps (360: a closed ring; 0: one frame per ring)."""
-    length_m: float = math.inf
+    length_m: float = bounded(math.inf, Number(0.0, math.inf))
     """Facade and underdeck: distance flown along the track from the viaduct's start, cut at
     its end (0: one frame per row)."""
-    forward_overlap_pct: float = 80.0
+    forward_overlap_pct: float = bounded(80.0, Number(0.0, 99.0))
     """Overlap of consecutive frames along the path, at the stand-off."""
-    side_overlap_pct: float = 60.0
+    side_overlap_pct: float = bounded(60.0, Number(0.0, 99.0))
     """Facade: overlap of neighbouring rows, at the stand-off."""
-    speed_mps: float = 2.0
+    speed_mps: float = bounded(2.0, Number(0.0, 100.0, lo_open=True))
     """Flight speed; a frame's time is its distance along the path over this."""
-    frame_rate_hz: float = 30.0
+    frame_rate_hz: float = bounded(30.0, Number(0.0, 1000.0, lo_open=True))
     """The camera's highest frame rate: the spacing over the speed may not be shorter."""
-    gimbal_pitch_deg: float = 0.0
+    gimbal_pitch_deg: float = bounded(0.0, Number(-90.0, 90.0))
     """Camera pitch above the horizontal (90 looks straight up, -90 down)."""
-    focal_mm: float = 24.0
+    focal_mm: float = bounded(24.0, Number(1.0, 1000.0))
     """Focal length (the sensor is [cameras] sensor_mm wide)."""
     camera_model: Literal["PINHOLE", "SIMPLE_RADIAL", "OPENCV"] = "PINHOLE"
     """COLMAP's camera model of the frames: a pinhole, or radial distortion (k1; OPENCV also
     k2) applied to colour by resampling and to labels and depth by nearest lookup
     (glsynth.world.lens)."""
-    k1: float = 0.0
+    k1: float = bounded(0.0, Number(-1.0, 1.0))
     """Radial distortion: x_d = x (1 + k1 r^2 + k2 r^4) on normalized coordinates (< 0:
     barrel)."""
-    k2: float = 0.0
+    k2: float = bounded(0.0, Number(-1.0, 1.0))
     """OPENCV only."""
-    clearance_m: float = 1.0
+    clearance_m: float = bounded(1.0, Number(0.01, 100.0))
     """Least distance from the path to any mesh; a plan that comes closer is refused."""
-    max_frames: int = 0
+    max_frames: int = bounded(0, Number(0, 10**6, integer=True))
     """Stop after this many frames (0: fly the whole plan)."""
     exposure: Literal["metered", "scene"] = "metered"
     """"metered": the camera exposes once for the whole flight, so that the median pixel of
     four frames spread along the path is 18 % grey (an orbit in the deck's shade meters about
     1.4 stops above the scene's exposure); "scene": [lighting] exposure, as glsynth render
     uses (glsynth.data.flight.exposed)."""
-    point_stride_px: int = 4
+    point_stride_px: int = bounded(4, Number(1, 1024, integer=True))
     """points.ply: every point_stride_px-th pixel of each frame, in both directions."""
-    point_spacing_m: float = 0.05
+    point_spacing_m: float = bounded(0.05, Number(1e-4, 100.0))
     """points.ply: at most one point per cube of this side (the first frame's, in order)."""
 
     def __post_init__(self) -> None:
-        s = "flight"
-        check_literal(s, FlightConfig, "plan", self.plan)
-        check_number(s, "column", self.column, 0, 100000, integer=True)
-        check_number(s, "viaduct", self.viaduct, 0, 1000, integer=True)
-        check_literal(s, FlightConfig, "side", self.side)
-        check_number(s, "standoff_m", self.standoff_m, 0.0, 1000.0, lo_open=True)
-        if not isinstance(self.heights_m, tuple) or not self.heights_m:
-            fail(s, "heights_m", self.heights_m, "a non-empty list of heights in metres")
-        for h in self.heights_m:
-            check_number(s, "heights_m", h, 0.0, 1000.0)
-        check_number(s, "arc_deg", self.arc_deg, 0.0, 360.0)
-        check_number(s, "length_m", self.length_m, 0.0, math.inf)
-        check_number(s, "forward_overlap_pct", self.forward_overlap_pct, 0.0, 99.0)
-        check_number(s, "side_overlap_pct", self.side_overlap_pct, 0.0, 99.0)
-        check_number(s, "speed_mps", self.speed_mps, 0.0, 100.0, lo_open=True)
-        check_number(s, "frame_rate_hz", self.frame_rate_hz, 0.0, 1000.0, lo_open=True)
-        check_number(s, "gimbal_pitch_deg", self.gimbal_pitch_deg, -90.0, 90.0)
-        check_number(s, "focal_mm", self.focal_mm, 1.0, 1000.0)
-        check_literal(s, FlightConfig, "camera_model", self.camera_model)
-        check_number(s, "k1", self.k1, -1.0, 1.0)
-        check_number(s, "k2", self.k2, -1.0, 1.0)
+        _validate(self)
         if self.camera_model != "OPENCV" and self.k2 != 0.0:
-            fail(s, "k2", self.k2, '0 unless camera_model = "OPENCV"')
+            _reject(self, "k2", '0 unless camera_model = "OPENCV"')
         if self.camera_model == "PINHOLE" and self.k1 != 0.0:
-            fail(s, "k1", self.k1, '0 unless camera_model is "SIMPLE_RADIAL" or "OPENCV"')
-        check_number(s, "clearance_m", self.clearance_m, 0.01, 100.0)
-        check_number(s, "max_frames", self.max_frames, 0, 10**6, integer=True)
-        check_literal(s, FlightConfig, "exposure", self.exposure)
-        check_number(s, "point_stride_px", self.point_stride_px, 1, 1024, integer=True)
-        check_number(s, "point_spacing_m", self.point_spacing_m, 1e-4, 100.0)
+            _reject(self, "k1", '0 unless camera_model is "SIMPLE_RADIAL" or "OPENCV"')
 
 
 @dataclass(frozen=True)
@@ -674,11 +550,11 @@ class Config:
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
         if self.environment.panel_distance_m <= half_deck + 1.0:
-            fail("environment", "panel_distance_m", self.environment.panel_distance_m,
-                  f"more than half the deck width plus 1 m ({half_deck + 1.0})")
+            _reject(self.environment, "panel_distance_m",
+                    f"more than half the deck width plus 1 m ({half_deck + 1.0})")
         if self.cameras.face_crack_share and self.damage.model != "mechanics":
-            fail("cameras", "face_crack_share", self.cameras.face_crack_share,
-                 '0 unless [damage] model = "mechanics" (the paper model makes no cracks)')
+            _reject(self.cameras, "face_crack_share",
+                    '0 unless [damage] model = "mechanics" (the paper model makes no cracks)')
 
 
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
@@ -711,11 +587,20 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                     "rrdr_footprint_factor": 2.0}},
 }
 
-_SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
-             "cameras": CameraConfig, "render": RenderConfig, "lighting": LightingConfig,
-             "cycles": CyclesConfig, "damage": DamageConfig, "materials": MaterialsConfig,
-             "filters": FiltersConfig,
-             "flight": FlightConfig}
+_SECTIONS: dict[str, type] = typing.get_type_hints(Config)
+"""The config file's sections: Config's fields, by name."""
+_SECTION_OF = {cls: name for name, cls in _SECTIONS.items()}
+
+
+def _validate(section: Any) -> None:
+    """Every field of a section against the rule in its metadata (glsynth.core.checks)."""
+    validate(section, _SECTION_OF[type(section)])
+
+
+def _reject(section: Any, name: str, expected: str) -> typing.NoReturn:
+    """A section's field breaks a rule its metadata cannot state (one that reads other fields
+    or another section)."""
+    fail(_SECTION_OF[type(section)], name, getattr(section, name), expected)
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:

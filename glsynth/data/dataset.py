@@ -109,6 +109,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     manifest rows, the counts of each written image (glsynth.data.statistics) and the views
     removed by camera kind and reason."""
     from glsynth.render.view import EnvironmentView
+    from glsynth.world.environment import PartKind
 
     clock = _Clock()
     view = EnvironmentView.open(config, root_seed, env, renderer)
@@ -116,7 +117,7 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     split = environment_split(config, env)
     rows, counts = [], []
     removed = {kind: dict.fromkeys(REASONS, 0) for kind in ("regular", "closeup")}
-    columns = [p for p in view.environment.parts if p.name.startswith("column")]
+    columns = [p for p in view.environment.parts if p.kind is PartKind.COLUMN]
     networks, records = _crack_networks(view)
     to_cycles = []  # (placement, image path) of the kept views, with --renderer cycles
     with BackgroundWriter() as writer:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.core.geometry import transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.lens import Lens, label_rays, normalized_to_pixel
 
@@ -63,7 +64,7 @@ def project(camera: Camera, lens: Lens, points: np.ndarray) -> tuple[np.ndarray,
     """glsynth pixel coordinates (N, 2: col, row; centres at integers) and depth along the
     optical axis (N,) of world points."""
     view = camera.view()
-    cam = points @ view[:3, :3].T + view[:3, 3]
+    cam = transform_points(view, points)
     depth = -cam[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         xy = np.stack([cam[:, 0] / depth, -cam[:, 1] / depth], axis=1)  # COLMAP's axes
@@ -144,7 +145,7 @@ def sample_points(frames: Sequence[Frame], stride: int, spacing_m: float) -> dic
         rows, cols, z = rows[keep], cols[keep], z[keep]
         xy = label_rays(f.camera, f.lens, cols, rows)
         cam = np.stack([xy[:, 0] * z, -xy[:, 1] * z, -z], 1)  # glsynth's axes
-        xyz = cam @ f.camera.pose[:3, :3].T + f.camera.pose[:3, 3]
+        xyz = transform_points(f.camera.pose, cam)
         parts.append((xyz, f.color[rows, cols], f.component[rows, cols], f.damage[rows, cols],
                       np.full(len(z), index)))
     xyz, rgb, component, damage, source = (np.concatenate(a) for a in zip(*parts))

@@ -21,11 +21,10 @@ from glsynth.appearance.damage_bank import DamageBank, damage_material
 from glsynth.appearance.materials import Material
 from glsynth.appearance.repository import TextureRepository
 from glsynth.core.config import Config
-from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.lighting import Lighting, environment_lighting
 
 MAX_TILT = math.radians(35.0)
@@ -80,7 +79,7 @@ def plate_shot(config: Config, root_seed: int, index: int, repository: TextureRe
     pose = np.eye(4)
     tilt_axis = np.array([math.cos(tilt_axis_angle), math.sin(tilt_axis_angle), 0.0])
     pose[:3, :3] = _rotation(tilt_axis, tilt) @ _rotation(np.array([0.0, 0, 1]), spin)
-    part = Part("column_plate", Component.COLUMN, None, plate_mesh(size), pose)
+    part = Part("column_plate", PartKind.COLUMN, None, plate_mesh(size), pose)
     scene = build_scene([part], {part.name: material})
 
     render = config.render

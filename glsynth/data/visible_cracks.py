@@ -14,6 +14,7 @@ Pure numpy.
 import numpy as np
 
 from glsynth.appearance.cracks import CrackNetwork
+from glsynth.core.geometry import transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
 from glsynth.world.visibility import in_frustum, part_corners, seen_by
@@ -35,8 +36,8 @@ def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera
     segment each lies on (M,) and the length in metres each stands for (M,). A segment is cut
     into equal pieces at most SAMPLE_STEP_PX long in the image (taken at its nearer end) and
     sampled at their middles; a segment outside the frustum (``in_frustum``) gets none."""
-    a = net.points[:, 0] @ pose[:3, :3].T + pose[:3, 3]
-    b = net.points[:, 1] @ pose[:3, :3].T + pose[:3, 3]
+    a = transform_points(pose, net.points[:, 0])
+    b = transform_points(pose, net.points[:, 1])
     view = camera.view()
     depth = -np.minimum(a @ view[2, :3], b @ view[2, :3]) - view[2, 3]
     step_m = SAMPLE_STEP_PX * np.maximum(depth, camera.znear) / camera.fx
@@ -54,7 +55,7 @@ def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray,
     points; columns and rows are -1 where the point is outside the image or before the near
     plane."""
     view = camera.view()
-    c = points @ view[:3, :3].T + view[:3, 3]
+    c = transform_points(view, points)
     depth = -c[:, 2]
     front = depth > camera.znear
     safe = np.where(front, depth, 1.0)

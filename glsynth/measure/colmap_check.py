@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.errors import UserError
+from glsynth.core.geometry import transform_points
 from glsynth.core.labels import Component
 from glsynth.world.environment import Environment
 from glsynth.world.flights import surface_distance
@@ -109,7 +110,7 @@ def nearest_surfaces(env: Environment, points: np.ndarray, margin: float
         corners = part.world_vertices()
         lo, hi = corners.min(0) - margin, corners.max(0) + margin
         near = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
-        triangles = part.mesh.triangles @ part.pose[:3, :3].T + part.pose[:3, 3]
+        triangles = transform_points(part.pose, part.mesh.triangles)
         for chunk in np.array_split(near, max(1, len(near) * len(triangles) // 2_000_000)):
             if chunk.size:
                 d = surface_distance(triangles, points[chunk])

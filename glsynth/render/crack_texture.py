@@ -30,7 +30,7 @@ import numpy as np
 import trimesh
 
 from glsynth.appearance.cracks import CrackNetwork
-from glsynth.render.cracks_index import segment_distance
+from glsynth.core.geometry import segment_distance, transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.visibility import in_frustum
 
@@ -187,7 +187,7 @@ def finest_footprint(network: CrackNetwork, pose: np.ndarray, cameras: Sequence[
     angle of a pixel at the image centre, at the nearest end point each camera images (the
     segments are a few centimetres long); the nearest point of any crack where none images
     one (the cracks are then seen in reflections at most)."""
-    world = network.points @ pose[:3, :3].T + pose[:3, 3]
+    world = transform_points(pose, network.points)
     ends = world.reshape(-1, 3)
     seen, anywhere = np.inf, np.inf
     for cam in cameras:
@@ -270,8 +270,7 @@ def _rasterise(plane: _PlaneCracks, texel_m: float, lo: np.ndarray, shape: tuple
         seg, texel = _candidates(uv, widths, texel_m, lo, shape)
         a, b = uv[seg, 0], uv[seg, 1]
         centre = lo + (texel + 0.5) * texel_m
-        d, t = segment_distance(np.pad(centre, ((0, 0), (0, 1))), np.pad(a, ((0, 0), (0, 1))),
-                                np.pad(b, ((0, 0), (0, 1))))
+        d, t = segment_distance(centre, a, b)
         t_hat = _lattice(uv, widths, texel_m)[0][seg]
         cover = texel_coverage(d, widths[seg, 0] + (widths[seg, 1] - widths[seg, 0]) * t,
                                texel_m * np.abs(t_hat[:, 1]), texel_m * np.abs(t_hat[:, 0]))
@@ -364,8 +363,8 @@ def framed(network: CrackNetwork, pose: np.ndarray, cameras: Sequence[Camera]
     its sub-millimetre darkening takes from the bounces, far below Cycles' noise, and a
     curved girder's cracks lie on dozens of its flat pieces, each a plane in the material's
     node tree (84 planes a girder made the demo's Cycles job 4x slower)."""
-    a = network.points[:, 0] @ pose[:3, :3].T + pose[:3, 3]
-    b = network.points[:, 1] @ pose[:3, :3].T + pose[:3, 3]
+    a = transform_points(pose, network.points[:, 0])
+    b = transform_points(pose, network.points[:, 1])
     keep = np.zeros(len(a), bool)
     for cam in cameras:
         keep |= in_frustum(a, b, cam)

@@ -35,13 +35,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from glsynth.appearance.cracks import CrackNetwork
+from glsynth.core.geometry import segment_distance_axes
 
 CELL_M = 0.05
 """The grid's smallest cell edge."""
 MAX_CELLS = 1 << 20
 BATCH = 1 << 16
 """The most (cell, segment) pairs tested at once: their temporaries (0.5 MB each) stay in
-the cache, 2.6x faster than testing a network's pairs all at once."""
+the cache (docs/design.md, "Packing", gives the speed-up)."""
 ROW = 4096
 CRACK_CONTRAST = 0.85
 """Share of the surface's reflected light that a crack's interior takes away: a crack is a
@@ -67,17 +68,6 @@ class CrackIndex:
     dims: tuple[int, int, int]
     longest: int
     """The longest cell list: the most segments one fragment tests."""
-
-
-def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray,
-                                                                           np.ndarray]:
-    """Distance from points ``p`` (..., 3) to segments a-b (..., 3), and the parameter t in
-    [0, 1] of the nearest point a + t (b - a)."""
-    ab = b - a
-    length2 = np.sum(ab * ab, -1)
-    t = np.clip(np.sum((p - a) * ab, -1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    t = np.where(length2 > 0, t, 0.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1), t
 
 
 def _rows(flat: np.ndarray) -> np.ndarray:
@@ -108,20 +98,6 @@ def _cell_offsets(size: np.ndarray) -> list[np.ndarray]:
     return [i.ravel(), j.ravel(), k.ravel()]
 
 
-def _within_reach(p: list[np.ndarray], a: list[np.ndarray], ab: list[np.ndarray],
-                  reach: np.ndarray) -> np.ndarray:
-    """``segment_distance(p, a, a + ab)[0] <= reach`` on per-axis arrays that broadcast
-    (x, y and z apart: no (..., 3) temporaries). Operation for operation the same, so the
-    same bits: the grid, and so the images, do not depend on which of the two ran."""
-    length2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
-    pa = [p[q] - a[q] for q in range(3)]
-    t = np.clip((pa[0] * ab[0] + pa[1] * ab[1] + pa[2] * ab[2])
-                / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    t = np.where(length2 > 0, t, 0.0)
-    r = [p[q] - (a[q] + t * ab[q]) for q in range(3)]
-    return np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]) <= reach
-
-
 def _near_pairs(points: np.ndarray, reach: np.ndarray, origin: np.ndarray, cell: float,
                 dims: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """Sorted keys cell id x segments + segment of every (cell, segment) pair whose cell
@@ -139,9 +115,10 @@ def _near_pairs(points: np.ndarray, reach: np.ndarray, origin: np.ndarray, cell:
         members = np.flatnonzero(group.ravel() == g)
         for seg in np.array_split(members, -(-len(members) * len(offsets[0]) // BATCH)):
             ijk = [lo[seg, q][:, None] + offsets[q] for q in range(3)]
-            near = _within_reach([origin[q] + (ijk[q] + 0.5) * cell for q in range(3)],
-                                 [a[seg, q][:, None] for q in range(3)],
-                                 [ab[seg, q][:, None] for q in range(3)], reach[seg, None])
+            gap, _ = segment_distance_axes([origin[q] + (ijk[q] + 0.5) * cell for q in range(3)],
+                                           [a[seg, q][:, None] for q in range(3)],
+                                           [ab[seg, q][:, None] for q in range(3)])
+            near = gap <= reach[seg, None]
             i, j, k = (v[near] for v in ijk)
             keys.append((i + dims[0] * (j + dims[1] * k)) * len(points)
                         + np.broadcast_to(seg[:, None], near.shape)[near])

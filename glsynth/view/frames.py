@@ -5,6 +5,7 @@ JPEG while moving, small)."""
 import cv2
 import numpy as np
 
+from glsynth.core.fileio import image_bytes
 from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.passes import PASSES
 
@@ -29,14 +30,12 @@ def legend(name: str) -> dict:
 
 
 def encode(image: np.ndarray, still: bool) -> tuple[bytes, str]:
-    """The image's bytes and MIME type: PNG (lossless) for a still, JPEG while moving."""
-    bgr = np.ascontiguousarray(image[..., ::-1])
+    """The image's bytes and MIME type: PNG (lossless, as the dataset's files) for a still,
+    JPEG while moving."""
     if still:
-        ok, data = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        kind = "image/png"
-    else:
-        ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-        kind = "image/jpeg"
+        return image_bytes(image), "image/png"
+    bgr = np.ascontiguousarray(image[..., ::-1])
+    ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
     if not ok:
         raise RuntimeError(f"OpenCV could not encode a {image.shape} image")
-    return data.tobytes(), kind
+    return data.tobytes(), "image/jpeg"

@@ -73,14 +73,11 @@ class SaveRequest:
 Request = (CameraRequest | PassRequest | InspectRequest | LightingRequest | SceneRequest
            | SaveRequest)
 
-_FIELDS = {
-    "camera": {"pose", "focal_mm", "moving"},
-    "pass": {"name"},
-    "inspect": {"x", "y"},
-    "lighting": set(LIGHTING_FIELDS),
-    "scene": {"seed", "env", "quality", "config_toml"},
-    "save": set(),
-}
+_FIELDS = {kind: set(LIGHTING_FIELDS) if cls is LightingRequest else set(cls.__dataclass_fields__)
+           for kind, cls in zip(("camera", "pass", "inspect", "lighting", "scene", "save"),
+                                Request.__args__)}
+"""Each message type's fields: its request's (a lighting message sends LIGHTING_FIELDS, each
+a number, which LightingRequest holds as one dict)."""
 
 
 def number_field(data: dict, key: str, low: float, high: float) -> float:

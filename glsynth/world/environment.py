@@ -1,35 +1,85 @@
 """One random environment: a trajectory of N standard-design viaducts as named, tagged meshes.
 
-Every part has a name that starts with its component name, a component id (glsynth.core.labels), the
-viaduct it belongs to (None for environment-wide parts), a mesh in its own frame and a 4x4
-world-from-mesh pose. Footings are underground and not modelled; columns start at the ground.
+Every part has a unique name, a kind (PartKind, which gives its component id in
+glsynth.core.labels), the viaduct it belongs to (None for environment-wide parts), a mesh in its
+own frame, a 4x4 world-from-mesh pose and, for one of a left/right pair, its side. Code asks a
+part's kind, never its name. Footings are underground and not modelled; columns start at the ground.
 """
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 import trimesh
 
 from glsynth.core import design
 from glsynth.core.config import Config
+from glsynth.core.geometry import transform_points
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.world import meshes
 from glsynth.world.trajectory import Trajectory, generate_trajectory
 
 
+class PartKind(Enum):
+    """What a part is; the value is its word in part names (slab_v00, beam_v00_tie_1)."""
+
+    SLAB = "slab"
+    GIRDER = "girder"
+    """Swept along the track under the slab, one on each column line."""
+    CROSS_BEAM = "cross"
+    """A box across the track over a row of columns."""
+    TIE_BEAM = "tie"
+    """A box between columns at mid height, where Table 3 has intermediate beams."""
+    COLUMN = "column"
+    SLEEPER = "sleeper"
+    RAIL = "rail"
+    WIRE = "wire"
+    FENCE = "fence"
+    POLE = "pole"
+    PORTAL = "portal"
+    GROUND = "ground"
+    SCENE = "scene"
+    """A photo panel beside or across the track."""
+
+    @property
+    def component(self) -> Component:
+        return _COMPONENT[self]
+
+
+_COMPONENT = {
+    PartKind.SLAB: Component.SLAB, PartKind.GIRDER: Component.BEAM,
+    PartKind.CROSS_BEAM: Component.BEAM, PartKind.TIE_BEAM: Component.BEAM,
+    PartKind.COLUMN: Component.COLUMN, PartKind.SLEEPER: Component.SLEEPER,
+    PartKind.RAIL: Component.RAIL, PartKind.WIRE: Component.NONSTRUCTURAL,
+    PartKind.FENCE: Component.NONSTRUCTURAL, PartKind.POLE: Component.NONSTRUCTURAL,
+    PartKind.PORTAL: Component.NONSTRUCTURAL, PartKind.GROUND: Component.NONBRIDGE,
+    PartKind.SCENE: Component.NONBRIDGE}
+
+BOX_BEAMS = frozenset({PartKind.CROSS_BEAM, PartKind.TIE_BEAM})
+"""The beams built as boxes between columns (the girders are swept along the track)."""
+OPEN_KINDS = frozenset({PartKind.GROUND, PartKind.SCENE})
+"""The kinds swept as open surfaces; every other part is a closed solid."""
+
+
 @dataclass(frozen=True)
 class Part:
     name: str
-    component: Component
+    kind: PartKind
     viaduct: int | None
     mesh: trimesh.Trimesh
     pose: np.ndarray
     """4x4 world-from-mesh."""
+    side: str | None = None
+    """"l" (+ across, left of the track) or "r" for one of a left/right pair, else None."""
+
+    @property
+    def component(self) -> Component:
+        return self.kind.component
 
     def world_vertices(self) -> np.ndarray:
-        return self.mesh.vertices @ self.pose[:3, :3].T + self.pose[:3, 3]
+        return transform_points(self.pose, self.mesh.vertices)
 
 
 @dataclass(frozen=True)
@@ -117,10 +167,11 @@ class _Builder:
         self.up = np.array([0.0, 0.0, 1.0])
         self.parts: list[Part] = []
 
-    def add(self, name: str, component: Component, viaduct: int | None,
-            mesh: trimesh.Trimesh, pose: np.ndarray | None = None) -> None:
-        self.parts.append(Part(name, component, viaduct, mesh,
-                               np.eye(4) if pose is None else pose))
+    def add(self, name: str, kind: PartKind, viaduct: int | None,
+            mesh: trimesh.Trimesh, pose: np.ndarray | None = None, side: str | None = None
+            ) -> None:
+        self.parts.append(Part(name, kind, viaduct, mesh, np.eye(4) if pose is None else pose,
+                               side))
 
     def along(self, s: np.ndarray, offset: float = 0.0, base: str = "deck",
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -145,11 +196,11 @@ class _Builder:
         s = viaduct_samples(self.config, traj, i)
         tag = f"v{i:02d}"
         t_s, half_w = d.slab_thickness_m, d.deck_width_m / 2
-        self.add(f"slab_{tag}", Component.SLAB, i,
+        self.add(f"slab_{tag}", PartKind.SLAB, i,
                  self.deck_sweep(s, meshes.rectangle(-half_w, half_w, -t_s, 0.0)))
         for side in GIRDER_SIDES:
-            self.add(f"beam_{tag}_girder_{side}", Component.BEAM, i,
-                     self.deck_sweep(s, girder_profile(d, side)))
+            self.add(f"beam_{tag}_girder_{side}", PartKind.GIRDER, i,
+                     self.deck_sweep(s, girder_profile(d, side)), side=side)
         columns = self.columns_and_beams(i, sections, tag)
         self.track(i, s, tag)
         self.fences_and_poles(i, s, tag)
@@ -175,15 +226,15 @@ class _Builder:
             # Cross beam over the row, reaching from girder edge to girder edge.
             cross_len = d.column_spacing_m + d.girder_width_m
             cz = underside[r] + (d.girder_depth_m + d.embed_m) / 2
-            self.add(f"beam_{tag}_cross_{r}", Component.BEAM, i,
+            self.add(f"beam_{tag}_cross_{r}", PartKind.CROSS_BEAM, i,
                      meshes.box((d.crossbeam_width_m, cross_len, d.girder_depth_m + d.embed_m)),
                      meshes.pose(heading[r], [points[r, 0], points[r, 1], cz]))
             for k, (side, sign) in enumerate((("l", 1), ("r", -1))):
                 xy = points[r, :2] + sign * d.column_spacing_m / 2 * normal[r, :2]
                 centers[r, k] = [xy[0], xy[1], bottom]
                 name = f"column_{tag}_{r}{side}"
-                self.add(name, Component.COLUMN, i, meshes.box((a, b, top - bottom)),
-                         meshes.pose(heading[r], [xy[0], xy[1], (top + bottom) / 2]))
+                self.add(name, PartKind.COLUMN, i, meshes.box((a, b, top - bottom)),
+                         meshes.pose(heading[r], [xy[0], xy[1], (top + bottom) / 2]), side)
                 columns.append(ColumnInfo(name, (float(xy[0]), float(xy[1])), bottom, top,
                                           float(heading[r]), (a, b)))
         if sections.intermediate_beam_cm is not None:
@@ -191,7 +242,7 @@ class _Builder:
             z = 0.5 * (max(c.bottom_z for c in columns) + underside.min())
             for r in range(len(rows_s)):  # across the track, between the pair of a row
                 mid = centers[r].mean(axis=0)
-                self.add(f"beam_{tag}_tie_{r}", Component.BEAM, i,
+                self.add(f"beam_{tag}_tie_{r}", PartKind.TIE_BEAM, i,
                          meshes.box((width, d.column_spacing_m, depth)),
                          meshes.pose(heading[r], [mid[0], mid[1], z]))
             for k, side in enumerate("lr"):  # along the track, between neighbouring rows
@@ -199,7 +250,7 @@ class _Builder:
                     p, q = centers[r, k], centers[r + 1, k]
                     chord = q[:2] - p[:2]
                     mid = (p[:2] + q[:2]) / 2
-                    self.add(f"beam_{tag}_tie_{side}{r}", Component.BEAM, i,
+                    self.add(f"beam_{tag}_tie_{side}{r}", PartKind.TIE_BEAM, i,
                              meshes.box((float(np.hypot(*chord)), width, depth)),
                              meshes.pose(float(np.arctan2(chord[1], chord[0])),
                                          [mid[0], mid[1], z]))
@@ -222,20 +273,20 @@ class _Builder:
             centre = points + u_track * normal
             centre[:, 2] += h_sl / 2
             sleeper_poses = np.stack([meshes.pose(h, c) for h, c in zip(heading, centre)])
-            self.add(f"sleeper_{tag}_t{t}", Component.SLEEPER, i, meshes.boxes(
+            self.add(f"sleeper_{tag}_t{t}", PartKind.SLEEPER, i, meshes.boxes(
                 (d.sleeper_width_m, d.sleeper_length_m, h_sl), sleeper_poses))
             for side, rsign in (("l", 1), ("r", -1)):
                 u = u_track + rsign * (d.gauge_m + head) / 2
                 pieces = [self.deck_sweep(s, meshes.rectangle(u - w / 2, u + w / 2,
                                                               h_sl + z0, h_sl + z1))
                           for w, z0, z1 in rail_parts]
-                self.add(f"rail_{tag}_t{t}{side}", Component.RAIL, i,
-                         trimesh.util.concatenate(pieces))
+                self.add(f"rail_{tag}_t{t}{side}", PartKind.RAIL, i,
+                         trimesh.util.concatenate(pieces), side=side)
             for kind, height in (("contact", d.contact_wire_height_m),
                                  ("messenger", d.messenger_wire_height_m)):
                 path, across, up = self.along(s, u_track)
                 path[:, 2] += h_sl + h_rail + height
-                self.add(f"nonstructural_{tag}_wire_{kind}_t{t}", Component.NONSTRUCTURAL, i,
+                self.add(f"nonstructural_{tag}_wire_{kind}_t{t}", PartKind.WIRE, i,
                          meshes.sweep(meshes.circle(d.wire_radius_m, self.cfg.cylinder_segments),
                                       path, across, up, closed=True, smooth=True, caps=True))
 
@@ -244,8 +295,9 @@ class _Builder:
         half_w, t_f = d.deck_width_m / 2, d.fence_thickness_m
         for side, sign in (("l", 1), ("r", -1)):
             lo, hi = sorted((sign * half_w, sign * (half_w - t_f)))
-            self.add(f"nonstructural_{tag}_fence_{side}", Component.NONSTRUCTURAL, i,
-                     self.deck_sweep(s, meshes.rectangle(lo, hi, 0.0, d.fence_height_m)))
+            self.add(f"nonstructural_{tag}_fence_{side}", PartKind.FENCE, i,
+                     self.deck_sweep(s, meshes.rectangle(lo, hi, 0.0, d.fence_height_m)),
+                     side=side)
         s_mid = np.array([i * d.length_m + d.length_m / 2])
         points, _, normal = traj.frame(s_mid)
         heading = float(traj.heading(s_mid)[0])
@@ -254,13 +306,13 @@ class _Builder:
         x_axis, y_axis = np.tile([1.0, 0, 0], (2, 1)), np.tile([0, 1.0, 0], (2, 1))
         for side, sign in (("l", 1), ("r", -1)):
             base = points[0] + sign * u_pole * normal[0]
-            self.add(f"nonstructural_{tag}_pole_{side}", Component.NONSTRUCTURAL, i,
+            self.add(f"nonstructural_{tag}_pole_{side}", PartKind.POLE, i,
                      meshes.sweep(meshes.circle(d.pole_radius_m, self.cfg.cylinder_segments),
                                   vertical, x_axis, y_axis, closed=True, smooth=True, caps=True),
-                     meshes.pose(0.0, base))
+                     meshes.pose(0.0, base), side)
         top = points[0].copy()
         top[2] += d.pole_height_m - d.portal_beam_size_m / 2
-        self.add(f"nonstructural_{tag}_portal", Component.NONSTRUCTURAL, i,
+        self.add(f"nonstructural_{tag}_portal", PartKind.PORTAL, i,
                  meshes.box((d.portal_beam_size_m, 2 * u_pole, d.portal_beam_size_m)),
                  meshes.pose(heading, top))
 
@@ -277,15 +329,15 @@ class _Builder:
             viaduct = int(tag[1:]) if tag.startswith("v") else None
             s = _samples(s0, s1, cfg.sweep_step_m, traj.centres_s)
             path, across, up = self.along(s, base="ground")
-            self.add(f"ground_{tag}", Component.NONBRIDGE, viaduct, meshes.sweep(
+            self.add(f"ground_{tag}", PartKind.GROUND, viaduct, meshes.sweep(
                 np.array([[D + 1.0, 0.0], [-D - 1.0, 0.0]]), path, across, up, closed=False))
             for side, u in (("l", D), ("r", -D)):
                 # Open profile facing the centre line (its left side when walking it).
                 top_bottom = [[u, cfg.panel_height_m], [u, -1.0]]
                 profile = np.array(top_bottom if u > 0 else top_bottom[::-1])
-                self.add(f"scene_{tag}_{side}", Component.NONBRIDGE, viaduct,
+                self.add(f"scene_{tag}_{side}", PartKind.SCENE, viaduct,
                          _photo_uv(meshes.sweep(profile, path, across, up, closed=False),
-                                   mirror=u < 0))
+                                   mirror=u < 0), side=side)
         # End panels close the view along the track.
         for tag, s_end, facing in (("start", -margin, 1.0), ("end", n * L + margin, -1.0)):
             point, tangent, normal = traj.frame(np.array([s_end]))
@@ -299,7 +351,7 @@ class _Builder:
             across = np.tile(np.cross(direction, self.up), (2, 1))
             up = np.tile(self.up, (2, 1))
             profile = np.array([[0.0, cfg.panel_height_m], [0.0, -1.0]])
-            self.add(f"scene_{tag}_across", Component.NONBRIDGE, None,
+            self.add(f"scene_{tag}_across", PartKind.SCENE, None,
                      _photo_uv(meshes.sweep(profile, ends, -across, up, closed=False),
                                mirror=False))
 
@@ -316,4 +368,4 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
 
 def ground_parts(parts: Sequence[Part]) -> list[Part]:
     """The ground strips among ``parts`` (what lights the scene from below)."""
-    return [p for p in parts if p.name.startswith("ground_")]
+    return [p for p in parts if p.kind is PartKind.GROUND]

@@ -37,6 +37,7 @@ import numpy as np
 
 from glsynth.core.config import CameraConfig, RenderConfig
 from glsynth.core.errors import UserError
+from glsynth.core.geometry import transform_points
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.world.cameras import (
     Camera,
@@ -45,7 +46,7 @@ from glsynth.world.cameras import (
     environment_camera,
     euler_from_matrix,
 )
-from glsynth.world.environment import Environment, Part
+from glsynth.world.environment import BOX_BEAMS, OPEN_KINDS, Environment, Part, PartKind
 from glsynth.world.trajectory import Trajectory
 from glsynth.world.visibility import part_boxes, ray_hits, ray_meets_boxes
 
@@ -54,8 +55,6 @@ MAX_TRIES = 200
 environment needs a few at most)."""
 GROUND_CLEARANCE_M = 0.2
 """Least height of a camera above the ground below it (a hand-held or pole-mounted camera)."""
-OPEN_SURFACES = ("ground_", "scene_")
-"""Name prefixes of the parts that are open surfaces; every other part is a closed solid."""
 HIT_TOLERANCE_M = 1e-6
 """A ray's hit this near the aimed point is the point itself."""
 EDGE_MARGIN_M = 0.05
@@ -87,9 +86,9 @@ class MemberFace:
 
 def _face_axes(part: Part) -> list[tuple[int, int]] | None:
     """(axis, sign) of a member's inspected faces in its mesh frame; None for other parts."""
-    if part.name.startswith("column_"):
+    if part.kind is PartKind.COLUMN:
         return [(0, 1), (0, -1), (1, 1), (1, -1)]
-    if part.name.startswith("beam_") and ("_cross_" in part.name or "_tie_" in part.name):
+    if part.kind in BOX_BEAMS:
         across = 1 - int(np.argmax(part.mesh.extents[:2]))
         return [(across, 1), (across, -1), (2, -1)]
     return None
@@ -104,7 +103,7 @@ def member_faces(parts: tuple[Part, ...] | list[Part]) -> list[MemberFace]:
             continue
         rotation, extents = part.pose[:3, :3], part.mesh.extents
         centre = part.pose[:3, :3] @ part.mesh.bounds.mean(axis=0) + part.pose[:3, 3]
-        long_axis = rotation[:, 2] if part.name.startswith("column_") else \
+        long_axis = rotation[:, 2] if part.kind is PartKind.COLUMN else \
             rotation[:, int(np.argmax(extents[:2]))]
         for axis, sign in axes:
             t1, t2 = (a for a in range(3) if a != axis)
@@ -131,8 +130,8 @@ class _Scene:
     @classmethod
     def of(cls, parts: tuple[Part, ...]) -> "_Scene":
         lo, hi = part_boxes(parts)
-        solid = np.array([not p.name.startswith(OPEN_SURFACES) for p in parts])
-        ground = np.array([p.name.startswith("ground_") for p in parts])
+        solid = np.array([p.kind not in OPEN_KINDS for p in parts])
+        ground = np.array([p.kind is PartKind.GROUND for p in parts])
         return cls(parts, lo, hi, solid, ground)
 
     def clear_view(self, member: int, camera: np.ndarray, point: np.ndarray,
@@ -272,7 +271,7 @@ def crack_aims(parts: Sequence[Part], faces: list[MemberFace], cracks: Cracks
         if not mine or not len(local):
             continue
         pose = parts[index[name]].pose
-        world = local @ pose[:3, :3].T + pose[:3, 3]
+        world = transform_points(pose, local)
         rel = world.mean(axis=1)[:, None, :] - np.array([faces[k].centre for k in mine])
         normal = np.array([faces[k].normal for k in mine])
         tangents = np.array([faces[k].tangents for k in mine])  # (F, 2, 3)

@@ -25,6 +25,7 @@ import trimesh
 
 from glsynth.core.config import Config, FlightConfig
 from glsynth.core.errors import UserError
+from glsynth.core.geometry import segment_distance
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import ColumnInfo, Environment, Part, ground_parts
 
@@ -233,13 +234,6 @@ def _path_samples(positions: np.ndarray, step: float) -> tuple[np.ndarray, np.nd
     return np.concatenate(points), np.concatenate(owner)
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from points p (P, 1, 3) to segments a-b (1, T, 3): (P, T)."""
-    ab = b - a
-    t = np.clip(np.sum((p - a) * ab, -1) / np.maximum(np.sum(ab * ab, -1), 1e-300), 0, 1)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
-
-
 def surface_distance(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Exact distance from each point (P, 3) to the nearest of ``triangles`` (T, 3, 3): to
     its plane where the foot falls inside the triangle, else to its nearest edge."""
@@ -252,7 +246,8 @@ def surface_distance(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
     inside = np.ones(height.shape, bool)
     for u, v in ((a, b), (b, c), (c, a)):  # the foot is on the inner side of every edge
         inside &= np.sum(np.cross(v - u, foot - u) * normal, -1) >= 0
-    edges = np.minimum.reduce([_segment_distance(p, u, v) for u, v in ((a, b), (b, c), (c, a))])
+    edges = np.minimum.reduce([segment_distance(p, u, v)[0]
+                               for u, v in ((a, b), (b, c), (c, a))])
     return np.where(inside, np.abs(height), edges).min(axis=1)
 
 

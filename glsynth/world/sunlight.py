@@ -11,6 +11,7 @@ can cast a shadow into some camera's view is answered here as well, so that cull
 import numpy as np
 
 from glsynth.core.config import RenderConfig
+from glsynth.core.geometry import transform_points
 from glsynth.world.cameras import Camera
 
 
@@ -36,7 +37,7 @@ def frustum_corners(camera: Camera, distance: float) -> np.ndarray:
                 corners.append([(col - k[0, 2]) / k[0, 0] * d, -(row - k[1, 2]) / k[1, 1] * d,
                                 -d])
     cam = np.array(corners)
-    return cam @ camera.pose[:3, :3].T + camera.pose[:3, 3]
+    return transform_points(camera.pose, cam)
 
 
 def _shadowed_box(camera: Camera, render: RenderConfig,

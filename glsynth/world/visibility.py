@@ -12,6 +12,7 @@ numpy: boxes first, then the triangles of the parts whose box a ray meets.
 import numpy as np
 
 from glsynth.core.config import RenderConfig
+from glsynth.core.geometry import transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
 from glsynth.world.lighting import Lighting, sky_directions
@@ -24,7 +25,7 @@ def box_corners(bounds: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """The 8 world-space corners (8, 3) of a box (2, 3) given in the frame ``pose``."""
     lo, hi = bounds
     local = lo + _CORNERS * (hi - lo)
-    return local @ pose[:3, :3].T + pose[:3, 3]
+    return transform_points(pose, local)
 
 
 def part_corners(part: Part) -> np.ndarray:
@@ -37,7 +38,7 @@ def seen_by(corners: np.ndarray, camera: Camera, margin_px: float = 0.5) -> np.n
     (P,): not all of its points beyond one plane of the frustum, whose sides stand
     ``margin_px`` beyond the outermost pixel centres (0.5: the image's edges)."""
     view = camera.view()
-    c = corners @ view[:3, :3].T + view[:3, 3]
+    c = transform_points(view, corners)
     x, y, d = c[..., 0], c[..., 1], -c[..., 2]
     k, m = camera.K, margin_px
     planes = (d - camera.znear,                                     # in front of the near plane
@@ -54,7 +55,7 @@ def seen_by(corners: np.ndarray, camera: Camera, margin_px: float = 0.5) -> np.n
 def in_clip_xy(corners: np.ndarray, clip_from_world: np.ndarray) -> np.ndarray:
     """For boxes (P, 8, 3), whether each is not wholly beyond one side of the clip volume of
     ``clip_from_world`` in x or y (P,); depth is not tested (the shadow pass clamps it)."""
-    clip = corners @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    clip = transform_points(clip_from_world, corners)
     w = corners @ clip_from_world[3, :3] + clip_from_world[3, 3]
     outside = np.zeros(corners.shape[0], bool)
     for axis in (0, 1):
