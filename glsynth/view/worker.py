@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.core.labels import Component, Damage
 from glsynth.data.quality import QUALITY
 from glsynth.render.gl.renderer import RenderInterrupted, RenderOutput
@@ -138,6 +138,14 @@ class RenderWorker:
             self._clients.pop(cid, None)
 
     def submit(self, cid: int, request: Request) -> None:
+        """Queue ``request`` of page ``cid``; a scene's config is checked first, here (a bad
+        one raises UserError at once, rather than waiting behind a scene being opened)."""
+        if isinstance(request, SceneRequest):
+            with self._lock:
+                wanted = replace(self._wanted, seed=request.seed, env=request.env,
+                                 quality=request.quality, page_toml=request.config_toml,
+                                 lighting=None)
+            scene_config(wanted)
         with self._lock:
             client = self._clients.get(cid)
             if client is None:
@@ -152,10 +160,8 @@ class RenderWorker:
                              "legend": legend(request.name)})
                 client.actions.append(request)
             elif isinstance(request, SceneRequest):
-                self._wanted = replace(self._wanted, seed=request.seed, env=request.env,
-                                       quality=request.quality,
-                                       config_toml=request.config_toml, lighting=None)
-                self._scene_request = (self._wanted, cid)
+                self._wanted = wanted
+                self._scene_request = (wanted, cid)
             elif isinstance(request, LightingRequest):
                 self._lighting = (request.values, cid)
             else:
@@ -258,7 +264,9 @@ class RenderWorker:
         stays), and a failure after the old scene was let go opens the old one again."""
         previous = self.scene
         try:
-            scene_config(settings)
+            size = scene_config(settings).render
+            if previous is not None:  # a size too large is refused while the scene stays
+                previous.view.renderer.check_size(size.width, size.height)
         except UserError as err:
             self._error(cid, err)
             return
@@ -411,11 +419,15 @@ class RenderWorker:
             raise UserError("save view: no camera yet")
         camera = self._camera(client.camera, self.scene.full_size[0])
         output = self._render(camera)
-        folder = new_folder(self.out_dir, "view")
         s = self.scene.settings
-        write_render(folder, camera, output, {
-            "root_seed": s.seed, "env": s.env, "renderer": "gl", "preset": s.preset,
-            "quality": s.quality, "lighting": lighting_values(self.scene.view.lighting)})
+        try:  # the folder was checked at start; a disk may fill or a folder go since
+            folder = new_folder(self.out_dir, "view")
+            write_render(folder, camera, output, {
+                "root_seed": s.seed, "env": s.env, "renderer": "gl", "preset": s.preset,
+                "quality": s.quality, "lighting": lighting_values(self.scene.view.lighting)})
+        except OSError as err:
+            raise UserError(f"save view: cannot write into --out {shown(str(self.out_dir))} "
+                            f"({err.strerror or type(err).__name__})") from None
         return {"type": "saved", "folder": folder.name, "camera": camera_json(camera)}
 
     def _verdict(self, index: int) -> None:
