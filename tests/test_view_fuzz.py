@@ -19,7 +19,7 @@ from glsynth.view.protocol import MAX_DEPTH, MAX_MESSAGE_BYTES, SCHEMA, parse_me
 
 PROBE = json.dumps({"type": "pass", "name": "color"})
 """A valid message the server answers at once (with the pass's legend)."""
-FUZZ = settings(max_examples=60, deadline=None, derandomize=True,
+FUZZ = settings(max_examples=40, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 json_values = st.recursive(
@@ -125,6 +125,23 @@ def test_any_bytes_or_text_gets_an_error(page, payload):
 
 def test_a_message_over_the_size_limit_gets_an_error(page):
     assert "at most" in refused(page, " " * (MAX_MESSAGE_BYTES + 1))
+
+
+def test_a_message_over_the_websocket_limit_closes_that_connection_alone(server, page):
+    """Beyond WS_MAX_BYTES the websocket library closes the connection (1009, "message too
+    big") rather than buffer it; other pages and new connections are served."""
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    from glsynth.view.server import WS_MAX_BYTES
+
+    with connect(server.ws_url, max_size=None, open_timeout=30) as ws:
+        ws.send(" " * (WS_MAX_BYTES + 1))
+        with pytest.raises(ConnectionClosed) as closed:
+            while True:
+                ws.recv(timeout=60)
+    assert closed.value.rcvd.code == 1009
+    refused(page, "{}")
 
 
 def _scene_message(config_toml: str) -> str:
