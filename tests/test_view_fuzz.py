@@ -7,6 +7,8 @@ the memory is refused before it is allocated; a mirrored camera is refused; ``--
 import dataclasses
 import json
 import socket
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,6 +55,7 @@ def server(tmp_path_factory):
         code = running.stop()
         rest = running.proc.stdout.read()
         assert code == 130 and "Traceback" not in rest, rest
+        assert not list(Path(tempfile.gettempdir()).glob(f"glsynth-view-bank-{running.proc.pid}"))
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,9 @@ import ctypes
 import gc
 import itertools
 import json
+import os
+import shutil
+import tempfile
 import threading
 import time
 import traceback
@@ -108,6 +111,9 @@ class RenderWorker:
         """Whether some part of the scene has cracks not packed yet."""
         self._thread = threading.Thread(target=self._run, name="glsynth-view-render",
                                         daemon=True)
+        self._own_seed = settings.seed
+        self._bank_dir = Path(tempfile.gettempdir()) / f"glsynth-view-bank-{os.getpid()}"
+        """The damage bank of a seed a page chose (see _bank)."""
         self.loading: dict | None = None
 
     # --- called by the server ----------------------------------------------------------
@@ -242,6 +248,7 @@ class RenderWorker:
         finally:
             if self.scene is not None:
                 self.scene.view.renderer.release()
+            shutil.rmtree(self._bank_dir, ignore_errors=True)
 
     # --- jobs --------------------------------------------------------------------------
     def _error(self, cid: int | None, err: Exception) -> None:
@@ -281,7 +288,8 @@ class RenderWorker:
         return_free_memory()
         t0 = time.perf_counter()
         try:
-            scene = open_scene(settings, renderer, self._progress(settings))
+            scene = open_scene(settings, renderer, self._progress(settings),
+                               self._bank(settings))
         except Exception as err:  # the last good scene opens again, as after a bad config
             self.loading = None
             if fallback is not None and fallback != settings:
@@ -298,6 +306,16 @@ class RenderWorker:
                 client.pending = client.pending or self._still(client)
         self._broadcast({**scene.summary(), "seconds": time.perf_counter() - t0})
         return_free_memory()
+
+    def _bank(self, settings: SceneSettings) -> Path | None:
+        """Where the damage bank of ``settings``' scene is cached: for the command line's seed
+        the shared cache (as generate's run of that seed); for a seed a page chose, a folder
+        of this server's, emptied before each opening and removed when it stops, so that a
+        page stepping through seeds leaves at most one scene's bank on the disk."""
+        if settings.seed == self._own_seed:
+            return None
+        shutil.rmtree(self._bank_dir, ignore_errors=True)
+        return self._bank_dir
 
     def _pack_cracks(self) -> None:
         """One part's cracks (about 10 ms at the demo preset), in idle time."""
