@@ -339,6 +339,7 @@ def add_view_parser(sub: Commands) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    from glsynth.core.runlock import RunLock
     from glsynth.view.scene import SceneSettings, scene_config
     from glsynth.view.server import serve
 
@@ -346,15 +347,21 @@ def cmd_view(args: argparse.Namespace) -> int:
     text = Path(args.config).read_text(encoding="utf-8") if args.config else None
     settings = SceneSettings(args.preset, args.seed, args.env, args.quality, text)
     scene_config(settings)
-    if args.host not in ("127.0.0.1", "localhost", "::1"):
-        print(f"glsynth view: listening on {args.host}: anyone who reaches it can render and "
-              f"save views into {args.out}", file=sys.stderr)
-    try:
-        serve(settings, args.host, args.port, Path(args.out),
-              lambda url: print(f"glsynth view: open {url} (Ctrl-C stops)", flush=True))
-    except KeyboardInterrupt:
-        print("glsynth view: stopped", file=sys.stderr)
-        return 130
+
+    def ready(url: str) -> None:
+        if args.host not in ("127.0.0.1", "localhost", "::1"):
+            print(f"glsynth view: listening on {args.host}: anyone who reaches it can render "
+                  f"and save views into {args.out}", file=sys.stderr)
+        print(f"glsynth view: open {url} (Ctrl-C stops)", flush=True)
+
+    # 'save view' writes into --out: it is checked and held as generate's and fly's are,
+    # before the port is bound.
+    with RunLock(args.out):
+        try:
+            serve(settings, args.host, args.port, Path(args.out), ready)
+        except KeyboardInterrupt:
+            print("glsynth view: stopped", file=sys.stderr)
+            return 130
     return 0
 
 

@@ -28,3 +28,16 @@ def test_a_message_carries_exactly_its_requests_fields():
                                   "config_toml": None}))
     with pytest.raises(UserError, match=r"inspect message: unknown field\(s\) \['z'\]"):
         parse_message(json.dumps({"type": "inspect", "x": 0.5, "y": 0.5, "z": 0.0}))
+
+
+def test_the_schema_names_each_requests_fields():
+    """SCHEMA gives each field its JSON types; its names are the request dataclasses' (a
+    lighting message sends LIGHTING_FIELDS, held by LightingRequest as one dict)."""
+    from glsynth.view.protocol import SCHEMA, Request
+
+    kinds = ("camera", "pass", "inspect", "lighting", "scene", "save")
+    assert tuple(SCHEMA) == kinds
+    for kind, cls in zip(kinds, Request.__args__, strict=True):
+        names = set(LIGHTING_FIELDS) if cls is LightingRequest else {
+            f.name for f in dataclasses.fields(cls)}
+        assert set(SCHEMA[kind]) == names, kind

@@ -134,7 +134,12 @@ def generate_repository(root: str | Path, seed: int, per_category: int, size: in
     return root
 
 
+def builtin_root(seed: int, per_category: int, size: int) -> Path:
+    """Where the procedural repository for these settings is cached."""
+    return cache_root() / f"textures-v{GENERATOR_VERSION}-seed{seed}-n{per_category}-{size}px"
+
+
 def builtin_repository(seed: int, per_category: int, size: int) -> Path:
     """The procedural repository for these settings, generated on first use and cached."""
-    root = cache_root() / f"textures-v{GENERATOR_VERSION}-seed{seed}-n{per_category}-{size}px"
-    return generate_repository(root, seed, per_category, size)
+    return generate_repository(builtin_root(seed, per_category, size), seed, per_category,
+                               size)

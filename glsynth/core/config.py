@@ -6,6 +6,7 @@ allowed range.
 """
 
 import dataclasses
+import difflib
 import math
 import tomllib
 import typing
@@ -647,8 +648,11 @@ def _check_keys(section: str, values: dict[str, Any], cls: type) -> None:
         # A file can hold any number of keys of any length: name the first few, shortened.
         listed = [k if len(k) <= 30 else f"{k[:24]}..." for k in unknown[:2]]
         more = f" and {len(unknown) - 2} more" if len(unknown) > 2 else ""
-        raise UserError(f"unknown key(s) {listed}{more} in [{section}]: "
-                        f"allowed keys are {', '.join(sorted(allowed))}")
+        keys = ", ".join(sorted(allowed))
+        if len(keys) > 120:  # a long section: the nearest keys, so the line stays short
+            near = difflib.get_close_matches(unknown[0], sorted(allowed), n=3, cutoff=0)
+            keys = f"{len(allowed)} keys, the nearest {', '.join(near)}"
+        raise UserError(f"unknown key(s) {listed}{more} in [{section}]: allowed keys are {keys}")
 
 
 def config_from_dict(data: dict[str, Any], base: Config | None = None) -> Config:

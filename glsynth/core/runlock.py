@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 
 DRIVER_LOCK = ".glsynth.lock"
 WORKERS_LOCK = ".glsynth.workers.lock"
@@ -41,15 +41,20 @@ class RunLock:
         self.folder = Path(folder)
         self.worker = worker
         self._fd: int | None = None
+        self.shown = shown(str(self.folder))
+        """The folder as messages quote it (a long path is cut: messages stay one line)."""
 
     def _open(self, name: str) -> int:
         if self.folder.exists() and not self.folder.is_dir():
-            raise UserError(f"--out {str(self.folder)!r} is a file; give a folder")
+            raise UserError(f"--out {self.shown} is a file; give a folder")
+        if self.folder.resolve().parts[1:2] in (("proc",), ("sys",), ("dev",)):
+            raise UserError(f"--out {self.shown} is in the kernel's /proc, /sys or /dev; "
+                            "give a folder on a disk")
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             return os.open(self.folder / name, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as err:
-            raise UserError(f"--out {str(self.folder)!r}: cannot create the folder or its lock "
+            raise UserError(f"--out {self.shown}: cannot create the folder or its lock "
                             f"file ({err.strerror}). Choose a writable --out location.") from err
 
     def acquire(self) -> "RunLock":
@@ -81,7 +86,7 @@ class RunLock:
             who = f"pid {recorded}"
         else:  # the driver is gone; what it started still has the folder
             who = f"pid {recorded}, ended; its processes live on: {describe(holders)}"
-        return (f"--out {str(self.folder)!r} is in use by another glsynth run ({who}); wait "
+        return (f"--out {self.shown} is in use by another glsynth run ({who}); wait "
                 "for it to end, or choose another folder")
 
     def _check_no_workers(self) -> None:
@@ -92,7 +97,7 @@ class RunLock:
             self.release()
             holders = lock_holders(self.folder / WORKERS_LOCK)
             who = f" ({describe(holders)})" if holders else ""
-            raise UserError(f"--out {str(self.folder)!r}: worker processes of an earlier run "
+            raise UserError(f"--out {self.shown}: worker processes of an earlier run "
                             f"are still writing there{who}; try again once they have "
                             "ended") from None
         finally:

@@ -44,7 +44,8 @@ class EnvironmentView:
     def open(cls, config: Config, root_seed: int, env_index: int,
              renderer: Renderer | None = None, cull: bool = True, anywhere: bool = False,
              progress: Callable[[str, float], None] | None = None,
-             cameras: Sequence[Camera] | None = None) -> "EnvironmentView":
+             cameras: Sequence[Camera] | None = None,
+             bank_dir: Path | None = None) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
@@ -52,7 +53,8 @@ class EnvironmentView:
         (everything uploaded; for measuring). ``anywhere`` uploads every part and damages
         every column, for cameras placed anywhere (glsynth view, render --camera-json).
         ``cameras`` (a flight's) are culled by in place of the environment's sampled ones.
-        ``progress(stage, fraction)`` hears of each stage."""
+        ``progress(stage, fraction)`` hears of each stage. ``bank_dir``: where the damage
+        bank caches its textures (default: the cache, glsynth.core.paths.cache_root)."""
         report = progress or (lambda stage, fraction: None)
         if renderer is not None:
             # Free the previous environment's textures (and the arrays behind them) before
@@ -70,7 +72,7 @@ class EnvironmentView:
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)
         dressing = dress(env, config, open_repository(config),
-                         DamageBank(config.damage, root_seed), visible)
+                         DamageBank(config.damage, root_seed, bank_dir), visible)
         ground = ground_parts(env.parts)
         lighting = environment_lighting(config.lighting, root_seed, env_index, ground_albedo=(
             surface_albedo(ground, dressing.materials) if ground else None))

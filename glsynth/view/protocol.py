@@ -1,23 +1,32 @@
 """The messages a page may send to ``glsynth view``, checked before any work.
 
-Each message is a JSON object with a ``type`` and exactly that type's fields. Anything else
-(unknown types or fields, wrong types, values out of range, more than MAX_MESSAGE_BYTES) is
-refused with one line naming the field, and the server renders nothing for it. No message
-names a file: the server makes every name it writes, and a config file travels as its text.
+Each message is a JSON text holding an object with a ``type`` and exactly that type's fields,
+each of the JSON type SCHEMA gives. The checks run in order, each before anything that could
+fail on what it lets through: the size (MAX_MESSAGE_BYTES), the nesting depth (MAX_DEPTH,
+counted on the text, so no parser recurses deeper), the JSON syntax, the JSON type of every
+field (before a value is hashed, looked up or converted), then ranges and shapes. Anything
+else is refused with one line (UserError) naming the field, and the server renders nothing
+for it. No message names a file: the server makes every name it writes, and a config file
+travels as its text (what that text may change: glsynth.view.scene).
 """
 
+import itertools
 import json
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.data.quality import QUALITY
 from glsynth.render.passes import PASSES
 
 MAX_MESSAGE_BYTES = 256 * 1024
 """Room for a config file's text; a camera message is about 400 bytes."""
+MAX_DEPTH = 3
+"""Nesting of arrays and objects: a camera message's pose (object, rows, numbers) is the
+deepest."""
 MAX_CONFIG_CHARS = 200_000
 FOCAL_MM = (4.0, 800.0)
 """Focal lengths a page may ask for, on the 36 mm sensor (a 4 mm lens sees 154 degrees)."""
@@ -73,39 +82,64 @@ class SaveRequest:
 Request = (CameraRequest | PassRequest | InspectRequest | LightingRequest | SceneRequest
            | SaveRequest)
 
-_FIELDS = {kind: set(LIGHTING_FIELDS) if cls is LightingRequest else set(cls.__dataclass_fields__)
-           for kind, cls in zip(("camera", "pass", "inspect", "lighting", "scene", "save"),
-                                Request.__args__)}
-"""Each message type's fields: its request's (a lighting message sends LIGHTING_FIELDS, each
-a number, which LightingRequest holds as one dict)."""
+NUMBER, INTEGER, BOOLEAN, STRING, NULL, ARRAY = "number", "integer", "boolean", "string", \
+    "null", "array"
+SCHEMA: dict[str, dict[str, tuple[str, ...]]] = {
+    "camera": {"pose": (ARRAY,), "focal_mm": (NUMBER,), "moving": (BOOLEAN,)},
+    "pass": {"name": (STRING,)},
+    "inspect": {"x": (NUMBER,), "y": (NUMBER,)},
+    "lighting": {name: (NUMBER,) for name in LIGHTING_FIELDS},
+    "scene": {"seed": (INTEGER,), "env": (INTEGER,), "quality": (STRING, NULL),
+              "config_toml": (STRING, NULL)},
+    "save": {},
+}
+"""Each message type's fields and the JSON types each may take (an integer is a number)."""
+_TOKENS = re.compile(r'"(?:[^"\\]|\\[\s\S]?)*"?|[\[\]{}]')
+"""A JSON string (to its closing quote or the end of the text: every match succeeds, so the
+scan is linear) or a bracket."""
+_NESTING = {"[": 1, "{": 1, "]": -1, "}": -1}
+
+
+def json_type(value: object) -> str:
+    """The JSON type of a value json.loads gives ("integer" for whole numbers)."""
+    if value is None:
+        return NULL
+    if isinstance(value, bool):
+        return BOOLEAN
+    if isinstance(value, int):
+        return INTEGER
+    return {float: NUMBER, str: STRING, list: ARRAY, dict: "object"}[type(value)]
 
 
 def number_field(data: dict, key: str, low: float, high: float) -> float:
     value = data[key]
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise UserError(f"{key} = {value!r}: must be a finite number")
+    if json_type(value) not in (NUMBER, INTEGER) or not math.isfinite(value):
+        raise UserError(f"{key} = {shown(value, 40)}: must be a finite number")
     if not low <= value <= high:
-        raise UserError(f"{key} = {value!r}: must be in [{low:g}, {high:g}]")
+        raise UserError(f"{key} = {shown(value, 40)}: must be in [{low:g}, {high:g}]")
     return float(value)
 
 
 def _integer(data: dict, key: str, high: int) -> int:
     value = data[key]
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= high:
-        raise UserError(f"{key} = {value!r}: must be an integer in [0, {high}]")
+    if json_type(value) != INTEGER or not 0 <= value <= high:
+        raise UserError(f"{key} = {shown(value, 40)}: must be an integer in [0, {high}]")
     return value
 
 
 def rigid_pose(value: object) -> np.ndarray:
     """A 4x4 rigid transform: rows of numbers, an orthonormal right-handed rotation, the last
     row (0, 0, 0, 1) and a position within MAX_COORDINATE_M of the origin."""
-    try:
-        pose = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise UserError("pose: must be 4 rows of 4 numbers") from None
-    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+    if (json_type(value) != ARRAY or len(value) != 4
+            or any(json_type(row) != ARRAY or len(row) != 4
+                   or any(json_type(v) not in (NUMBER, INTEGER) for v in row) for row in value)):
+        raise UserError("pose: must be 4 rows of 4 numbers")
+    pose = np.array(value, dtype=np.float64)
+    if not np.isfinite(pose).all():
         raise UserError("pose: must be 4 rows of 4 finite numbers")
     rotation = pose[:3, :3]
+    # A mirror (det -1) is orthonormal too, but would render the scene flipped, with every
+    # triangle's winding reversed.
     if (np.abs(rotation @ rotation.T - np.eye(3)).max() > 1e-6
             or np.linalg.det(rotation) < 0 or np.abs(pose[3] - (0, 0, 0, 1)).max() > 0):
         raise UserError("pose: the rotation must be orthonormal and right-handed, the last row "
@@ -119,8 +153,8 @@ def rigid_pose(value: object) -> np.ndarray:
 def _scene(data: dict) -> SceneRequest:
     quality, text = data["quality"], data["config_toml"]
     if quality is not None and quality not in QUALITY:
-        raise UserError(f"quality = {quality!r}: choose one of {', '.join(QUALITY)}")
-    if text is not None and (not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS):
+        raise UserError(f"quality = {shown(quality, 40)}: choose one of {', '.join(QUALITY)}")
+    if text is not None and len(text) > MAX_CONFIG_CHARS:
         raise UserError(f"config_toml: must be the text of a TOML file of at most "
                         f"{MAX_CONFIG_CHARS} characters")
     return SceneRequest(seed=_integer(data, "seed", MAX_SEED), env=_integer(data, "env", MAX_ENV),
@@ -128,15 +162,15 @@ def _scene(data: dict) -> SceneRequest:
 
 
 def _build(kind: str, data: dict) -> Request:
+    """The request of a message whose fields have their JSON types."""
     if kind == "camera":
-        if not isinstance(data["moving"], bool):
-            raise UserError(f"moving = {data['moving']!r}: must be true or false")
         return CameraRequest(pose=rigid_pose(data["pose"]), focal_mm=number_field(data, "focal_mm",
                                                                          *FOCAL_MM),
                              moving=data["moving"])
     if kind == "pass":
         if data["name"] not in PASS_NAMES:
-            raise UserError(f"pass {data['name']!r}: choose one of {', '.join(PASS_NAMES)}")
+            raise UserError(f"pass {shown(data['name'], 40)}: choose one of "
+                            f"{', '.join(PASS_NAMES)}")
         return PassRequest(data["name"])
     if kind == "inspect":
         return InspectRequest(number_field(data, "x", 0.0, 1.0), number_field(data, "y", 0.0, 1.0))
@@ -148,22 +182,49 @@ def _build(kind: str, data: dict) -> Request:
     return SaveRequest()
 
 
+def _depth(text: str) -> int:
+    """How deep arrays and objects nest in a JSON text (brackets inside strings are not
+    counted), found without parsing it."""
+    steps = (_NESTING.get(token, 0) for token in _TOKENS.findall(text))
+    return max(itertools.accumulate(steps, initial=0))
+
+
+def _names(keys: list[str]) -> str:
+    """A message's field names, as many as fit one short line."""
+    listed = ", ".join(shown(k, 30) for k in keys[:3])
+    return f"[{listed}]" + (f" and {len(keys) - 3} more" if len(keys) > 3 else "")
+
+
+def _check_fields(kind: str, data: dict) -> None:
+    """Exactly ``kind``'s fields, each of a JSON type SCHEMA allows."""
+    wanted = SCHEMA[kind]
+    extra, missing = sorted(set(data) - set(wanted)), sorted(set(wanted) - set(data))
+    if extra or missing:
+        raise UserError(f"{kind} message: " + "; ".join(
+            ([f"unknown field(s) {_names(extra)}"] if extra else [])
+            + ([f"missing field(s) {_names(missing)}"] if missing else [])))
+    for key, allowed in wanted.items():
+        found = json_type(data[key])
+        if found not in allowed and not (found == INTEGER and NUMBER in allowed):
+            raise UserError(f"{kind} message: {key} = {shown(data[key], 40)} is a JSON "
+                            f"{found}; it must be a JSON {' or '.join(allowed)}")
+
+
 def parse_message(text: str | bytes) -> Request:
     """The request in one message from a page, or UserError saying what is wrong with it."""
+    if not isinstance(text, str):
+        raise UserError("message: a binary message; send the JSON as a text message")
     if len(text) > MAX_MESSAGE_BYTES:
-        raise UserError(f"message of {len(text)} bytes: at most {MAX_MESSAGE_BYTES} are read")
+        raise UserError(f"message of {len(text)} characters: at most {MAX_MESSAGE_BYTES} are "
+                        "read")
+    if _depth(text) > MAX_DEPTH:
+        raise UserError(f"message: arrays and objects nest deeper than {MAX_DEPTH}")
     try:
         data = json.loads(text)
-    except (ValueError, UnicodeDecodeError):
+    except ValueError:
         raise UserError("message: not JSON") from None
-    if not isinstance(data, dict) or data.get("type") not in _FIELDS:
-        raise UserError(f"message: must be an object whose type is one of "
-                        f"{', '.join(_FIELDS)}")
-    kind = data.pop("type")
-    given, wanted = set(data), _FIELDS[kind]
-    if given != wanted:
-        extra, missing = sorted(given - wanted), sorted(wanted - given)
-        raise UserError(f"{kind} message: " + "; ".join(
-            ([f"unknown field(s) {extra}"] if extra else [])
-            + ([f"missing field(s) {missing}"] if missing else [])))
+    kind = data.pop("type", None) if isinstance(data, dict) else None
+    if not isinstance(kind, str) or kind not in SCHEMA:
+        raise UserError(f"message: must be an object whose type is one of {', '.join(SCHEMA)}")
+    _check_fields(kind, data)
     return _build(kind, data)

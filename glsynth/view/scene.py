@@ -4,13 +4,17 @@ their Section 3.4 verdicts. Opening and relighting run on the render thread."""
 
 import dataclasses
 import tomllib
+import types
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from glsynth.appearance.caches import disk_caches
 from glsynth.core.config import Config, config_from_dict, load_config
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.data.filters import removal_reason
 from glsynth.data.quality import apply_quality
 from glsynth.render.gl.renderer import Renderer
@@ -29,6 +33,9 @@ class SceneSettings:
     quality: str | None = None
     config_toml: str | None = None
     """Text of a config file overlaid on the preset (as ``--config`` overlays its file)."""
+    page_toml: str | None = None
+    """Text of a config file a page sent, overlaid on the above: it may change no setting
+    that names a path or a disk cache's entries (check_page_config)."""
     lighting: dict[str, float] | None = None
     """Fixed values of LIGHTING_FIELDS; None: the environment's own draw."""
 
@@ -40,15 +47,16 @@ def with_lighting(config: Config, values: dict[str, float]) -> Config:
     return config_from_dict({"lighting": {**ranges, "exposure": values["exposure"]}}, config)
 
 
-def scene_config(settings: SceneSettings) -> Config:
-    """The config of ``settings``, or UserError (one line) before any work."""
-    config = load_config(settings.preset)
-    if settings.config_toml is not None:
-        try:
-            data = tomllib.loads(settings.config_toml)
-        except tomllib.TOMLDecodeError as err:
-            raise UserError(f"config file: not valid TOML: {err}") from None
-        config = config_from_dict(data, config)
+def _overlay(config: Config, text: str) -> Config:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise UserError(f"config file: not valid TOML: {' '.join(str(err).split())}") from None
+    return config_from_dict(data, config)
+
+
+def _finish(config: Config, settings: SceneSettings) -> Config:
+    """``config`` at the settings' quality and lighting, checked for the viewer."""
     if settings.quality:
         config = apply_quality(config, settings.quality)
     if settings.lighting is not None:
@@ -57,6 +65,65 @@ def scene_config(settings: SceneSettings) -> Config:
         raise UserError(f'[render] renderer = "{config.render.renderer}": the viewer draws '
                         'with GL; set renderer = "gl"')
     return config
+
+
+def scene_config(settings: SceneSettings) -> Config:
+    """The config of ``settings``, or UserError (one line) before any work."""
+    config = load_config(settings.preset)
+    if settings.config_toml is not None:
+        config = _overlay(config, settings.config_toml)
+    if settings.page_toml is None:
+        return _finish(config, settings)
+    paged = _finish(_overlay(config, settings.page_toml), settings)
+    check_page_config(_finish(config, settings), paged)
+    return paged
+
+
+def _names_path(hint: object) -> bool:
+    """Whether a field of this type can hold a path: free text (``str``) or a Path, alone or
+    in a union (a Literal's strings are fixed choices)."""
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    return any(option in (str, Path) for option in options)
+
+
+def _changes(base: Config, config: Config) -> list[tuple[str, str, object]]:
+    """(section, field, new value) of each field ``config`` sets otherwise than ``base``."""
+    found = []
+    for section in dataclasses.fields(Config):
+        old, new = getattr(base, section.name), getattr(config, section.name)
+        found += [(section.name, f.name, getattr(new, f.name)) for f in dataclasses.fields(old)
+                  if getattr(old, f.name) != getattr(new, f.name)]
+    return found
+
+
+def _moves_caches(base: Config, section: str, name: str, value: object) -> bool:
+    """Whether setting this one field of ``base`` names other disk-cache entries (True too
+    where the field cannot be set alone: only with others, which then decide)."""
+    try:
+        alone = dataclasses.replace(base, **{section: dataclasses.replace(
+            getattr(base, section), **{name: value})})
+    except UserError:
+        return True
+    return disk_caches(alone) != disk_caches(base)
+
+
+def check_page_config(base: Config, config: Config) -> None:
+    """Refuse, naming the field, a page's ``config`` that sets a path on the server's machine
+    (the page would read its files back rendered) or that names disk-cache entries ``base``,
+    the server's own config, does not (the page would fill the server's disk outside
+    ``--out``). Both are found from the config dataclasses' types and the caches' names
+    (glsynth.appearance.caches), not from a list of fields."""
+    changes = _changes(base, config)
+    for section, name, _value in changes:
+        if _names_path(typing.get_type_hints(type(getattr(base, section)))[name]):
+            raise UserError(f"[{section}] {name}: a page may not set a path on the server's "
+                            "machine; give it in the file of glsynth view --config")
+    if disk_caches(config) == disk_caches(base):
+        return
+    movers = [c for c in changes if _moves_caches(base, *c)] or changes
+    section, name, value = movers[0]
+    raise UserError(f"[{section}] {name} = {shown(value, 40)}: a page may not change what the "
+                    "server caches on disk; give it in the file of glsynth view --config")
 
 
 def lighting_values(lighting: Lighting) -> dict[str, float]:
@@ -124,10 +191,11 @@ def _same_targets(renderer: Renderer, config: Config) -> bool:
 
 
 def open_scene(settings: SceneSettings, renderer: Renderer | None,
-               progress: Callable[[str, float], None]) -> Scene:
+               progress: Callable[[str, float], None], bank_dir: Path | None = None) -> Scene:
     """Open ``settings``' environment on ``renderer`` (a new one if its [render] section
     differs, the old one released first: one context at a time). A failed opening releases
-    the context it had, so a retry makes one afresh and none is left behind."""
+    the context it had, so a retry makes one afresh and none is left behind. ``bank_dir``:
+    EnvironmentView.open's."""
     config = scene_config(settings)
     if renderer is not None and not _same_targets(renderer, config):
         renderer.release()
@@ -136,7 +204,7 @@ def open_scene(settings: SceneSettings, renderer: Renderer | None,
     try:
         renderer.resize(config.render.width, config.render.height)
         view = EnvironmentView.open(config, settings.seed, settings.env, renderer, cull=False,
-                                    anywhere=True, progress=progress)
+                                    anywhere=True, progress=progress, bank_dir=bank_dir)
         cameras = [view.camera(i) for i in range(config.cameras.total)]
     except BaseException:
         renderer.release()  # nothing else holds it: the old scene was let go before

@@ -15,7 +15,7 @@ from starlette.responses import HTMLResponse, Response
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.view.protocol import MAX_MESSAGE_BYTES, parse_message
 from glsynth.view.scene import SceneSettings
 from glsynth.view.worker import RenderWorker
@@ -65,9 +65,10 @@ def make_app(worker: RenderWorker) -> Starlette:
         pump = asyncio.create_task(_pump(ws, outbox))
         try:
             while (message := await ws.receive())["type"] != "websocket.disconnect":
-                payload = message.get("text") or message.get("bytes") or b""
+                text = message.get("text")
                 try:
-                    worker.submit(cid, parse_message(payload))
+                    worker.submit(cid, parse_message(message.get("bytes", b"") if text is None
+                                                     else text))
                 except UserError as err:
                     send({"type": "error", "message": str(err)})
         finally:
@@ -78,19 +79,29 @@ def make_app(worker: RenderWorker) -> Starlette:
                              WebSocketRoute("/ws", session)])
 
 
-def serve(settings: SceneSettings, host: str, port: int, out_dir: Path,
-          ready: Callable[[str], None]) -> None:
-    """Serve until interrupted (KeyboardInterrupt comes out after a clean shutdown). The port
-    is bound before anything starts, so a taken one fails at once (OSError)."""
+def listen(host: str, port: int) -> socket.socket:
+    """A socket bound to ``host``:``port`` and listening, or UserError (one line) saying why it
+    cannot be."""
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
         sock.bind((host, port))
         sock.listen(128)  # pages that connect before uvicorn starts wait, not fail
-    except OSError:
+    except OSError as err:
         sock.close()
-        raise
+        reason = err.strerror or " ".join(str(err).split())
+        raise UserError(f"--host {shown(host, 60)} --port {port}: cannot listen there "
+                        f"({reason}); give an address of this machine and a free port") from None
+    return sock
+
+
+def serve(settings: SceneSettings, host: str, port: int, out_dir: Path,
+          ready: Callable[[str], None]) -> None:
+    """Serve until interrupted (KeyboardInterrupt comes out after a clean shutdown). The port
+    is bound before anything starts, so a taken one fails at once (UserError), and ``ready``
+    hears the page's address only once it is bound."""
+    sock = listen(host, port)
     worker = RenderWorker(settings, out_dir)
     server = uvicorn.Server(uvicorn.Config(
         make_app(worker), log_level="warning", ws_max_size=WS_MAX_BYTES,
@@ -98,7 +109,7 @@ def serve(settings: SceneSettings, host: str, port: int, out_dir: Path,
     worker.start()
     try:
         bound = sock.getsockname()[1]
-        ready(f"http://{'[' + host + ']' if family == socket.AF_INET6 else host}:{bound}/")
+        ready(f"http://{'[' + host + ']' if sock.family == socket.AF_INET6 else host}:{bound}/")
         server.run(sockets=[sock])
     finally:
         worker.stop()

@@ -14,6 +14,9 @@ import ctypes
 import gc
 import itertools
 import json
+import os
+import shutil
+import tempfile
 import threading
 import time
 import traceback
@@ -22,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, shown
 from glsynth.core.labels import Component, Damage
 from glsynth.data.quality import QUALITY
 from glsynth.render.gl.renderer import RenderInterrupted, RenderOutput
@@ -108,6 +111,9 @@ class RenderWorker:
         """Whether some part of the scene has cracks not packed yet."""
         self._thread = threading.Thread(target=self._run, name="glsynth-view-render",
                                         daemon=True)
+        self._own_seed = settings.seed
+        self._bank_dir = Path(tempfile.gettempdir()) / f"glsynth-view-bank-{os.getpid()}"
+        """The damage bank of a seed a page chose (see _bank)."""
         self.loading: dict | None = None
 
     # --- called by the server ----------------------------------------------------------
@@ -138,6 +144,14 @@ class RenderWorker:
             self._clients.pop(cid, None)
 
     def submit(self, cid: int, request: Request) -> None:
+        """Queue ``request`` of page ``cid``; a scene's config is checked first, here (a bad
+        one raises UserError at once, rather than waiting behind a scene being opened)."""
+        if isinstance(request, SceneRequest):
+            with self._lock:
+                wanted = replace(self._wanted, seed=request.seed, env=request.env,
+                                 quality=request.quality, page_toml=request.config_toml,
+                                 lighting=None)
+            scene_config(wanted)
         with self._lock:
             client = self._clients.get(cid)
             if client is None:
@@ -152,10 +166,8 @@ class RenderWorker:
                              "legend": legend(request.name)})
                 client.actions.append(request)
             elif isinstance(request, SceneRequest):
-                self._wanted = replace(self._wanted, seed=request.seed, env=request.env,
-                                       quality=request.quality,
-                                       config_toml=request.config_toml, lighting=None)
-                self._scene_request = (self._wanted, cid)
+                self._wanted = wanted
+                self._scene_request = (wanted, cid)
             elif isinstance(request, LightingRequest):
                 self._lighting = (request.values, cid)
             else:
@@ -236,6 +248,7 @@ class RenderWorker:
         finally:
             if self.scene is not None:
                 self.scene.view.renderer.release()
+            shutil.rmtree(self._bank_dir, ignore_errors=True)
 
     # --- jobs --------------------------------------------------------------------------
     def _error(self, cid: int | None, err: Exception) -> None:
@@ -258,7 +271,9 @@ class RenderWorker:
         stays), and a failure after the old scene was let go opens the old one again."""
         previous = self.scene
         try:
-            scene_config(settings)
+            size = scene_config(settings).render
+            if previous is not None:  # a size too large is refused while the scene stays
+                previous.view.renderer.check_size(size.width, size.height)
         except UserError as err:
             self._error(cid, err)
             return
@@ -273,7 +288,8 @@ class RenderWorker:
         return_free_memory()
         t0 = time.perf_counter()
         try:
-            scene = open_scene(settings, renderer, self._progress(settings))
+            scene = open_scene(settings, renderer, self._progress(settings),
+                               self._bank(settings))
         except Exception as err:  # the last good scene opens again, as after a bad config
             self.loading = None
             if fallback is not None and fallback != settings:
@@ -290,6 +306,16 @@ class RenderWorker:
                 client.pending = client.pending or self._still(client)
         self._broadcast({**scene.summary(), "seconds": time.perf_counter() - t0})
         return_free_memory()
+
+    def _bank(self, settings: SceneSettings) -> Path | None:
+        """Where the damage bank of ``settings``' scene is cached: for the command line's seed
+        the shared cache (as generate's run of that seed); for a seed a page chose, a folder
+        of this server's, emptied before each opening and removed when it stops, so that a
+        page stepping through seeds leaves at most one scene's bank on the disk."""
+        if settings.seed == self._own_seed:
+            return None
+        shutil.rmtree(self._bank_dir, ignore_errors=True)
+        return self._bank_dir
 
     def _pack_cracks(self) -> None:
         """One part's cracks (about 10 ms at the demo preset), in idle time."""
@@ -411,11 +437,15 @@ class RenderWorker:
             raise UserError("save view: no camera yet")
         camera = self._camera(client.camera, self.scene.full_size[0])
         output = self._render(camera)
-        folder = new_folder(self.out_dir, "view")
         s = self.scene.settings
-        write_render(folder, camera, output, {
-            "root_seed": s.seed, "env": s.env, "renderer": "gl", "preset": s.preset,
-            "quality": s.quality, "lighting": lighting_values(self.scene.view.lighting)})
+        try:  # the folder was checked at start; a disk may fill or a folder go since
+            folder = new_folder(self.out_dir, "view")
+            write_render(folder, camera, output, {
+                "root_seed": s.seed, "env": s.env, "renderer": "gl", "preset": s.preset,
+                "quality": s.quality, "lighting": lighting_values(self.scene.view.lighting)})
+        except OSError as err:
+            raise UserError(f"save view: cannot write into --out {shown(str(self.out_dir))} "
+                            f"({err.strerror or type(err).__name__})") from None
         return {"type": "saved", "folder": folder.name, "camera": camera_json(camera)}
 
     def _verdict(self, index: int) -> None:

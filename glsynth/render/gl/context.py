@@ -113,11 +113,11 @@ def device_name(ctx: moderngl.Context) -> str:
 
 
 def check_render_size(ctx: moderngl.Context, platform: str, width: int, height: int,
-                      msaa: int, shadow_map_px: int) -> None:
+                      msaa: int, shadow_map_px: int, trial: bool = True) -> None:
     """Refuse, with the limit, a render size this GL cannot hold: the context's
-    MAX_TEXTURE_SIZE, MAX_RENDERBUFFER_SIZE and MAX_VIEWPORT_DIMS, asked once, and a trial
-    allocation of the multisampled colour target (llvmpipe refuses 16000x9000 at 4 samples
-    though each side is within its limits)."""
+    MAX_TEXTURE_SIZE, MAX_RENDERBUFFER_SIZE and MAX_VIEWPORT_DIMS, asked once, and with
+    ``trial`` a trial allocation of the multisampled colour target (llvmpipe refuses
+    16000x9000 at 4 samples though each side is within its limits)."""
     info = ctx.info
     side = min(info["GL_MAX_TEXTURE_SIZE"], info["GL_MAX_RENDERBUFFER_SIZE"],
                *info["GL_MAX_VIEWPORT_DIMS"])
@@ -125,6 +125,8 @@ def check_render_size(ctx: moderngl.Context, platform: str, width: int, height: 
         if value > side:
             raise UserError(f"[render] {name} = {value}: this GL ({platform}) renders at most "
                             f"{side} px a side; set {name} to {side} or less")
+    if not trial:
+        return
     try:
         target = ctx.renderbuffer((width, height), 4, samples=msaa)
         frame = ctx.framebuffer([target])

@@ -55,6 +55,7 @@ from glsynth.appearance.materials import MAX_ZONES, Material, built_in_order, sr
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component, Damage
+from glsynth.core.memory import available_bytes
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import check_render_size, create_context
 from glsynth.render.gl.programs import MAX_VIS, ProgramKey, Programs, TextureUnits, Variant
@@ -76,6 +77,8 @@ PASSES = DRAWN
 _GL_DEPTH_CLAMP = 0x864F  # core since GL 3.2; moderngl has no flag for it
 _DEPTH_MAP_OFFSET = (2.0, 4.0)
 """Slope-scaled polygon offset of the depth maps (sun, sky) against acne on grazed surfaces."""
+PROBE_SIZE = (64, 64)
+"""The image size a Renderer's targets are first made at (see Renderer.__init__)."""
 _ATTRIBUTES = {"color": ("3f 3f 2f", "in_position", "in_normal", "in_uv"),
                "labels": ("3f 12x 2f", "in_position", "in_uv"),
                "shadow": ("3f 20x", "in_position"),
@@ -325,7 +328,9 @@ class Renderer:
             raise
         self.units = TextureUnits(self.ctx.default_texture_unit)
         self.programs = Programs(self.ctx, self.units)
-        self.size = (config.width, config.height)
+        # The image-sized targets are made small first: what they take a pixel is then
+        # measured, and the full size checked against the free memory before it is allocated.
+        self.size = PROBE_SIZE
         self._draws: list[_Draw] = []
         # Uploaded textures by the ids of their source arrays (colour, alpha); the arrays are
         # kept with it so that no other array can take an id while the entry exists. A texture
@@ -354,6 +359,11 @@ class Renderer:
         self._fullscreen_vaos = {name: self.ctx.vertex_array(self.programs.get(name), [])
                                  for name in ("sky", "ssao", "ssao_blur", "msaa_interior",
                                               "msaa_resolve")}
+        try:
+            self.resize(config.width, config.height)
+        except UserError:
+            self.release()
+            raise
 
     def __enter__(self) -> "Renderer":
         return self
@@ -389,7 +399,17 @@ class Renderer:
         and the full one when it stops). The sky and shadow maps do not depend on it."""
         if (width, height) == self.size:
             return
-        self.make_current()
+        self.check_size(width, height)
+        targets = self._sized_targets()
+        for fbo in self._sized_framebuffers():
+            fbo.release()
+        for target in targets:
+            target.release()
+        self.size = (width, height)
+        self._make_sized_targets()
+
+    def _sized_targets(self) -> list[moderngl.Texture | moderngl.Renderbuffer]:
+        """Every target whose size follows the image's, once each."""
         # The normal target is attached to no framebuffer without MSAA: named here, or each
         # size change would leave one behind (4 MB at 960x540).
         attachments: dict[int, moderngl.Texture | moderngl.Renderbuffer] = {
@@ -398,11 +418,24 @@ class Renderer:
             for target in (*fbo.color_attachments, fbo.depth_attachment):
                 if target is not None:
                     attachments[id(target)] = target
-            fbo.release()
-        for target in attachments.values():
-            target.release()
-        self.size = (width, height)
-        self._make_sized_targets()
+        return list(attachments.values())
+
+    def check_size(self, width: int, height: int) -> None:
+        """Refuse (UserError, before anything is allocated) an image size beyond this GL's
+        limits, or whose targets would take more memory than the machine has free (what the
+        targets take a pixel now, times the new size; what they take now is freed first)."""
+        self.make_current()
+        # The trial allocation is the constructor's alone: a viewer resizes on every stop.
+        check_render_size(self.ctx, self.platform, width, height, self.config.msaa,
+                          self.config.shadow_map_px, trial=False)
+        held = sum(t.width * t.height * t.components * max(t.samples, 1)
+                   * int(t.dtype[1:]) for t in self._sized_targets())  # "f2": 2 bytes
+        need = held / (self.size[0] * self.size[1]) * width * height
+        free = available_bytes()
+        if free is not None and need > free + held:
+            raise UserError(f"[render] {width}x{height}: its render targets take "
+                            f"{need / 2**30:.1f} GiB, and {(free + held) / 2**30:.1f} GiB are "
+                            "free; lower width and height, or msaa")
 
     def _nearest_texture(self, size: tuple[int, int], channels: int,
                          dtype: str = "f1") -> moderngl.Texture:
