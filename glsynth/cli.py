@@ -368,7 +368,7 @@ def add_view_parser(sub: Commands) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from glsynth.data.readers import MAX_TOML_BYTES, read_bytes
+    from glsynth.core.reading import MAX_TOML_BYTES, read_bytes
     from glsynth.view.scene import SceneSettings, scene_config
     from glsynth.view.server import serve
 

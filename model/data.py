@@ -24,13 +24,13 @@ from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import atomic_write_bytes
 from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.reading import remove_entry
 from glsynth.data.readers import (
     cache_entry_bytes,
     map_size,
     read_cache_entry,
     read_depth_map,
     read_label_map,
-    remove_entry,
 )
 from glsynth.data.tokaido import (
     IMAGE_SIZE,

@@ -9,7 +9,7 @@ import torch
 
 from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import atomic_write_bytes
-from glsynth.data.readers import check_file
+from glsynth.core.reading import check_file
 
 
 def pick_device(name: str) -> torch.device:

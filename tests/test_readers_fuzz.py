@@ -1,9 +1,9 @@
-"""Every reader of glsynth.data.readers (and the readers that go through it: TOML configs,
-manifests, photos, --camera-json) against what stands in a file's place: a FIFO, a folder, a
-symlink loop, /dev/zero, an oversize file, deep JSON, NaN. Each gives one UserError line
-under 300 characters, never blocks, never lets another exception through; the caches make a
-bad entry again with a warning. --camera-json is fuzzed with random JSON of every type and
-depth (hypothesis). No GL: these run in seconds."""
+"""Every reader of glsynth.data.readers and glsynth.core.reading (and the readers that go
+through them: TOML configs, manifests, photos, --camera-json) against what stands in a file's
+place: a FIFO, a folder, a symlink loop, /dev/zero, an oversize file, deep JSON, NaN. Each
+gives one UserError line under 300 characters, never blocks, never lets another exception
+through; the caches make a bad entry again with a warning. --camera-json is fuzzed with random
+JSON of every type and depth (hypothesis). No GL: these run in seconds."""
 
 import io
 import json
@@ -20,6 +20,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
+import glsynth.core.images
+import glsynth.data.tokaido
+import glsynth.view.camera
+from glsynth.core import reading
 from glsynth.core.config import load_config
 from glsynth.core.errors import MAX_MESSAGE, UserError
 from glsynth.core.images import read_photo
@@ -77,7 +81,7 @@ SIZE = (8, 6)
 
 READERS: dict[str, Callable[[Path], object]] = {
     "read_json": lambda p: readers.read_json(p, {}, "fix it"),
-    "read_npy": lambda p: readers.read_npy(p, "array", "fix it"),
+    "read_npy": lambda p: reading.read_npy(p, "array", "fix it"),
     "read_float_map": lambda p: readers.read_float_map(p, "depth map", SIZE),
     "read_label_map": lambda p: readers.read_label_map(p, "component", SIZE),
     "read_depth_map": lambda p: readers.read_depth_map(p, SIZE),
@@ -115,9 +119,12 @@ def test_a_special_file_is_refused_in_one_line(tmp_path, reader, kind):
 
 @pytest.mark.parametrize("reader", READERS)
 def test_an_oversize_file_is_refused_before_it_is_read(tmp_path, reader, monkeypatch):
-    for name in ("MAX_JSON_BYTES", "MAX_ARRAY_BYTES", "MAX_IMAGE_BYTES", "MAX_TOML_BYTES",
-                 "MAX_MANIFEST_BYTES"):
-        monkeypatch.setattr(readers, name, 1000)
+    for module in (reading, readers, glsynth.core.images, glsynth.data.tokaido,
+                   glsynth.view.camera):
+        for name in ("MAX_JSON_BYTES", "MAX_ARRAY_BYTES", "MAX_IMAGE_BYTES", "MAX_TOML_BYTES",
+                     "MAX_MANIFEST_BYTES"):
+            if hasattr(module, name):
+                monkeypatch.setattr(module, name, 1000)
     path = tmp_path / "big"
     path.write_bytes(b"{" + b" " * 5000 + b"}")
     refused(READERS[reader], path, "5,002 bytes, more than the 1,000")

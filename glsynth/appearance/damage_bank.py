@@ -36,8 +36,8 @@ from glsynth.core.config import DamageConfig
 from glsynth.core.errors import UserError, named, shown
 from glsynth.core.fileio import atomic_write_bytes
 from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.reading import MAX_ARRAY_BYTES, check_file, parse_json, remove_entry
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.data.readers import MAX_ARRAY_BYTES, check_file, parse_json, remove_entry
 
 BANK_VERSION = 1
 T = TypeVar("T")

@@ -29,8 +29,8 @@ from glsynth.appearance.texgen import CATEGORIES
 from glsynth.core.errors import UserError, named, shown
 from glsynth.core.fileio import atomic_write_bytes, npy_bytes, png_bytes
 from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.reading import MAX_IMAGE_BYTES, read_bytes, read_npy, remove_entry
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.data.readers import MAX_IMAGE_BYTES, read_bytes, read_npy, remove_entry
 
 EXTENSIONS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
 GENERATOR_VERSION = 1

@@ -790,7 +790,7 @@ def load_config(preset: str = "paper", path: str | Path | None = None) -> Config
         raise UserError(f"preset = {preset!r}: choose one of {sorted(PRESETS)}")
     config = config_from_dict(PRESETS[preset])
     if path is not None:
-        from glsynth.data.readers import MAX_TOML_BYTES, read_bytes  # it imports this module
+        from glsynth.core.reading import MAX_TOML_BYTES, read_bytes
 
         path = Path(path)
         text = read_bytes(path, "config file", MAX_TOML_BYTES, "give a .toml file")

@@ -9,6 +9,7 @@ import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 
 from glsynth.core.errors import UserError, named
+from glsynth.core.reading import MAX_IMAGE_BYTES, check_file, read_bytes
 
 
 def nearest_indices(n_in: int, n_out: int) -> np.ndarray:
@@ -39,8 +40,6 @@ def read_photo(path: str | Path) -> np.ndarray:
     rounded. Other kinds (CMYK, 32-bit integer, float outside [0, 1]) are refused with one
     line, as are files that are missing or damaged, and those over Pillow's decompression-bomb
     limit (MAX_IMAGE_PIXELS, 89 MP), which would take gigabytes to decode."""
-    from glsynth.data.readers import MAX_IMAGE_BYTES, check_file  # it imports this module
-
     path = Path(path)
     check_file(path, "image", MAX_IMAGE_BYTES, "check the path")
     try:
@@ -77,8 +76,6 @@ def read_photo(path: str | Path) -> np.ndarray:
 def _wide_rgb(path: Path, im: Image.Image) -> Image.Image:
     """A 16-bit RGB(A) file, which Pillow cuts to its high bytes, decoded at 16 bits by OpenCV,
     scaled by 1/257 and carrying the file's EXIF for exif_transpose."""
-    from glsynth.data.readers import MAX_IMAGE_BYTES, read_bytes
-
     data = np.frombuffer(read_bytes(path, "image", MAX_IMAGE_BYTES, "check the path"), np.uint8)
     pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if pixels is None or pixels.dtype != np.uint16 or pixels.ndim != 3:

@@ -30,6 +30,7 @@ import numpy as np
 from glsynth.core.errors import UserError, named, shown
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Damage
+from glsynth.core.reading import MAX_MANIFEST_BYTES, read_bytes
 
 DEPTH_NEAR_M = 0.5
 DEPTH_FAR_M = 30.0
@@ -197,8 +198,6 @@ def read_manifest(root: str | Path, name: str) -> list[FrameRecord] | list[Puret
     """Rows of files_{train,test}.csv (7 columns) or files_puretex_*.csv (2 columns)."""
     root = Path(root)
     path = root / name
-    from glsynth.data.readers import MAX_MANIFEST_BYTES, read_bytes  # it imports this module
-
     data = read_bytes(path, "manifest", MAX_MANIFEST_BYTES,
                       f"is {named(root)} a Tokaido-layout dataset root?")
     try:

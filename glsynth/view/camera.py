@@ -5,6 +5,7 @@ from pathlib import Path
 
 from glsynth.core.config import Config
 from glsynth.core.errors import UserError, named
+from glsynth.core.reading import MAX_JSON_BYTES, parse_json, read_bytes
 from glsynth.view.protocol import FOCAL_MM, number_field, rigid_pose
 from glsynth.world.cameras import Camera
 
@@ -30,8 +31,6 @@ def camera_from_json(data: object, config: Config) -> Camera:
 
 def read_camera_json(path: str | Path, config: Config) -> Camera:
     """The camera of a JSON file, read as every glsynth JSON is (glsynth.data.readers)."""
-    from glsynth.data.readers import MAX_JSON_BYTES, parse_json, read_bytes
-
     fix = "give a camera.json or the viewer's 'copy camera' JSON"
     what = f"--camera-json {named(path)}"
     data = parse_json(read_bytes(Path(path), "--camera-json", MAX_JSON_BYTES, fix), what, fix)
