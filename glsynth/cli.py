@@ -23,7 +23,7 @@ from glsynth.core.config import (
     config_from_dict,
     load_config,
 )
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, clipped
 from glsynth.core.options import (
     add_options,
     argparse_type,
@@ -120,6 +120,22 @@ def _add_device_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N (default: auto)")
 
 
+MAX_PREVIEW_CAMERAS = 64
+"""A contact sheet of 64 rows at 384 px is 64 x 216 px high: beyond it a sheet is no preview."""
+MAX_PREVIEW_WIDTH = 3840
+MAX_TRAJECTORIES = 100_000
+"""histograms --count: far above any preset's n_environments, far below a hang."""
+MAX_TEXTURES_PER_CATEGORY = 10_000
+"""textures --count: as many as [materials] images_per_category may use."""
+
+
+def _at_most(option: str, value: int, limit: int, what: str) -> None:
+    """Refuse, before any work, a user-sized loop beyond its bound, naming the bound."""
+    if value > limit:
+        raise UserError(f"{option} {value:,}: {what} at most {limit:,}; give a smaller "
+                        f"{option}")
+
+
 def _check_cameras(config: Config, indices: list[int]) -> None:
     """Before any work: every camera index exists in this config."""
     n = config.cameras.total
@@ -203,6 +219,7 @@ def cmd_histograms(args: argparse.Namespace) -> None:
 
     config = _config(args)
     count = args.count or config.dataset.n_environments
+    _at_most("--count", count, MAX_TRAJECTORIES, "the histograms sum")
     heights, curvatures = [], []
     for env in range(count):
         traj = generate_trajectory(config.environment, config.design.length_m,
@@ -237,12 +254,20 @@ def add_render_parser(sub: Commands) -> None:
 
 
 def cmd_render(args: argparse.Namespace) -> None:
-    from glsynth.render.view import EnvironmentView, describe_output, write_render
+    from glsynth.core.runlock import RunLock
 
     config = _config(args)
     if args.camera_json:
         return _render_camera_json(args, config)
     _check_cameras(config, args.camera)
+    with RunLock(args.out):
+        _render_cameras(args, config)
+
+
+def _render_cameras(args: argparse.Namespace, config: Config) -> None:
+    """render --camera: the cameras of one environment, while this process holds --out."""
+    from glsynth.render.view import EnvironmentView, describe_output, write_render
+
     view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
     print(f"GL platform: {view.renderer.platform}")
     rendered = []
@@ -271,18 +296,20 @@ def cmd_render(args: argparse.Namespace) -> None:
 def _render_camera_json(args: argparse.Namespace, config: Config) -> None:
     """render --camera-json: one camera placed anywhere, so every part is uploaded and every
     column damaged (EnvironmentView.open's ``anywhere``); colour by GL."""
+    from glsynth.core.runlock import RunLock
     from glsynth.render.view import EnvironmentView, describe_output, write_render
     from glsynth.view.camera import read_camera_json
 
     if config.render.renderer == "cycles":
         raise UserError("--camera-json renders with GL only; drop --renderer cycles")
     camera = read_camera_json(args.camera_json, config)
-    view = EnvironmentView.open(config, args.seed, args.env, cull=False, anywhere=True)
-    t0 = time.perf_counter()
-    output = view.renderer.render(camera)
-    elapsed = time.perf_counter() - t0
-    write_render(args.out, camera, output, {"root_seed": args.seed, "env": args.env,
-                                            "renderer": "gl"})
+    with RunLock(args.out):
+        view = EnvironmentView.open(config, args.seed, args.env, cull=False, anywhere=True)
+        t0 = time.perf_counter()
+        output = view.renderer.render(camera)
+        elapsed = time.perf_counter() - t0
+        write_render(args.out, camera, output, {"root_seed": args.seed, "env": args.env,
+                                                "renderer": "gl"})
     print(f"camera {args.camera_json} (f = {camera.focal_mm:.1f} mm): "
           f"{describe_output(output)}; rendered in {elapsed:.2f} s -> {args.out}")
 
@@ -302,6 +329,8 @@ def cmd_preview(args: argparse.Namespace) -> None:
     from glsynth.core.fileio import atomic_write_bytes, png_bytes
     from glsynth.render.view import EnvironmentView, preview_config, preview_sheet
 
+    _at_most("--cameras", args.cameras, MAX_PREVIEW_CAMERAS, "a preview sheet shows")
+    _at_most("--width", args.width, MAX_PREVIEW_WIDTH, "a preview tile is wide")
     t0 = time.perf_counter()
     config = preview_config(_config(args), args.width)
     if args.cameras > config.cameras.total:
@@ -339,12 +368,14 @@ def add_view_parser(sub: Commands) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    from glsynth.core.reading import MAX_TOML_BYTES, read_bytes
     from glsynth.core.runlock import RunLock
     from glsynth.view.scene import SceneSettings, scene_config
     from glsynth.view.server import serve
 
     load_config(args.preset, args.config)  # its errors name the file
-    text = Path(args.config).read_text(encoding="utf-8") if args.config else None
+    text = read_bytes(Path(args.config), "config file", MAX_TOML_BYTES, "give a .toml file"
+                      ).decode("utf-8") if args.config else None
     settings = SceneSettings(args.preset, args.seed, args.env, args.quality, text)
     scene_config(settings)
 
@@ -402,6 +433,7 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
     from glsynth.data.dataset import merge, plan, prepare_output
     from glsynth.data.engines import execute
+    from glsynth.data.readers import is_marker
     from glsynth.data.report import (
         contact_sheet,
         recorded_runs,
@@ -415,7 +447,7 @@ def _generate(args: argparse.Namespace, config: Config, out: Path) -> None:
     tasks = plan(config)
     t0 = time.perf_counter()
     results = execute(config, args.seed, out, args.workers, args.engine, args.address)
-    with tqdm(results, total=len(tasks), initial=sum((out / t.marker).exists() for t in tasks),
+    with tqdm(results, total=len(tasks), initial=sum(is_marker(out / t.marker) for t in tasks),
               unit="unit", desc="glsynth generate") as bar:
         tally = tally_results(bar)
     run = run_record(tally, args.engine, args.workers, time.perf_counter() - t0)
@@ -451,13 +483,14 @@ def add_fly_parser(sub: Commands) -> None:
 
 def cmd_fly(args: argparse.Namespace) -> None:
     from glsynth.core.runlock import RunLock
-    from glsynth.data.flight import run_flight
+    from glsynth.data.flight import check_flight, run_flight
 
     config = _config(args)
     if args.plan:
         config = config_from_dict({"flight": {"plan": args.plan}}, config)
+    checked = check_flight(config, args.seed, args.env)  # before --out is made or locked
     with RunLock(args.out):
-        done = run_flight(config, args.seed, args.env, Path(args.out))
+        done = run_flight(config, args.seed, args.env, Path(args.out), checked)
     each = f", {done['render_s_per_frame']:.2f} s each" if done["rendered"] else ""
     print(f"{done['plan']}: {done['frames']} frames {done['spacing_m']:.2f} m apart "
           f"({done['rendered']} rendered now{each}), {done['parts_built']} of {done['parts']} "
@@ -573,6 +606,7 @@ def cmd_assess(args: argparse.Namespace) -> int:
         render_folders,
         render_photos,
     )
+    from glsynth.core.runlock import RunLock
 
     settings = from_options(AssessSettings, args)
     out = Path(args.out)
@@ -588,11 +622,13 @@ def cmd_assess(args: argparse.Namespace) -> int:
         renders = render_folders(Path(args.oracle))
         photos = (render_photos(renders, args.limit) if renders else
                   oracle_photos(Path(args.oracle), args.split, args.sensor_mm, args.limit))
-    else:
-        photos = _network_photos(args, settings, out)
-    summary = assess_photos(photos, out, settings)
+    with RunLock(out):
+        if args.oracle is None:
+            photos = _network_photos(args, settings, out)
+        summary = assess_photos(photos, out, settings)
     for failure in summary["failed"]:
-        print(f"glsynth assess: {failure['image']}: {failure['error']}", file=sys.stderr)
+        print(clipped(f"glsynth assess: {failure['image']}: {failure['error']}"),
+              file=sys.stderr)
     print(f"assessed {len(summary['assessed'])} images, {len(summary['failed'])} failed -> "
           f"{out}")
     return 1 if summary["failed"] else 0
@@ -676,6 +712,8 @@ def cmd_bench_quality(args: argparse.Namespace) -> None:
     if unknown:
         raise UserError(f"--presets: unknown {sorted(unknown)}; choose from {list(QUALITY)}")
     config = load_config(args.preset, args.config)
+    _at_most("--cameras", args.cameras, config.cameras.total, "an environment of this config "
+             "has")
     blender = None if args.reference == "glsynth" else \
         require_blender(args.blender, option=True, instead="--reference glsynth")
     cameras = spread_cameras(config.cameras.total, args.cameras)
@@ -732,6 +770,7 @@ def add_textures_parser(sub: Commands) -> None:
 def cmd_textures(args: argparse.Namespace) -> None:
     from glsynth.appearance.repository import generate_repository
 
+    _at_most("--count", args.count, MAX_TEXTURES_PER_CATEGORY, "a category holds")
     if not TEXTURE_PX[0] <= args.size <= TEXTURE_PX[1]:
         raise UserError(f"--size {args.size}: give {TEXTURE_PX[0]} to {TEXTURE_PX[1]} pixels, "
                         "the sizes [materials] builtin_size allows")
@@ -779,7 +818,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except (UserError, OSError) as err:
             if args.debug:
                 raise
-            print(f"glsynth {args.command}: error: {one_line(err)}", file=sys.stderr)
+            print(clipped(f"glsynth {args.command}: error: {one_line(err)}"), file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print(f"glsynth {args.command}: interrupted; run the same command again to resume",
@@ -788,7 +827,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _warning_line(command: str, message: Warning | str, *_: object, **__: object) -> None:
-    print(f"glsynth {command}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    print(clipped(f"glsynth {command}: warning: {' '.join(str(message).split())}"),
+          file=sys.stderr)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -20,10 +20,11 @@ from glsynth.model.settings import CLASS_NAMES, TASKS, VIEWS, target_size
 from PIL import Image
 from torch.utils.data import Dataset
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import atomic_write_bytes
 from glsynth.core.images import nearest_resize, read_photo
-from glsynth.core.paths import cache_root
+from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.reading import remove_entry
 from glsynth.data.readers import (
     cache_entry_bytes,
     map_size,
@@ -113,8 +114,8 @@ class InputCache:
         if rgb is not None:
             return to_tensor(rgb)
         rgb = resize_rgb(read_rgb(path), self.size)
-        for stale in folder.glob("*.np[yz]"):
-            stale.unlink(missing_ok=True)
+        for stale in cache_folder(folder).glob("*.np[yz]"):
+            remove_entry(stale)
         atomic_write_bytes(entry, cache_entry_bytes(rgb, key))
         return to_tensor(rgb)
 
@@ -181,14 +182,14 @@ class ImageFolder(Dataset):
         images = sorted(p for p in (self.root / "images").glob("*")
                         if p.suffix.lower() in IMAGE_SUFFIXES)
         if not images:
-            raise UserError(f"extra data {str(root)!r}: no images in {str(self.root)!r}/images;"
+            raise UserError(f"extra data {named(root)}: no images in {named(self.root)}/images;"
                             " put photos in images/ and id maps with the same stems in labels/")
         self.items = []
         for image in images:
             labels = [self.root / "labels" / f"{image.stem}{s}" for s in (".png", ".bmp")]
             found = [p for p in labels if p.exists()]
             if not found:
-                raise UserError(f"extra data: no label map for {str(image)!r}; expected "
+                raise UserError(f"extra data: no label map for {named(image)}; expected "
                                 f"{str(labels[0])!r} or .bmp")
             self.items.append((image, found[0]))
 

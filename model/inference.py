@@ -14,7 +14,7 @@ from glsynth.model.runtime import bf16_helps, load_torch, pick_device, predict_i
 from glsynth.model.settings import CLASS_NAMES, N_OUTPUTS
 from PIL import Image
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import (
     atomic_write_bytes,
     atomic_write_json,
@@ -61,27 +61,27 @@ def load_predictor(run: str | Path, device: str = "auto") -> Predictor:
     """The trained network of a run folder, checked against the run's settings.json."""
     path = Path(run) / "model.pt"
     if not path.is_file():
-        raise UserError(f"run {str(run)!r} has no model.pt: train it first "
+        raise UserError(f"run {named(run)} has no model.pt: train it first "
                         "(glsynth train ... --out RUN) or check the path")
     data = load_torch(path)
     missing = [k for k in MODEL_KEYS if k not in data]
     if missing or data["task"] not in N_OUTPUTS or \
             data["out_channels"] != N_OUTPUTS[data["task"]]:
-        raise UserError(f"{str(path)!r} is not a glsynth model (missing {missing or 'nothing'}, "
+        raise UserError(f"{named(path)} is not a glsynth model (missing {missing or 'nothing'}, "
                         f"task {data.get('task')!r}); train again into a new --out folder")
     settings = Path(run) / "settings.json"
     if settings.is_file():
         task = read_json(settings, {"task": str}, "the run folder is damaged: train again "
                          "into a new --out folder")["task"]
         if task != data["task"]:
-            raise UserError(f"run {str(run)!r}: model.pt is a {data['task']} network but "
+            raise UserError(f"run {named(run)}: model.pt is a {data['task']} network but "
                             f"settings.json says {task}; the folder mixes two runs: train "
                             "again into a new --out folder")
     model = FCN58(int(data["out_channels"]))
     try:
         model.load_state_dict(data["state_dict"])
     except (RuntimeError, TypeError, AttributeError) as err:
-        raise UserError(f"{str(path)!r}: its weights do not fit FCN58 "
+        raise UserError(f"{named(path)}: its weights do not fit FCN58 "
                         f"({str(err).splitlines()[0]}); train again into a new --out "
                         "folder") from err
     dev = pick_device(device)
@@ -144,7 +144,7 @@ def evaluate(run: str | Path, data: str | Path, split: str = "test",
     dataset = TokaidoDataset(data, split, task, image_size=predictor.image_size,
                              puretex=puretex and task == "damage")
     if len(dataset) == 0:
-        raise UserError(f"--data {str(data)!r} has no {split} images for task {task!r}")
+        raise UserError(f"--data {named(data)} has no {split} images for task {task!r}")
     out = Path(out) if out is not None else Path(run) / f"eval_{split}"
     n = predictor.model.out_channels
     matrix = np.zeros((n, n), np.int64)

@@ -13,7 +13,7 @@ from glsynth.model.metrics import confusion, segmentation_scores
 from glsynth.model.settings import CLASS_NAMES, TASKS
 
 from glsynth.assess.condition import ASSESS_DEFAULTS, AssessSettings, Maps, Photo
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import distinct_stems
 from glsynth.core.images import read_photo
 from glsynth.data.filters import rrdr
@@ -91,7 +91,7 @@ def evaluate_rrdr(predictors: dict[str, Predictor], root: Path, out: Path,
     dataset = TokaidoDataset(root, split, "damage",
                              image_size=predictors["damage"].image_size)
     if len(dataset) == 0:
-        raise UserError(f"--data {str(root)!r}: no {split} images with damage in the RRDR")
+        raise UserError(f"--data {named(root)}: no {split} images with damage in the RRDR")
     before, after = np.zeros((3, 3), np.int64), np.zeros((3, 3), np.int64)
     images = []
     for index, record in enumerate(dataset.items):

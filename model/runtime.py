@@ -2,12 +2,14 @@
 of a run folder (checkpoints and models) and the ids a segmentation network's logits give."""
 
 import io
+import os
 from pathlib import Path
 
 import torch
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import atomic_write_bytes
+from glsynth.core.reading import check_file
 
 
 def pick_device(name: str) -> torch.device:
@@ -39,6 +41,10 @@ def bf16_helps(device: torch.device) -> bool:
     return "avx512_bf16" in flags or "amx_bf16" in flags
 
 
+MAX_CHECKPOINT_BYTES = 1 << 32
+"""A generous bound on a checkpoint (the network and its optimiser state)."""
+
+
 def save_torch(path: Path, data: dict) -> None:
     buffer = io.BytesIO()
     torch.save(data, buffer)
@@ -48,16 +54,19 @@ def save_torch(path: Path, data: dict) -> None:
 def load_torch(path: Path) -> dict:
     """A file written by save_torch; anything else (truncated, foreign, not torch at all) is a
     UserError naming the file, never an invitation to unpickle arbitrary code."""
+    if os.path.lexists(path):  # a missing one stays FileNotFoundError, which callers handle
+        check_file(path, "checkpoint", MAX_CHECKPOINT_BYTES, "train again into a new --out "
+                   "folder")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
         raise
     except Exception as err:  # torch raises RuntimeError, UnpicklingError, EOFError, ...
-        raise UserError(f"{str(path)!r} is not a readable glsynth checkpoint "
+        raise UserError(f"{named(path)} is not a readable glsynth checkpoint "
                         f"({type(err).__name__}); it is damaged or from elsewhere: train "
                         "again into a new --out folder") from err
     if not isinstance(data, dict):
-        raise UserError(f"{str(path)!r} holds {type(data).__name__}, not a glsynth checkpoint")
+        raise UserError(f"{named(path)} holds {type(data).__name__}, not a glsynth checkpoint")
     return data
 
 

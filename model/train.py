@@ -51,7 +51,7 @@ from glsynth.model.settings import (
 from torch.utils.data import ConcatDataset, DataLoader, Dataset, DistributedSampler, Subset
 
 from glsynth.core.children import die_with_parent
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import atomic_write_json
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK, RunLock
 from glsynth.core.seeding import Stream, make_rng, make_seed
@@ -205,9 +205,9 @@ def stored_settings(path: Path) -> TrainSettings:
     try:
         return settings_from_json(data)
     except UserError as err:
-        raise UserError(f"{str(path)!r}: {err}; {fix}") from None
+        raise UserError(f"{named(path)}: {err}; {fix}") from None
     except (TypeError, ValueError, KeyError) as err:
-        raise UserError(f"{str(path)!r} does not hold valid training settings "
+        raise UserError(f"{named(path)} does not hold valid training settings "
                         f"({type(err).__name__}); {fix}") from None
 
 
@@ -217,12 +217,12 @@ def open_run(run: Path, settings: TrainSettings) -> dict | None:
     if stored.exists():
         previous = stored_settings(stored)
         if previous != settings:
-            raise UserError(f"--out {str(run)!r} holds a run with other settings; use a new "
+            raise UserError(f"--out {named(run)} holds a run with other settings; use a new "
                             "folder, or the same options to resume it")
         checkpoint = run / "checkpoint.pt"
         return load_torch(checkpoint) if checkpoint.exists() else None
     if any(p.name not in (DRIVER_LOCK, WORKERS_LOCK) for p in run.iterdir()):
-        raise UserError(f"--out {str(run)!r} is not empty and holds no training run")
+        raise UserError(f"--out {named(run)} is not empty and holds no training run")
     atomic_write_json(stored, dataclasses.asdict(settings))
     return None
 

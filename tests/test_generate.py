@@ -206,7 +206,7 @@ def test_a_finished_run_does_no_work_twice(small_config, reference, tmp_path, ca
     # A broken report is refused with one line, before any work (glsynth.data.report).
     (out / "report.json").write_text("{truncated")
     assert generate(small_config, out) == 2
-    assert "report.json: not valid JSON" in capsys.readouterr().err
+    assert "report.json' is not valid JSON" in capsys.readouterr().err
 
 
 def test_bad_outputs_are_clear_errors(small_config, reference, tmp_path, capsys):

@@ -73,9 +73,12 @@ def test_recorded_runs_read_back_and_bad_reports_are_refused(tmp_path):
     report.write_text(json.dumps(with_runs({"kept": 1}, [], run)))
     assert recorded_runs(report) == [run]
     report.write_text("{truncated")
-    with pytest.raises(UserError, match="report.json: not valid JSON"):
+    with pytest.raises(UserError, match="report.json' is not valid JSON"):
         recorded_runs(report)
-    for other in ({"wall_s": 3.0, "kept": 1}, [run], {"runs": "many"}):
+    for other, why in (({"wall_s": 3.0, "kept": 1}, "has no 'runs'"),
+                       ([run], "holds a JSON list, not an object"),
+                       ({"runs": "many"}, "runs = 'many' is not a list"),
+                       ({"runs": [1]}, "runs holds other than run records")):
         report.write_text(json.dumps(other))
-        with pytest.raises(UserError, match="holds no list of runs"):
+        with pytest.raises(UserError, match=f"dataset report .*{why}.*move it aside"):
             recorded_runs(report)

@@ -10,8 +10,13 @@ import dataclasses
 import hashlib
 import io
 import json
+import os
+import warnings
+import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -28,11 +33,14 @@ from glsynth.appearance.damage import (
 from glsynth.appearance.materials import Material
 from glsynth.appearance.repository import TextureRepository
 from glsynth.core.config import DamageConfig
+from glsynth.core.errors import UserError, named, shown
 from glsynth.core.fileio import atomic_write_bytes
-from glsynth.core.paths import cache_root
+from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.reading import MAX_ARRAY_BYTES, check_file, parse_json, remove_entry
 from glsynth.core.seeding import Stream, make_rng
 
 BANK_VERSION = 1
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -69,9 +77,10 @@ class DamageBank:
     def entry(self, severity: str, index: int, repository: TextureRepository) -> BankEntry:
         item = self._item(severity, index)
         path = self._path(severity, index)
-        if path.exists():
+        stored = _stored(path, lambda: self._read(path, severity, index))
+        if stored is not None:
             self.loaded += 1
-            return self._read(path, severity, index)
+            return stored
         rng = make_rng(self.root_seed, 0, Stream.DAMAGE_BANK, item)
         params = sample_params(self.cfg, severity, rng)
         images = (int(rng.integers(repository.count("concrete"))),
@@ -89,12 +98,16 @@ class DamageBank:
                 "threshold": entry.maps.threshold}
         np.savez_compressed(buf, mask=entry.maps.mask, displacement=entry.maps.displacement_m,
                             meta=np.frombuffer(json.dumps(meta).encode(), np.uint8))
+        cache_folder(path.parent)
         atomic_write_bytes(path, buf.getvalue())
 
     def _read(self, path: Path, severity: str, index: int) -> BankEntry:
-        with np.load(path) as data:
-            meta = json.loads(data["meta"].tobytes())
+        with np.load(path, allow_pickle=False) as data:
+            meta = _meta(path, data)
             maps = DamageMaps(data["mask"], data["displacement"], meta["threshold"])
+        if maps.mask.ndim != 2 or maps.displacement_m.shape != maps.mask.shape:
+            raise ValueError(f"mask {maps.mask.shape} and displacement "
+                             f"{maps.displacement_m.shape} differ")
         params, images = _record(meta)
         return BankEntry(severity, index, params, maps, images)
 
@@ -104,17 +117,47 @@ class DamageBank:
         not yet made is made)."""
         self._item(severity, index)  # validates
         path = self._path(severity, index)
-        if not path.exists():
+
+        def read() -> tuple[DamageParams, tuple[int, int, int]]:
+            with np.load(path, allow_pickle=False) as data:  # members are read when asked for
+                return _record(_meta(path, data))
+
+        stored = _stored(path, read)
+        if stored is None:
             entry = self.entry(severity, index, repository)
             return entry.params, entry.images
-        with np.load(path) as data:  # members are read only when asked for
-            return _record(json.loads(data["meta"].tobytes()))
+        return stored
 
     def material(self, severity: str, index: int, repository: TextureRepository,
                  scale: float) -> Material:
         """The damage material of entry ``index`` at texture scale ``scale``."""
         return damage_material(self.entry(severity, index, repository), repository, self.cfg,
                                scale)
+
+
+def _stored(path: Path, read: Callable[[], T]) -> T | None:
+    """What ``read`` makes of a bank entry on disk; None where there is none, or where it is
+    not a readable entry (a folder, a FIFO, a truncated file), which is then removed with a
+    warning so that it is made again."""
+    if not os.path.lexists(path):
+        return None
+    try:
+        check_file(path, "damage-bank entry", MAX_ARRAY_BYTES, "it is made again")
+        return read()
+    except (UserError, OSError, ValueError, KeyError, TypeError, EOFError,
+            zipfile.BadZipFile) as err:
+        warnings.warn(f"damage bank: making {named(path)} again ({shown(str(err), 100)})",
+                      stacklevel=3)
+        remove_entry(path)
+        return None
+
+
+def _meta(path: Path, data: np.lib.npyio.NpzFile) -> dict:
+    meta = parse_json(data["meta"].tobytes(), f"damage-bank entry {named(path)}",
+                      "it is made again")
+    if not isinstance(meta, dict):
+        raise ValueError("its meta is not a JSON object")
+    return meta
 
 
 def _record(meta: dict) -> tuple[DamageParams, tuple[int, int, int]]:

@@ -18,6 +18,7 @@ readable image is an error that says what to fix.
 
 import hashlib
 import io
+import os
 import warnings
 from pathlib import Path
 
@@ -25,9 +26,10 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from glsynth.appearance.texgen import CATEGORIES
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named, shown
 from glsynth.core.fileio import atomic_write_bytes, npy_bytes, png_bytes
-from glsynth.core.paths import cache_root
+from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.reading import MAX_IMAGE_BYTES, read_bytes, read_npy, remove_entry
 from glsynth.core.seeding import Stream, make_rng
 
 EXTENSIONS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
@@ -42,7 +44,7 @@ class TextureRepository:
         self.size = size
         self.files: dict[str, list[Path]] = {}
         if not self.root.is_dir():
-            raise UserError(f"texture repository {str(self.root)!r} is not a folder. Point "
+            raise UserError(f"texture repository {named(self.root)} is not a folder. Point "
                             "[materials] repository at a folder with sub-folders "
                             f"{sorted(CATEGORIES)}, or leave it empty for the built-in one.")
         for category in CATEGORIES:
@@ -50,7 +52,7 @@ class TextureRepository:
             files = sorted(p for p in folder.glob("*") if p.suffix.lower() in EXTENSIONS) \
                 if folder.is_dir() else []
             if not files:
-                raise UserError(f"texture repository {str(self.root)!r}: category folder "
+                raise UserError(f"texture repository {named(self.root)}: category folder "
                                 f"{category!r} is missing or has no images "
                                 f"({', '.join(sorted(EXTENSIONS))}). Add images, or run "
                                 f"`glsynth textures --out {self.root}` to generate them.")
@@ -65,21 +67,22 @@ class TextureRepository:
         """The image at ``path`` as size x size RGB: from the decoded cache, or decoded (and
         then cached); None, with a warning, where it cannot be read."""
         try:
-            data = path.read_bytes()
-        except OSError as err:
+            data = read_bytes(path, "repository image", MAX_IMAGE_BYTES, "replace it")
+        except UserError as err:
             return _unreadable(path, err)
         key = hashlib.sha256(data)
         key.update(self.size.to_bytes(4, "little"))
-        cached = cache_root() / "decoded" / f"{key.hexdigest()}.npy"
-        if cached.exists():
+        cached = cache_folder(cache_root() / "decoded") / f"{key.hexdigest()}.npy"
+        if os.path.lexists(cached):
             try:
-                array = np.load(cached)
+                array = read_npy(cached, "decoded-image cache entry", "it is decoded again")
                 if array.shape == (self.size, self.size, 3) and array.dtype == np.uint8:
                     return array
-            except (OSError, ValueError, EOFError):
+            except UserError:
                 pass
-            warnings.warn(f"texture repository: decoding {str(path)!r} again (its cache entry "
+            warnings.warn(f"texture repository: decoding {named(path)} again (its cache entry "
                           f"{cached.name!r} is damaged)", stacklevel=3)
+            remove_entry(cached)
         try:
             with Image.open(io.BytesIO(data)) as im:
                 im = im.convert("RGB")
@@ -108,13 +111,13 @@ class TextureRepository:
             array.setflags(write=False)
             self._cache[key] = array
             return array
-        raise UserError(f"texture repository {str(self.root)!r}: no readable image in "
+        raise UserError(f"texture repository {named(self.root)}: no readable image in "
                         f"category {category!r}; replace the files named in the warnings")
 
 
 def _unreadable(path: Path, err: Exception) -> None:
-    warnings.warn(f"texture repository: skipping unreadable image {str(path)!r} "
-                  f"({type(err).__name__}: {err})", stacklevel=4)
+    warnings.warn(f"texture repository: skipping unreadable image {named(path)} "
+                  f"({type(err).__name__}: {shown(str(err), 120)})", stacklevel=4)
 
 
 def generate_repository(root: str | Path, seed: int, per_category: int, size: int) -> Path:
@@ -141,5 +144,5 @@ def builtin_root(seed: int, per_category: int, size: int) -> Path:
 
 def builtin_repository(seed: int, per_category: int, size: int) -> Path:
     """The procedural repository for these settings, generated on first use and cached."""
-    return generate_repository(builtin_root(seed, per_category, size), seed, per_category,
-                               size)
+    return generate_repository(cache_folder(builtin_root(seed, per_category, size)), seed,
+                               per_category, size)

@@ -11,6 +11,7 @@ in millimetres when the focal length is known (glsynth.assess.cracks).
 """
 
 import math
+import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +31,7 @@ from glsynth.assess.cracks import (
     measure_cracks,
     width_errors,
 )
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, overlay
@@ -399,7 +400,7 @@ def _render_focal_px(path: Path) -> float:
     except (TypeError, ValueError):
         fx = math.nan
     if not 0 < fx < math.inf:
-        raise UserError(f"{str(path)!r}: K = {str(k)[:60]} is not a 3x3 matrix with a focal "
+        raise UserError(f"{named(path)}: K = {str(k)[:60]} is not a 3x3 matrix with a focal "
                         f"length > 0 in pixels; {fix}")
     return fx
 
@@ -407,8 +408,7 @@ def _render_focal_px(path: Path) -> float:
 def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | None]:
     """The ground-truth crack widths beside a damage label, ``synthetic/{split}/crackwidth/
     <stem>.png`` (uint16, 0.01 mm steps) in mm, or None and why it is missing."""
-    from PIL import Image
-
+    from glsynth.data.readers import read_crack_width_map
     from glsynth.data.tokaido import crack_width_path, decode_crack_width
 
     path = root / crack_width_path(damage_rel)
@@ -416,11 +416,6 @@ def crack_truth(root: Path, damage_rel: str) -> tuple[np.ndarray | None, str | N
     if not folder.is_dir():
         return None, (f"no ground-truth crack widths: {folder} does not exist (the released "
                       "dataset and glsynth's from before crack widths have none)")
-    if not path.is_file():
+    if not os.path.lexists(path):
         return None, f"no ground-truth crack widths: {path} is missing"
-    with Image.open(path) as im:
-        code = np.asarray(im)
-    if code.dtype != np.uint16:
-        raise ValueError(f"{path}: crack widths must be uint16 in 0.01 mm steps, not "
-                         f"{code.dtype}")
-    return decode_crack_width(code), None
+    return decode_crack_width(read_crack_width_map(path)), None

@@ -679,14 +679,14 @@ def load_config(preset: str = "paper", path: str | Path | None = None) -> Config
         raise UserError(f"preset = {preset!r}: choose one of {sorted(PRESETS)}")
     config = config_from_dict(PRESETS[preset])
     if path is not None:
+        from glsynth.core.reading import MAX_TOML_BYTES, read_bytes
+
         path = Path(path)
+        text = read_bytes(path, "config file", MAX_TOML_BYTES, "give a .toml file")
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise UserError(f"config file {str(path)!r} does not exist") from None
-        except IsADirectoryError:
-            raise UserError(f"config file {str(path)!r} is a folder; give a .toml file") \
-                from None
+            data = tomllib.loads(text.decode("utf-8"))
+        except RecursionError:
+            raise UserError(f"config file {str(path)!r} nests too deeply") from None
         except UnicodeDecodeError as err:
             raise UserError(f"config file {str(path)!r} is not UTF-8 text (byte {err.start}); "
                             "save it as UTF-8") from None

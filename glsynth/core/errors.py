@@ -5,6 +5,11 @@ machine without what glsynth needs. Its message is one line that names the field
 the fix. It subclasses ValueError so that callers of the library can catch it as one.
 """
 
+import os
+
+MAX_MESSAGE = 300
+"""The longest error line the command line prints (docs/design.md, "Errors")."""
+
 
 class UserError(ValueError):
     """Bad input or environment: printed as one line by the command line, without traceback."""
@@ -17,3 +22,22 @@ def shown(value: object, limit: int = 60) -> str:
     if len(text) <= limit:
         return text
     return f"{text[:limit - 20]}... ({len(text):,} characters)"
+
+
+def named(path: str | os.PathLike, limit: int = 120) -> str:
+    """A path quoted for a message, its middle cut where it is longer than ``limit``: the
+    start says where it lies and the end which file it is, so both are kept."""
+    text = repr(os.fspath(path))
+    if len(text) <= limit:
+        return text
+    keep = (limit - 3) // 2
+    return f"{text[:keep]}...{text[-keep:]}"
+
+
+def clipped(message: str, limit: int = MAX_MESSAGE) -> str:
+    """A message of at most ``limit`` characters; a longer one loses its middle, so that the
+    culprit at its start and the fix at its end both remain."""
+    if len(message) <= limit:
+        return message
+    head = limit * 2 // 3
+    return f"{message[:head]} ... {message[-(limit - head - 5):]}"

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from PIL import Image
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 
 
 def ensure_parent(path: Path) -> None:
@@ -29,13 +29,13 @@ def ensure_parent(path: Path) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        raise UserError(f"cannot create output folder {str(path.parent)!r}: {err.strerror}. "
+        raise UserError(f"cannot create output folder {named(path.parent)}: {err.strerror}. "
                         "Choose a writable --out location.") from err
 
 
 def _write_failed(path: Path, err: OSError) -> UserError:
     """The error names the file the user asked for, never the temporary one, and the fix."""
-    return UserError(f"cannot write {str(path)!r}: {err.strerror or err}. Check free disk "
+    return UserError(f"cannot write {named(path)}: {err.strerror or err}. Check free disk "
                      "space and the permissions of its folder, then run the same command "
                      "again to resume.")
 

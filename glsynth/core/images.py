@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
+from glsynth.core.reading import MAX_IMAGE_BYTES, check_file, read_bytes
 
 
 def nearest_indices(n_in: int, n_out: int) -> np.ndarray:
@@ -40,22 +41,23 @@ def read_photo(path: str | Path) -> np.ndarray:
     line, as are files that are missing or damaged, and those over Pillow's decompression-bomb
     limit (MAX_IMAGE_PIXELS, 89 MP), which would take gigabytes to decode."""
     path = Path(path)
+    check_file(path, "image", MAX_IMAGE_BYTES, "check the path")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", Image.DecompressionBombWarning)
             im = Image.open(path)
         with im:
             if im.mode not in PHOTO_MODES:
-                raise UserError(f"{str(path)!r} is a {im.mode} image; glsynth reads "
+                raise UserError(f"{named(path)} is a {im.mode} image; glsynth reads "
                                 "grayscale, RGB(A), palette, 16-bit and [0, 1] float "
                                 "images: save it as 8- or 16-bit RGB")
             wide = im.mode in ("RGB", "RGBA") and any(";16" in str(t.args) for t in im.tile)
             upright = ImageOps.exif_transpose(_wide_rgb(path, im) if wide else im)
             return _photo_rgb(path, upright)
     except FileNotFoundError:
-        raise UserError(f"{str(path)!r} does not exist; check the path") from None
+        raise UserError(f"{named(path)} does not exist; check the path") from None
     except (Image.DecompressionBombError, Image.DecompressionBombWarning):
-        raise UserError(f"{str(path)!r} claims more than Pillow's limit of "
+        raise UserError(f"{named(path)} claims more than Pillow's limit of "
                         f"{Image.MAX_IMAGE_PIXELS:,} pixels for one image (a damaged or "
                         "crafted file, or a panorama): scale it down first") from None
     except (UnidentifiedImageError, OSError, SyntaxError,
@@ -67,17 +69,17 @@ def read_photo(path: str | Path) -> np.ndarray:
         first = (str(err).splitlines() or [""])[0]
         reason = type(err).__name__ + (f": {first}" if first and len(first) < 80
                                        and str(path) not in first else "")
-        raise UserError(f"{str(path)!r} is not a readable image ({reason}); check the file "
+        raise UserError(f"{named(path)} is not a readable image ({reason}); check the file "
                         "or export it again as PNG or JPEG") from err
 
 
 def _wide_rgb(path: Path, im: Image.Image) -> Image.Image:
     """A 16-bit RGB(A) file, which Pillow cuts to its high bytes, decoded at 16 bits by OpenCV,
     scaled by 1/257 and carrying the file's EXIF for exif_transpose."""
-    data = np.frombuffer(path.read_bytes(), np.uint8)
+    data = np.frombuffer(read_bytes(path, "image", MAX_IMAGE_BYTES, "check the path"), np.uint8)
     pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if pixels is None or pixels.dtype != np.uint16 or pixels.ndim != 3:
-        raise UserError(f"{str(path)!r}: its 16-bit colour data cannot be decoded; export it "
+        raise UserError(f"{named(path)}: its 16-bit colour data cannot be decoded; export it "
                         "again as PNG")
     rgb = cv2.cvtColor(pixels[..., :3], cv2.COLOR_BGR2RGB)
     out = Image.fromarray(_scale16(rgb))
@@ -96,7 +98,7 @@ def _photo_rgb(path: Path, im: Image.Image) -> np.ndarray:
     elif im.mode == "F":
         values = np.asarray(im)
         if not np.isfinite(values).all() or values.min() < 0 or values.max() > 1:
-            raise UserError(f"{str(path)!r}: a float image must hold values in [0, 1], this "
+            raise UserError(f"{named(path)}: a float image must hold values in [0, 1], this "
                             f"one spans [{np.nanmin(values):.4g}, {np.nanmax(values):.4g}]; "
                             "save it as 8- or 16-bit")
         gray = np.round(values * 255).astype(np.uint8)

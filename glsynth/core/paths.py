@@ -5,6 +5,8 @@ import os
 from importlib import resources
 from pathlib import Path
 
+from glsynth.core.errors import UserError, named
+
 
 def shader_dir() -> Path:
     return Path(str(resources.files("glsynth.shaders")))
@@ -14,3 +16,16 @@ def cache_root() -> Path:
     """$GLSYNTH_CACHE, default ~/.cache/glsynth: the built-in texture repository, repository
     images decoded at a texture size, the damage bank and the resized training inputs."""
     return Path(os.environ.get("GLSYNTH_CACHE") or Path.home() / ".cache" / "glsynth")
+
+
+def cache_folder(folder: Path) -> Path:
+    """``folder`` (under cache_root()) made where missing. What stands in its way is named as
+    the cache's, $GLSYNTH_CACHE, with the fix; never as an --out folder's."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        where = "$GLSYNTH_CACHE" if os.environ.get("GLSYNTH_CACHE") else \
+            "the cache folder (default ~/.cache/glsynth; $GLSYNTH_CACHE moves it)"
+        raise UserError(f"{where}: cannot make {named(folder)} ({err.strerror}); remove what "
+                        "is in its way, or point $GLSYNTH_CACHE at a writable folder") from None
+    return folder

@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
-from glsynth.core.errors import UserError, shown
+from glsynth.core.errors import UserError, named
 
 DRIVER_LOCK = ".glsynth.lock"
 WORKERS_LOCK = ".glsynth.workers.lock"
@@ -41,20 +41,23 @@ class RunLock:
         self.folder = Path(folder)
         self.worker = worker
         self._fd: int | None = None
-        self.shown = shown(str(self.folder))
-        """The folder as messages quote it (a long path is cut: messages stay one line)."""
+        self._created = False
+        """Whether this lock made the folder: a run refused inside it leaves none behind."""
 
     def _open(self, name: str) -> int:
         if self.folder.exists() and not self.folder.is_dir():
-            raise UserError(f"--out {self.shown} is a file; give a folder")
+            raise UserError(f"--out {named(self.folder)} is a file; give a folder")
         if self.folder.resolve().parts[1:2] in (("proc",), ("sys",), ("dev",)):
-            raise UserError(f"--out {self.shown} is in the kernel's /proc, /sys or /dev; "
-                            "give a folder on a disk")
+            raise UserError(f"--out {named(self.folder)} is in the kernel's /proc, /sys or "
+                            "/dev; give a folder on a disk")
         try:
+            if not self.worker and not self.folder.exists():
+                self.folder.mkdir(parents=True)
+                self._created = True
             self.folder.mkdir(parents=True, exist_ok=True)
             return os.open(self.folder / name, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as err:
-            raise UserError(f"--out {self.shown}: cannot create the folder or its lock "
+            raise UserError(f"--out {named(self.folder)}: cannot create the folder or its lock "
                             f"file ({err.strerror}). Choose a writable --out location.") from err
 
     def acquire(self) -> "RunLock":
@@ -86,7 +89,7 @@ class RunLock:
             who = f"pid {recorded}"
         else:  # the driver is gone; what it started still has the folder
             who = f"pid {recorded}, ended; its processes live on: {describe(holders)}"
-        return (f"--out {self.shown} is in use by another glsynth run ({who}); wait "
+        return (f"--out {named(self.folder)} is in use by another glsynth run ({who}); wait "
                 "for it to end, or choose another folder")
 
     def _check_no_workers(self) -> None:
@@ -97,7 +100,7 @@ class RunLock:
             self.release()
             holders = lock_holders(self.folder / WORKERS_LOCK)
             who = f" ({describe(holders)})" if holders else ""
-            raise UserError(f"--out {self.shown}: worker processes of an earlier run "
+            raise UserError(f"--out {named(self.folder)}: worker processes of an earlier run "
                             f"are still writing there{who}; try again once they have "
                             "ended") from None
         finally:
@@ -115,6 +118,26 @@ class RunLock:
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  trace: TracebackType | None) -> None:
         self.release()
+        if kind is not None and self._created:
+            self._remove_if_unused()
+
+    def _remove_if_unused(self) -> None:
+        """Remove the folder this lock made when a run failed before writing anything but
+        the lock files; another process that took the lock meanwhile keeps it."""
+        try:
+            fd = os.open(self.folder / DRIVER_LOCK, os.O_RDWR)
+        except OSError:
+            return
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # refused: another run holds it
+            if {p.name for p in self.folder.iterdir()} <= {DRIVER_LOCK, WORKERS_LOCK}:
+                for name in (DRIVER_LOCK, WORKERS_LOCK):
+                    (self.folder / name).unlink(missing_ok=True)
+                self.folder.rmdir()
+        except OSError:  # another run holds it, or its files arrived: the folder is theirs
+            pass
+        finally:
+            os.close(fd)
 
 
 def _close_in_forked_child() -> None:

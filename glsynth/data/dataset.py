@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.config import Config, config_to_dict
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import (
     BackgroundWriter,
     atomic_write_bytes,
@@ -34,7 +34,7 @@ from glsynth.core.fileio import (
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.filters import mask_damage, removal_reason, view_rrdr
-from glsynth.data.readers import read_json
+from glsynth.data.readers import is_marker, read_json
 from glsynth.data.statistics import (
     CrackLength,
     ImageCounts,
@@ -330,7 +330,7 @@ def pending_tasks(config: Config, out: Path) -> list[Task]:
     pending = []
     for task in plan(config):
         path = out / task.marker
-        if path.exists():
+        if is_marker(path):
             try:
                 read_marker(path, task)
                 continue
@@ -360,10 +360,10 @@ def read_marker(path: Path, task: Task) -> dict:
                 for split in ("train", "test") for r in data["rows"][split])
         ok = ok and data["kind"] == task.kind and all(isinstance(c.split, str) for c in counts)
     except (TypeError, KeyError, ValueError, AttributeError) as err:
-        raise UserError(f"{str(path)!r} is not a progress marker of this glsynth "
+        raise UserError(f"{named(path)} is not a progress marker of this glsynth "
                         f"({type(err).__name__}); {MARKER_FIX}") from None
     if not ok:
-        raise UserError(f"{str(path)!r} is not the marker of unit {task.marker}; {MARKER_FIX}")
+        raise UserError(f"{named(path)} is not the marker of unit {task.marker}; {MARKER_FIX}")
     return data
 
 
@@ -372,11 +372,11 @@ def check_run_folder(out: Path, config: Config, root_seed: int) -> None:
     run_file = out / RUN_FILE
     if not run_file.exists():
         raise UserError(
-            f"{str(run_file)!r} is not visible to this worker: with several machines --out "
+            f"{named(run_file)} is not visible to this worker: with several machines --out "
             "must be a shared filesystem mounted at the same path on every node")
     recorded = read_json(run_file, {"config_sha256": str}, RUN_FILE_FIX)
     if recorded.get("config_sha256") != run_identity(config, root_seed)["config_sha256"]:
-        raise UserError(f"{str(run_file)!r} belongs to another run than this worker's")
+        raise UserError(f"{named(run_file)} belongs to another run than this worker's")
 
 
 RUN_FILE_FIX = ("it is damaged or not glsynth's: move the folder aside and generate into a new "
@@ -387,17 +387,17 @@ def prepare_output(out: Path, config: Config, root_seed: int) -> None:
     """Create or reopen an output folder; refuse one that holds a different run."""
     identity = run_identity(config, root_seed)
     if out.exists() and not out.is_dir():
-        raise UserError(f"--out {str(out)!r} is a file; give a folder for the dataset")
+        raise UserError(f"--out {named(out)} is a file; give a folder for the dataset")
     run_file = out / RUN_FILE
     if run_file.exists():
         previous = read_json(run_file, {"config_sha256": str, "root_seed": int}, RUN_FILE_FIX)
         if previous.get("config_sha256") != identity["config_sha256"] or \
                 previous.get("root_seed") != root_seed:
-            raise UserError(f"--out {str(out)!r} holds a run with other settings (seed "
+            raise UserError(f"--out {named(out)} holds a run with other settings (seed "
                             f"{previous.get('root_seed')}); use a new folder, or the same "
                             "preset, config and seed to resume it")
     elif out.exists() and any(p.name not in (DRIVER_LOCK, WORKERS_LOCK) for p in out.iterdir()):
-        raise UserError(f"--out {str(out)!r} is not empty and holds no glsynth run; "
+        raise UserError(f"--out {named(out)} is not empty and holds no glsynth run; "
                         "use a new or empty folder")
     # A killed run can leave temporary files of interrupted atomic writes: remove them (the
     # caller holds the folder's lock, so no other run is writing them).
@@ -406,7 +406,7 @@ def prepare_output(out: Path, config: Config, root_seed: int) -> None:
     atomic_write_json(run_file, {**identity, "config": config_to_dict(config)})
     free = shutil.disk_usage(out).free
     if free < 200 * 2**20:
-        raise UserError(f"only {free / 2**20:.0f} MiB free under {str(out)!r}; the dataset "
+        raise UserError(f"only {free / 2**20:.0f} MiB free under {named(out)}; the dataset "
                       "needs more (about 4 MB per kept image): free space or choose another "
                       "--out")
 

@@ -18,18 +18,20 @@ files, so a resumed flight writes the same bytes as an uninterrupted one.
 
 import hashlib
 import json
+import os
+import shutil
 import time
+import warnings
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 from glsynth.appearance.materials import srgb_decode
 from glsynth.core.config import Config, MaterialsConfig, config_to_dict
-from glsynth.core.errors import UserError
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json
+from glsynth.core.errors import UserError, named
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, jsonable
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.flight_export import (
     Frame,
@@ -39,9 +41,16 @@ from glsynth.data.flight_export import (
     write_colmap,
     write_transforms,
 )
+from glsynth.data.readers import (
+    is_marker,
+    read_float_map,
+    read_json,
+    read_label_map,
+    read_rgb_image,
+)
 from glsynth.render.export import export_environment
 from glsynth.render.gl.renderer import RenderOutput
-from glsynth.render.view import EnvironmentView, write_render
+from glsynth.render.view import EnvironmentView, free_camera_json, write_render
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import build_environment
 from glsynth.world.flights import FlightPlan, plan_flight, ring_overlap_pct, sensor_height_mm
@@ -65,14 +74,16 @@ def _prepare(out: Path, config: Config, root_seed: int, env: int) -> None:
     digest = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
     identity = {"root_seed": root_seed, "env": env, "config_sha256": digest.hexdigest()}
     run_file = out / RUN_FILE
-    if run_file.exists():
-        if json.loads(run_file.read_text()) != identity:
-            raise UserError(f"--out {str(out)!r} holds a flight with other settings; use a new "
+    if os.path.lexists(run_file):
+        recorded = read_json(run_file, {}, "move the folder aside and fly into a new one",
+                             "flight run file")
+        if recorded != identity:
+            raise UserError(f"--out {named(out)} holds a flight with other settings; use a new "
                             "folder, or the same preset, config, seed and env to resume it")
         for stale in out.rglob(".*.tmp"):  # interrupted atomic writes of a killed run
             stale.unlink()
     elif any(p.name not in (DRIVER_LOCK, WORKERS_LOCK) for p in out.iterdir()):
-        raise UserError(f"--out {str(out)!r} is not empty and holds no glsynth flight; use a "
+        raise UserError(f"--out {named(out)} is not empty and holds no glsynth flight; use a "
                         "new or empty folder")
     atomic_write_json(run_file, identity)
 
@@ -101,16 +112,23 @@ def _distorted(output: RenderOutput, where: np.ndarray | None) -> RenderOutput:
                         crack_width=resample(output.crack_width, where, nearest=True))
 
 
-def _read_frame(out: Path, index: int) -> Frame:
+FRAME_FIX = "it is rendered again on resume"
+
+
+def _read_frame(out: Path, index: int, camera: Camera, lens: Lens, info: dict) -> Frame:
+    """Frame ``index`` as written, each file checked against its contract (glsynth.data.
+    readers) and its camera.json against ``info``, what the plan writes there."""
     folder = out / "frames" / frame_name(index)
-    info = json.loads((folder / "camera.json").read_text())
-    camera = Camera(info["width"], info["height"], info["focal_mm"], info["sensor_mm"],
-                    np.array(info["pose"]), info["znear"], info["zfar"])
-    lens = Lens(info["lens"]["model"], info["lens"]["k1"], info["lens"]["k2"])
+    written = read_json(folder / "camera.json", {}, FRAME_FIX, "frame camera")
+    if written != json.loads(json.dumps(jsonable(info))):
+        raise UserError(f"frame camera {named(folder / 'camera.json')} is not the camera this "
+                        f"flight plans for frame {index}; {FRAME_FIX}")
+    size = (camera.width, camera.height)
     return Frame(f"frames/{frame_name(index)}/image.png", camera, lens, info["time_s"],
-                 np.asarray(Image.open(folder / "image.png").convert("RGB")),
-                 np.asarray(Image.open(folder / "component.png")),
-                 np.asarray(Image.open(folder / "damage.png")), np.load(folder / "depth.npy"))
+                 read_rgb_image(folder / "image.png", "frame image", size),
+                 read_label_map(folder / "component.png", "component", size),
+                 read_label_map(folder / "damage.png", "damage", size),
+                 read_float_map(folder / "depth.npy", "frame depth map", size, FRAME_FIX))
 
 
 def exposed(view: EnvironmentView, cameras: list[Camera], mode: str) -> Lighting:
@@ -131,26 +149,40 @@ def exposed(view: EnvironmentView, cameras: list[Camera], mode: str) -> Lighting
     return lighting
 
 
-def _render_frames(view: EnvironmentView, out: Path, cameras: list[Camera],
-                   sources: list[Camera], where: np.ndarray | None,
-                   frame_meta: Callable[[int], dict]) -> int:
-    """Render the frames without a marker from their ``sources`` (the pinhole cameras the
-    lens resamples, glsynth.world.lens) and write them; how many were rendered."""
+def _finished(out: Path, index: int, read: Callable[[int], Frame]) -> bool:
+    """Whether frame ``index`` has its marker and files that pass their checks; a frame
+    with a marker whose files do not is rendered again, with a warning naming the file."""
+    marker = out / "progress" / f"{frame_name(index)}.done"
+    if not is_marker(marker):
+        return False
+    try:
+        read(index)
+    except UserError as err:
+        warnings.warn(f"rendering {frame_name(index)} again: {err}", stacklevel=2)
+        marker.unlink()
+        return False
+    return True
+
+
+def _render_frames(view: EnvironmentView, out: Path, sources: list[Camera],
+                   where: np.ndarray | None, write: Callable[[int, RenderOutput], None],
+                   read: Callable[[int], Frame]) -> int:
+    """Render the frames not yet _finished from their ``sources`` (the pinhole cameras the
+    lens resamples, glsynth.world.lens) and ``write`` them; how many were rendered."""
     rendered = 0
-    for index, (camera, source) in enumerate(zip(cameras, sources, strict=True)):
-        marker = out / "progress" / f"{frame_name(index)}.done"
-        if marker.exists():
+    for index, source in enumerate(sources):
+        if _finished(out, index, read):
             continue
-        output = _distorted(view.renderer.render(source), where)
-        write_render(out / "frames" / frame_name(index), camera, output, frame_meta(index))
-        atomic_write_bytes(marker, b"")
+        # What a killed run or a damaged frame left there (a folder where a file goes) goes.
+        shutil.rmtree(out / "frames" / frame_name(index), ignore_errors=True)
+        write(index, _distorted(view.renderer.render(source), where))
+        atomic_write_bytes(out / "progress" / f"{frame_name(index)}.done", b"")
         rendered += 1
     return rendered
 
 
-def export_flight(out: Path, n_frames: int, config: Config) -> dict:
+def export_flight(out: Path, frames: list[Frame], config: Config) -> dict:
     """sparse/0, transforms.json and points.ply from the frames' files; their counts."""
-    frames = [_read_frame(out, i) for i in range(n_frames)]
     points = sample_points(frames, config.flight.point_stride_px, config.flight.point_spacing_m)
     ids, pixels = visibility(frames, points["xyz"])
     seen_by: list[list[int]] = [[] for _ in range(len(points["xyz"]))]
@@ -171,9 +203,17 @@ def _check_renderer(config: Config) -> None:
                         'with GL; set renderer = "gl" in --config')
 
 
-def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dict:
-    """Plan, validate, render the frames not yet written, then export; the caller holds the
-    folder's run lock. Returns the flight's summary (flight.json) and timings."""
+@dataclass(frozen=True)
+class CheckedFlight:
+    """What check_flight found: the plan, its lens, and the canvas the lens resamples."""
+
+    plan: FlightPlan
+    lens: Lens
+    size: Camera
+
+
+def check_flight(config: Config, root_seed: int, env_index: int) -> CheckedFlight:
+    """Plan and validate the flight, writing nothing: a refused plan leaves no folder."""
     _check_renderer(config)
     plan = plan_flight(build_environment(config, root_seed, env_index), config, validate=True)
     fc, r = config.flight, config.render
@@ -181,10 +221,33 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
     # The lens's canvas depends on the intrinsics alone, not on a pose; making it checks them.
     size = source_camera(Camera(r.width, r.height, fc.focal_mm, config.cameras.sensor_mm,
                                 np.eye(4), r.znear_m, r.zfar_m), lens)
-    _prepare(out, config, root_seed, env_index)  # after the checks: a refused plan writes nothing
-    if (out / "flight.json").exists():  # written last: the flight is complete
-        return {**json.loads((out / "flight.json").read_text()), "open_s": 0.0, "rendered": 0,
-                "render_s_per_frame": None}
+    return CheckedFlight(plan, lens, size)
+
+
+def _finished_flight(out: Path) -> dict | None:
+    """flight.json, written last, of a complete flight; None if the flight is not complete,
+    or if the file is damaged (with a warning: the exports are then made again)."""
+    path = out / "flight.json"
+    if not os.path.lexists(path):
+        return None
+    try:
+        return read_json(path, {"plan": str, "frames": int, "spacing_m": (int, float),
+                                "parts_built": int, "parts": int, "points": int},
+                         "it is made again", "flight summary")
+    except UserError as err:
+        warnings.warn(str(err), stacklevel=2)
+        return None
+
+
+def run_flight(config: Config, root_seed: int, env_index: int, out: Path,
+               checked: CheckedFlight) -> dict:
+    """Render the frames of a checked flight not yet written, then export; the caller holds
+    the folder's run lock. Returns the flight's summary (flight.json) and timings."""
+    _prepare(out, config, root_seed, env_index)
+    done = _finished_flight(out)
+    if done is not None:
+        return {**done, "open_s": 0.0, "rendered": 0, "render_s_per_frame": None}
+    plan, lens, size, fc = checked.plan, checked.lens, checked.size, config.flight
     t0 = time.perf_counter()
     source_config = replace(config, render=replace(config.render, width=size.width,
                                                    height=size.height),
@@ -199,8 +262,18 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
         lighting = exposed(view, sources, fc.exposure)
         meta = {"root_seed": root_seed, "env": env_index, "renderer": "gl",
                 "exposure": lighting.exposure}
-        rendered = _render_frames(view, out, cameras, sources, where,
-                                  lambda index: _frame_meta(lens, plan, index, meta))
+
+        def info(index: int) -> dict:
+            return free_camera_json(cameras[index], _frame_meta(lens, plan, index, meta))
+
+        def read(index: int) -> Frame:
+            return _read_frame(out, index, cameras[index], lens, info(index))
+
+        def write(index: int, output: RenderOutput) -> None:
+            write_render(out / "frames" / frame_name(index), cameras[index], output,
+                         _frame_meta(lens, plan, index, meta))
+
+        rendered = _render_frames(view, out, sources, where, write, read)
     render_s = time.perf_counter() - t1
     export_environment(view.environment, out / "environment.glb", view.dressing.materials,
                        lighting)
@@ -210,7 +283,7 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path) -> dic
                "exposure": lighting.exposure,
                "duration_s": float(plan.times_s[-1]), "parts_built": len(view.scene.parts),
                "parts": len(view.environment.parts),
-               **export_flight(out, len(plan), config),
+               **export_flight(out, [read(i) for i in range(len(plan))], config),
                "flight": config_to_dict(config)["flight"]}
     atomic_write_json(out / "flight.json", summary)
     return {**summary, "open_s": opened, "rendered": rendered,

@@ -1,14 +1,17 @@
-"""One reader per kind of file glsynth reads back: JSON documents (progress markers, the run
-file, a training run's settings and class weights), label maps, depth maps and training-cache
-entries. Each checks its kind's contract (docs/design.md, "Files read back") and refuses
-anything else with one UserError line naming the file and the fix; the callers that can make a
-file again (progress markers, cache entries) catch that and redo it with a warning.
-Manifests are read by glsynth.data.tokaido.read_manifest, TOML by glsynth.core.config.
+"""One reader per kind of file glsynth reads back: JSON documents (progress markers, run
+files, a training run's settings and class weights), label maps, depth and crack-width maps,
+render and flight images and training-cache entries. Each reads through glsynth.core.reading
+(a regular file within its size; bounded JSON) and checks its kind's contract (docs/design.md,
+"Files read back"), refusing anything else with one UserError line naming the file and the
+fix; the callers that can make a file again (progress markers, flight frames, cache entries)
+catch that and redo it with a warning. Manifests are read by glsynth.data.tokaido.read_manifest,
+TOML by glsynth.core.config, both through glsynth.core.reading.
 """
 
 import io
-import json
 import math
+import os
+import stat
 import warnings
 import zipfile
 from pathlib import Path
@@ -16,40 +19,57 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from glsynth.core.errors import UserError, shown
+from glsynth.core.errors import UserError, named, shown
 from glsynth.core.labels import LABEL_MAPS
+from glsynth.core.reading import (
+    MAX_ARRAY_BYTES,
+    MAX_IMAGE_BYTES,
+    MAX_JSON_BYTES,
+    check_file,
+    parse_json,
+    read_bytes,
+    read_npy,
+    remove_entry,
+)
 from glsynth.data.tokaido import LABEL_STRIDE
 
-MAX_JSON_BYTES = 64 * 2**20
-"""A glsynth JSON document is at most a few MB (a marker of 200 views is 0.1 MB)."""
 
-
-def read_json(path: Path, keys: dict[str, type | tuple[type, ...]], fix: str) -> dict:
-    """A JSON object holding at least ``keys`` (name -> type); ``fix`` ends the message."""
-    try:
-        size = path.stat().st_size
-        if size > MAX_JSON_BYTES:
-            raise UserError(f"{str(path)!r} is {size:,} bytes, more than any glsynth JSON "
-                            f"file; {fix}")
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{str(path)!r} does not exist; {fix}") from None
-    except (UnicodeDecodeError, ValueError, RecursionError) as err:
-        if isinstance(err, UserError):
-            raise
-        reason = str(err).splitlines()[0][:80] if str(err) else type(err).__name__
-        raise UserError(f"{str(path)!r} is not valid JSON ({reason}); {fix}") from None
+def read_json(path: Path, keys: dict[str, type | tuple[type, ...]], fix: str,
+              what: str = "") -> dict:
+    """A JSON object holding at least ``keys`` (name -> type) from a regular file of at most
+    MAX_JSON_BYTES (read_bytes, parse_json); ``what`` starts the message, ``fix`` ends it."""
+    where = f"{what} {named(path)}".strip()
+    data = parse_json(read_bytes(path, what, MAX_JSON_BYTES, fix), where, fix)
     if not isinstance(data, dict):
-        raise UserError(f"{str(path)!r} holds a JSON {type(data).__name__}, not an object; "
-                        f"{fix}")
+        raise UserError(f"{where} holds a JSON {type(data).__name__}, not an object; {fix}")
     for key, kind in keys.items():
         if key not in data:
-            raise UserError(f"{str(path)!r} has no {key!r}; {fix}")
+            raise UserError(f"{where} has no {key!r}; {fix}")
         if not isinstance(data[key], kind) or isinstance(data[key], bool) and kind in (int,
                                                                                        float):
-            raise UserError(f"{str(path)!r}: {key} = {shown(data[key], 40)} is not a "
+            raise UserError(f"{where}: {key} = {shown(data[key], 40)} is not a "
                             f"{getattr(kind, '__name__', 'value of the right type')}; {fix}")
     return data
+
+
+def is_marker(path: Path) -> bool:
+    """Whether a progress marker (an empty file, or a JSON one its reader checks) is there: a
+    regular file. Anything else in its place (a folder, a FIFO) is removed with a warning
+    where it can be, so that its unit is done again, and refused with one line where not."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return False
+    if stat.S_ISREG(mode):
+        return True
+    warnings.warn(f"progress marker {named(path)} is not a file; its unit is done again",
+                  stacklevel=2)
+    try:
+        path.rmdir() if stat.S_ISDIR(mode) else path.unlink()
+    except OSError as err:
+        raise UserError(f"progress marker {named(path)} is not a file and cannot be removed "
+                        f"({err.strerror}); remove it and run the same command again") from None
+    return False
 
 
 def read_class_weights(path: Path, n_classes: int) -> list[float]:
@@ -60,37 +80,36 @@ def read_class_weights(path: Path, n_classes: int) -> list[float]:
         isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w >= 0
         for w in weights)
     if not ok:
-        raise UserError(f"{str(path)!r}: weights = {shown(weights, 40)} is not {n_classes} "
+        raise UserError(f"{named(path)}: weights = {shown(weights, 40)} is not {n_classes} "
                         f"finite numbers >= 0; {fix}")
     return [float(w) for w in weights]
 
 
 def _open_map(path: Path, what: str) -> Image.Image:
-    """A map image opened lazily, with a crafted or damaged header refused."""
+    """A map image opened lazily (check_file first), with a crafted or damaged header
+    refused."""
+    check_file(path, what, MAX_IMAGE_BYTES, "check the dataset's manifest and its files")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", Image.DecompressionBombWarning)
             return Image.open(path)
-    except FileNotFoundError:
-        raise UserError(f"{what} {str(path)!r} does not exist; check the dataset's manifest "
-                        "and its files") from None
     except (Image.DecompressionBombError, Image.DecompressionBombWarning):
-        raise UserError(f"{what} {str(path)!r} claims more than {Image.MAX_IMAGE_PIXELS:,} "
+        raise UserError(f"{what} {named(path)} claims more than {Image.MAX_IMAGE_PIXELS:,} "
                         "pixels; the file is damaged: write it again") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
-        raise UserError(f"{what} {str(path)!r} is not a readable image "
+        raise UserError(f"{what} {named(path)} is not a readable image "
                         f"({type(err).__name__}); write it again") from None
 
 
 def _pixels(im: Image.Image, path: Path, what: str, size: tuple[int, int] | None) -> np.ndarray:
     if size is not None and im.size != tuple(size):
-        raise UserError(f"{what} {str(path)!r} is {im.width}x{im.height}; it must be "
-                        f"{size[0]}x{size[1]}, a third of its image: write it again")
+        raise UserError(f"{what} {named(path)} is {im.width}x{im.height}; it must be "
+                        f"{size[0]}x{size[1]}, the size its image gives: write it again")
     try:
         with im:
             return np.asarray(im)
     except (OSError, SyntaxError, ValueError) as err:  # truncated or corrupt pixel data
-        raise UserError(f"{what} {str(path)!r} is damaged ({type(err).__name__}); write it "
+        raise UserError(f"{what} {named(path)} is damaged ({type(err).__name__}); write it "
                         "again") from None
 
 
@@ -102,6 +121,17 @@ def map_size(image: Path) -> tuple[int, int]:
         return im.width // LABEL_STRIDE, im.height // LABEL_STRIDE
 
 
+def read_rgb_image(path: Path, what: str, size: tuple[int, int]) -> np.ndarray:
+    """uint8 (height, width, 3) pixels of an 8-bit RGB image glsynth wrote (a render's or a
+    flight frame's image.png) of ``size`` = (width, height)."""
+    im = _open_map(path, what)
+    if im.mode != "RGB":
+        im.close()
+        raise UserError(f"{what} {named(path)} is a {im.mode} image, not 8-bit RGB: write it "
+                        "again")
+    return _pixels(im, path, what, size)
+
+
 def read_label_map(path: Path, kind: str, size: tuple[int, int] | None = None) -> np.ndarray:
     """uint8 ids of a ``kind`` ("component" or "damage") label map: one 8-bit channel (mode L
     or P, as the released .bmp files), ids within the kind's range, ``size`` = (width,
@@ -109,12 +139,12 @@ def read_label_map(path: Path, kind: str, size: tuple[int, int] | None = None) -
     im = _open_map(path, f"{kind} label map")
     if im.mode not in ("L", "P"):
         im.close()
-        raise UserError(f"{kind} label map {str(path)!r} is a {im.mode} image; label maps hold "
+        raise UserError(f"{kind} label map {named(path)} is a {im.mode} image; label maps hold "
                         "one 8-bit channel of ids (mode L or P): write it again as such")
     ids = _pixels(im, path, f"{kind} label map", size)
     top = max(LABEL_MAPS[kind])
     if ids.size and int(ids.max()) > top:
-        raise UserError(f"{kind} label map {str(path)!r} holds id {int(ids.max())}; "
+        raise UserError(f"{kind} label map {named(path)} holds id {int(ids.max())}; "
                         f"{kind} ids are 0 to {int(top)}: fix the map")
     return ids
 
@@ -126,7 +156,7 @@ def _read_16bit_map(path: Path, what: str, encoding: str, size: tuple[int, int] 
     im = _open_map(path, what)
     if not im.mode.startswith("I;16"):
         im.close()
-        raise UserError(f"{what} {str(path)!r} is a {im.mode} image; {what}s are 16-bit "
+        raise UserError(f"{what} {named(path)} is a {im.mode} image; {what}s are 16-bit "
                         f"one-channel PNG ({encoding}): write it again as such")
     return _pixels(im, path, what, size).astype(np.uint16)
 
@@ -141,20 +171,19 @@ def read_crack_width_map(path: Path, size: tuple[int, int] | None = None) -> np.
     return _read_16bit_map(path, "crack-width map", "0.01 mm steps", size)
 
 
-def read_float_map(path: Path, what: str, size: tuple[int, int]) -> np.ndarray:
-    """A float32 (height, width) ``.npy`` map of ``size`` = (width, height): ``glsynth
-    render``'s depth.npy and crack_width.npy."""
-    fix = "write it again with glsynth render"
-    try:
-        data = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise UserError(f"{what} {str(path)!r} does not exist; {fix}") from None
-    except (OSError, ValueError) as err:
-        raise UserError(f"{what} {str(path)!r} is not a .npy array "
-                        f"({str(err).splitlines()[0][:80]}); {fix}") from None
+def read_float_map(path: Path, what: str, size: tuple[int, int],
+                   fix: str = "write it again with glsynth render") -> np.ndarray:
+    """A float32 (height, width) ``.npy`` map of ``size`` = (width, height), finite and >= 0
+    everywhere: ``glsynth render``'s and ``glsynth fly``'s depth.npy (metres, zfar where
+    nothing is) and crack_width.npy (millimetres, 0 where no crack is)."""
+    data = read_npy(path, what, fix)
     if data.dtype != np.float32 or data.shape != (size[1], size[0]):
-        raise UserError(f"{what} {str(path)!r} is {data.dtype} of shape {data.shape}; it must "
-                        f"be float32 of shape {(size[1], size[0])}, the image's: {fix}")
+        raise UserError(f"{what} {named(path)} is {data.dtype} of shape {shown(data.shape, 30)}; "
+                        f"it must be float32 of shape {(size[1], size[0])}, the image's: {fix}")
+    bad = ~(np.isfinite(data) & (data >= 0))
+    if bad.any():
+        raise UserError(f"{what} {named(path)} holds {int(bad.sum()):,} values that are not "
+                        f"finite and >= 0 (NaN, infinite or negative); {fix}")
     return data
 
 
@@ -170,6 +199,7 @@ def read_cache_entry(path: Path, key: str, shape: tuple[int, ...]) -> np.ndarray
     there is none. An entry that is unreadable, foreign (another key), or of another dtype
     or shape is removed with a warning naming it, so that the caller makes it again."""
     try:
+        check_file(path, "training-cache entry", MAX_ARRAY_BYTES, "it is made again")
         with np.load(path, allow_pickle=False) as data:
             if not {"rgb", "key"} <= set(data.files):
                 raise ValueError("not a glsynth cache entry")
@@ -179,9 +209,10 @@ def read_cache_entry(path: Path, key: str, shape: tuple[int, ...]) -> np.ndarray
         if rgb.dtype != np.uint8 or rgb.shape != tuple(shape):
             raise ValueError(f"{rgb.dtype} {rgb.shape}, not uint8 {tuple(shape)}")
         return rgb
-    except FileNotFoundError:
-        return None
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as err:
-        warnings.warn(f"training cache: remaking {str(path)!r} ({err})", stacklevel=2)
-        path.unlink(missing_ok=True)
+        if not os.path.lexists(path):
+            return None
+        warnings.warn(f"training cache: remaking {named(path)} ({shown(str(err), 100)})",
+                      stacklevel=2)
+        remove_entry(path)
         return None

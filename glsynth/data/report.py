@@ -1,7 +1,7 @@
 """What a generation run reports to people: report.json's record of each run (images, time,
 memory) and a contact sheet of samples with label overlays."""
 
-import json
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
 from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
-from glsynth.data.readers import map_size, read_depth_map, read_label_map
+from glsynth.data.readers import map_size, read_depth_map, read_json, read_label_map
 from glsynth.data.tokaido import decode_depth, read_manifest
 
 
@@ -57,17 +57,13 @@ def run_record(tally: RunTally, engine: str, workers: int, wall_s: float) -> dic
 def recorded_runs(report: Path) -> list[dict]:
     """The runs recorded in a dataset's report.json; none before its first report. Read before
     any work, so an unreadable report is refused with one line."""
-    if not report.exists():
+    if not os.path.lexists(report):
         return []
-    try:
-        recorded = json.loads(report.read_text())
-    except ValueError as error:
-        raise UserError(f"{report}: not valid JSON ({error}); move it aside and run "
-                        "again") from None
-    runs = recorded.get("runs") if isinstance(recorded, dict) else None
-    if not isinstance(runs, list):
-        raise UserError(f"{report}: holds no list of runs, so it is not a report of this "
-                        "glsynth; move it aside and run again")
+    fix = "move it aside and run again"
+    runs = read_json(report, {"runs": list}, fix, "dataset report")["runs"]
+    if not all(isinstance(run, dict) for run in runs):
+        raise UserError(f"dataset report {named(report)}: runs holds other than run records, "
+                        f"so it is not a report of this glsynth; {fix}")
     return runs
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glsynth.core.errors import UserError, shown
+from glsynth.core.errors import UserError, named, shown
 from glsynth.core.labels import Component, Damage
 from glsynth.core.surfaces import MAX_AREA_FACTOR
 from glsynth.data.filters import rrdr
@@ -235,7 +235,7 @@ def read_removals(root: str | Path) -> dict[str, dict[str, int]] | None:
             return None  # a run from before removals were recorded by camera kind
         if not all(k in removed and all(type(n) is int for n in v.values())
                    for k, v in by_kind.items()):
-            raise UserError(f"{str(marker)!r}: removed = {shown(by_kind, 40)} is not counts "
+            raise UserError(f"{named(marker)}: removed = {shown(by_kind, 40)} is not counts "
                             f"by camera kind and reason; {fix}")
         for kind, reasons in by_kind.items():
             for reason, n in reasons.items():

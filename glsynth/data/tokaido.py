@@ -27,9 +27,10 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
-from glsynth.core.errors import UserError, shown
+from glsynth.core.errors import UserError, named, shown
 from glsynth.core.images import nearest_resize
 from glsynth.core.labels import Damage
+from glsynth.core.reading import MAX_MANIFEST_BYTES, read_bytes
 
 DEPTH_NEAR_M = 0.5
 DEPTH_FAR_M = 30.0
@@ -189,7 +190,7 @@ def safe_path(root: Path, relative: str, where: str) -> Path:
             from None
     if not path.is_relative_to(root.resolve()):
         raise UserError(f"{where}: path {shown(relative)} escapes the dataset root "
-                        f"{str(root)!r}")
+                        f"{named(root)}")
     return path
 
 
@@ -197,20 +198,19 @@ def read_manifest(root: str | Path, name: str) -> list[FrameRecord] | list[Puret
     """Rows of files_{train,test}.csv (7 columns) or files_puretex_*.csv (2 columns)."""
     root = Path(root)
     path = root / name
-    if not path.is_file():
-        raise UserError(f"manifest {str(path)!r} does not exist; is {str(root)!r} a "
-                        "Tokaido-layout dataset root?")
+    data = read_bytes(path, "manifest", MAX_MANIFEST_BYTES,
+                      f"is {named(root)} a Tokaido-layout dataset root?")
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = data.decode("utf-8")
     except UnicodeDecodeError as err:
-        raise UserError(f"manifest {str(path)!r} is not UTF-8 text (byte {err.start}); save it "
+        raise UserError(f"manifest {named(path)} is not UTF-8 text (byte {err.start}); save it "
                         "as UTF-8") from None
     rows = []
     try:
         for line_no, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
-            rows += _manifest_row(root, row, f"{str(path)!r} line {line_no}")
+            rows += _manifest_row(root, row, f"{named(path)} line {line_no}")
     except csv.Error as err:
-        raise UserError(f"manifest {str(path)!r}: {err}; each line holds 7 (frames) or 2 "
+        raise UserError(f"manifest {named(path)}: {err}; each line holds 7 (frames) or 2 "
                         "(plates) comma-separated paths and values") from None
     return rows
 

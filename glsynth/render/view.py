@@ -101,6 +101,12 @@ class EnvironmentView:
         return placement, self.renderer.render(placement.camera, passes)
 
 
+def free_camera_json(camera: Camera, meta: dict) -> dict:
+    """camera.json of a bare Camera (placed by hand or flown): kind "free" unless ``meta``
+    names another."""
+    return {**camera.to_json(), "kind": "free", **meta}
+
+
 def write_render(out_dir: str | Path, placement: CameraPlacement | Camera,
                  output: RenderOutput, meta: dict) -> None:
     """image.png, component.png, damage.png (uint8 ids), crack_width.npy (float32 mm, 0
@@ -114,7 +120,7 @@ def write_render(out_dir: str | Path, placement: CameraPlacement | Camera,
     atomic_write_bytes(out / "crack_width.npy", npy_bytes(output.crack_width))
     atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
     if isinstance(placement, Camera):
-        atomic_write_json(out / "camera.json", {**placement.to_json(), "kind": "free", **meta})
+        atomic_write_json(out / "camera.json", free_camera_json(placement, meta))
         return
     info = placement.camera.to_json()
     info.update(camera_index=placement.index, kind=placement.kind, s_m=placement.s_m,

@@ -1,11 +1,11 @@
 """A camera as JSON: what the viewer's "copy camera" gives and ``glsynth render --camera-json``
 reads (render's own camera.json is accepted too: it holds the same keys and more)."""
 
-import json
 from pathlib import Path
 
 from glsynth.core.config import Config
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
+from glsynth.core.reading import MAX_JSON_BYTES, parse_json, read_bytes
 from glsynth.view.protocol import FOCAL_MM, number_field, rigid_pose
 from glsynth.world.cameras import Camera
 
@@ -30,11 +30,11 @@ def camera_from_json(data: object, config: Config) -> Camera:
 
 
 def read_camera_json(path: str | Path, config: Config) -> Camera:
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as err:
-        raise UserError(f"--camera-json {str(path)!r}: not JSON ({err})") from None
+    """The camera of a JSON file, read as every glsynth JSON is (glsynth.data.readers)."""
+    fix = "give a camera.json or the viewer's 'copy camera' JSON"
+    what = f"--camera-json {named(path)}"
+    data = parse_json(read_bytes(Path(path), "--camera-json", MAX_JSON_BYTES, fix), what, fix)
     try:
         return camera_from_json(data, config)
     except UserError as err:
-        raise UserError(f"--camera-json {str(path)!r}: {err}") from None
+        raise UserError(f"{what}: {err}") from None

@@ -90,12 +90,28 @@ def look_pose(position: np.ndarray, yaw: float, pitch: float) -> np.ndarray:
     return pose
 
 
-def _steps(length: float, spacing: float, closed: bool) -> np.ndarray:
+MAX_PLAN_FRAMES = 100_000
+"""The most waypoints a flight plan may have (about a day of rendering at 1 s a frame): a
+plan is counted before its poses are made, so a tiny spacing is refused at once."""
+
+
+def check_plan_size(frames: int | float, spacing: float, fix: str) -> None:
+    """Refuse, before any pose is made, a plan of more than MAX_PLAN_FRAMES waypoints."""
+    if frames > MAX_PLAN_FRAMES:
+        raise UserError(f"[flight] plan: {frames:,.0f} frames {spacing:.3g} m apart, more than "
+                        f"the {MAX_PLAN_FRAMES:,} a plan may have; {fix}")
+
+
+def _steps(length: float, spacing: float, closed: bool, repeats: int = 1) -> np.ndarray:
     """Fractions in [0, 1] of a path of ``length``: at most ``spacing`` apart; a closed path
-    leaves out its end (the start again); a path of length 0 has one."""
+    leaves out its end (the start again); a path of length 0 has one. Refused where the path,
+    flown ``repeats`` times, would take more than MAX_PLAN_FRAMES frames."""
     if length <= 0:
         return np.zeros(1)
-    n = max(1, math.ceil(length / spacing - 1e-9))
+    n = max(1.0, math.ceil(length / spacing - 1e-9))
+    check_plan_size(repeats * (n if closed else n + 1), spacing,
+                    "lower forward_overlap_pct or shorten the path in [flight]")
+    n = int(n)
     return np.arange(n) / n if closed else np.arange(n + 1) / n
 
 
@@ -113,8 +129,9 @@ def _orbit(env: Environment, flight: FlightConfig, spacing: float) -> list[np.nd
     arc = math.radians(flight.arc_deg)
     closed = flight.arc_deg >= 360.0
     poses = []
+    steps = _steps(arc * radius, spacing, closed, len(flight.heights_m))
     for height in flight.heights_m:
-        for t in _steps(arc * radius, spacing, closed):
+        for t in steps:
             angle = col.heading + math.pi / 2 + t * arc  # start facing the left side's face
             position = np.array([col.center_xy[0] + radius * math.cos(angle),
                                  col.center_xy[1] + radius * math.sin(angle),
@@ -160,6 +177,8 @@ def _facade(env: Environment, flight: FlightConfig, spacing: float, sensor_h_mm:
     high = np.maximum(traj.deck_at(s) - d.slab_thickness_m - margin, low)
     row_step = (1 - flight.side_overlap_pct / 100) * tall
     n_rows = 1 + math.ceil(float(np.max(high - low)) / row_step - 1e-9)
+    check_plan_size(n_rows * len(s), spacing, "lower side_overlap_pct or forward_overlap_pct "
+                    "in [flight]")
     poses = []
     for k in range(n_rows):  # bottom to top, turning at each end (a lawnmower)
         z = low + (k / (n_rows - 1) if n_rows > 1 else 0.5) * (high - low)

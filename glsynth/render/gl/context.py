@@ -97,11 +97,12 @@ def create_context(platform: str | None = None) -> tuple[moderngl.Context, str]:
             return _create(name), name
         except Exception as err:  # any failure of one platform: record it, try the next
             reason = " ".join(str(err).split())  # one line, whatever the library wrote
-            tried.append(f"{name.upper()}: {type(err).__name__}: {reason} "
-                         f"(Debian packages: {_PACKAGES[name]})")
-    raise GLUnavailableError("no OpenGL context could be created. Tried: " + "; ".join(tried)
-                             + ". Install the packages named (scripts/install.sh does), or set "
-                               "GLSYNTH_GL_PLATFORM to a platform that works.")
+            reason = reason if len(reason) <= 40 else reason[:37] + "..."  # a 300-char line
+            tried.append(f"{name.upper()}: {type(err).__name__}: {reason}")
+    packages = " ".join(_PACKAGES[name] for name in ([platform] if platform else PLATFORMS))
+    raise GLUnavailableError(f"no OpenGL context ({'; '.join(tried)}); install the Debian "
+                             f"packages {packages} (scripts/install.sh does), or set "
+                             "GLSYNTH_GL_PLATFORM to a platform that works")
 
 
 def device_name(ctx: moderngl.Context) -> str:
