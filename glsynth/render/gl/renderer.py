@@ -168,10 +168,17 @@ class DetailUniforms:
     """The part's box's lower corner in its mesh frame: shaders/mesh.vert subtracts it, so
     that a girder's fragments, hundreds of metres from its frame's origin, keep sub-mm
     steps."""
+    top: float
+    """The box's height: weathering's rain runs down from there."""
+    tint: tuple[float, float, float] | None
+    """Material.weathering_tint; None: the detail is not weathered."""
 
     def set(self, prog: moderngl.Program) -> None:
         prog["u_detail_seed"].value = self.seed
         prog["u_detail_origin"].value = self.origin
+        prog["u_weathering"].value = self.tint is not None
+        prog["u_detail_tint"].value = self.tint or (1.0, 1.0, 1.0)
+        prog["u_detail_top"].value = self.top
 
 
 @dataclass
@@ -586,8 +593,9 @@ class Renderer:
             vaos["labels_spall"] = self._vertex_array("labels_spall", vbo, ibo)
         detail = None
         if material.detail_seed is not None:
-            detail = DetailUniforms(material.detail_seed,
-                                    tuple(float(v) for v in primitive.positions.min(0)))
+            low, high = primitive.positions.min(0), primitive.positions.max(0)
+            detail = DetailUniforms(material.detail_seed, tuple(float(v) for v in low),
+                                    float(high[2] - low[2]), material.weathering_tint)
         if material.cracks is not None or zones is not None or detail is not None:
             name = variant("color", material.cracks is not None, zones is not None,
                            detail is not None)
