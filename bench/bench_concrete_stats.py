@@ -78,8 +78,8 @@ def folder_stats(folder: Path) -> dict:
     files = sorted(p for p in folder.rglob("*") if p.suffix.lower() in {".jpg", ".jpeg",
                                                                           ".png"})
     stats = [image_stats(np.asarray(Image.open(p).convert("RGB"))) for p in files]
-    return {"folder": folder.name, "summary": summarise(stats)} if stats else {
-        "folder": folder.name, "summary": None}
+    name = f"{folder.parent.name}/{folder.name}"  # a data set's images/ folder: its name
+    return {"folder": name, "summary": summarise(stats) if stats else None}
 
 
 def main() -> None:

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 import trimesh
+from scipy import ndimage
 from shader_harness import WIDTH, GlslHarness
 
 from glsynth.appearance.damage_bank import DamageBank
@@ -79,24 +80,41 @@ def inspection_views():
     face and three beam soffits), and camera 1 rendered again after the others."""
     view = EnvironmentView.open(load_config("inspection"), 11, 0)
     try:
-        images = [view.render(i, frozenset({"color"}))[1].color for i in range(4)]
+        outputs = [view.render(i, frozenset({"color", "damage"}))[1] for i in range(4)]
         again = view.render(1, frozenset({"color"}))[1].color
     finally:
         view.renderer.release()
-    return images, again
+    return outputs, again
 
 
 def test_inspection_views_are_exposed_and_varied_as_photographs(inspection_views):
-    images, _ = inspection_views
-    for image in images:
+    outputs, _ = inspection_views
+    for image in (o.color for o in outputs):
         luma = image.reshape(-1, 3).astype(float) @ LUMA
         assert LUMA_RANGE[0] <= luma.mean() <= LUMA_RANGE[1]
         assert SPREAD_RANGE[0] <= luma.std() <= SPREAD_RANGE[1]
 
 
 def test_the_same_seeds_give_the_same_bytes(inspection_views):
-    images, again = inspection_views
-    assert np.array_equal(images[1], again)  # metered again after other exposures
+    outputs, again = inspection_views
+    assert np.array_equal(outputs[1].color, again)  # metered again after other exposures
+
+
+def test_labelled_cracks_stay_darker_than_the_weathered_concrete_beside_them(
+        inspection_views):
+    """Each view's crack pixels against the pixels 3-6 px from them: the crack's cavity
+    must still show through the mottling, streaks and pores."""
+    shown = 0
+    for output in inspection_views[0]:
+        crack = output.crack_width > 0
+        if crack.sum() < 50:
+            continue
+        near = ndimage.binary_dilation(crack, iterations=6)
+        ring = near & ~ndimage.binary_dilation(crack, iterations=3)
+        luma = output.color.astype(float) @ LUMA
+        assert np.median(luma[crack]) < 0.9 * np.median(luma[ring])
+        shown += 1
+    assert shown >= 2  # three in four inspection cameras aim at a crack
 
 
 def test_the_paper_preset_keeps_its_concrete():
