@@ -40,7 +40,7 @@ uniform int u_vis_count;                // 0: no sky occlusion
 uniform sampler2D u_sky_light;          // (hidden irradiance rgb, visibility by the normal)
 uniform sampler2D u_sky_surface;        // (shading normal, linear depth)
 uniform sampler2D u_sky_open;           // mean visibility over all directions
-uniform float u_exposure;
+uniform vec3 u_exposure;  // per channel: the exposure times the white balance
 uniform bool u_has_ao;
 uniform sampler2D u_ao;       // per pixel, from the ssao programs; 1: unoccluded
 

@@ -17,8 +17,11 @@ from glsynth.core.config import MaterialsConfig, load_config
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component
 from glsynth.render.view import EnvironmentView
+from glsynth.world.cameras import FaceAim
 from glsynth.world.environment import Part, build_environment
-from glsynth.world.metering import blocked
+from glsynth.world.lighting import LUMINANCE as LUMINANCE_709
+from glsynth.world.lighting import environment_lighting
+from glsynth.world.metering import blocked, face_irradiance, metered
 
 LUMA = np.array([0.299, 0.587, 0.114])
 LUMA_RANGE = (95.0, 145.0)
@@ -72,6 +75,30 @@ def test_a_box_between_a_point_and_the_sun_blocks_it():
     dirs = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.2, 0.0, 1.0], [0.0, 0.0, -1.0]])
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     assert blocked(np.zeros(3), dirs, [box]).tolist() == [True, False, True, False]
+
+
+def test_a_face_in_shade_is_exposed_up_and_its_light_made_white():
+    """A beam's soffit 3 m up, lit by green-yellow grass and, with a slab over it, by no
+    sky: metered longer than its sunlit side, and white-balanced towards blue."""
+    beam = Part("beam", Component.BEAM, None, trimesh.creation.box((4.0, 0.6, 0.8)),
+                np.eye(4))
+    beam.pose[:3, 3] = (0.0, 0.0, 3.0)
+    slab = Part("slab", Component.SLAB, None, trimesh.creation.box((12.0, 12.0, 0.3)),
+                np.eye(4))
+    slab.pose[:3, 3] = (0.0, 0.0, 3.6)
+    config = load_config("inspection").lighting
+    lighting = environment_lighting(dataclasses.replace(
+        config, sun_elevation_deg=(60.0, 60.0), sun_azimuth_deg=(90.0, 90.0)), 0, 0,
+        ground_albedo=np.array([0.09, 0.09, 0.05]))
+    soffit = FaceAim("beam", "-z", (0.0, 0.0, 2.6), 1.0, 0.0, 0.0, 1)
+    side = FaceAim("beam", "+y", (0.0, 0.3, 3.0), 1.0, 0.0, 0.0, 1)
+    shade = metered(lighting, soffit, [beam, slab], 0.3)
+    sun = metered(lighting, side, [beam], 0.3)
+    assert shade.exposure > 4.0 * sun.exposure
+    light = np.array(shade.white_balance) * face_irradiance(soffit, [beam, slab], lighting)
+    assert np.allclose(light, light[1])  # white, and as bright as metered
+    assert np.isclose(light[1], face_irradiance(soffit, [beam, slab], lighting) @ LUMINANCE_709)
+    assert shade.white_balance[2] > 1.2 * shade.white_balance[1]  # against the green bounce
 
 
 @pytest.fixture(scope="module")

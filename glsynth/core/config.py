@@ -251,8 +251,8 @@ class LightingConfig:
     metering: Literal["scene", "face"] = "scene"
     """"scene": every view at exposure; "face": a view aimed at a member's face ([cameras]
     placement = "faces") is exposed as a camera's light meter sets it: the aimed face's mean
-    luminance, under the sun and sky that reach it, comes out at 18 % grey (docs/design.md,
-    "Metered exposure"). Other views keep exposure."""
+    luminance, under the sun and sky that reach it, comes out at 18 % grey, and the light on
+    it is white-balanced (docs/design.md, "Metered exposure"). Other views keep exposure."""
 
     def __post_init__(self) -> None:
         s = "lighting"

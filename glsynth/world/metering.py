@@ -3,7 +3,9 @@ docs/design.md, "Metered exposure").
 
 A camera's light meter sets the exposure so that what it sees averages middle grey. A view
 aimed at a member's face at 0.3-3 m sees little but that face, so the meter reads the face's
-luminance: its albedo times the irradiance it receives over pi (a diffuse surface). The
+luminance: its albedo times the irradiance it receives over pi (a diffuse surface); its
+automatic white balance makes that irradiance white (the ground's green bounce under a deck,
+the sky's blue on a face in shade). The
 irradiance is the sun's where the aimed point sees the sun, plus the sky's and the lit ground's
 (the renderer's spherical harmonics) through the share of the sky that no part hides.
 Parts hide light by their boxes in their own mesh frames (columns, beams, slabs and the deck's
@@ -65,9 +67,9 @@ def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part]) -> np.n
     return hit
 
 
-def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> float:
-    """Luminance of the irradiance on the aimed face at its aimed point: the sun's where it
-    is not hidden, and the sky's and ground's through the face's unhidden share."""
+def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> np.ndarray:
+    """Linear RGB irradiance (3,) on the aimed face at its aimed point: the sun's (white)
+    where it is not hidden, and the sky's and ground's through the face's unhidden share."""
     member = next(p for p in parts if p.name == aim.member)
     normal = member.pose[:3, :3] @ np.array(FACE_NORMALS[aim.face])
     origin = np.asarray(aim.point, float) + LIFT_M * normal
@@ -84,7 +86,7 @@ def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> 
     # As shaders/color.frag weighs them: the ground's light through at least a quarter.
     ambient = (np.maximum(basis @ sky_sh, 0.0) * sky_open
                + np.maximum(basis @ ground_sh, 0.0) * (0.25 + 0.75 * sky_open))
-    return sun_share + float(ambient @ LUMINANCE)
+    return sun_share + ambient
 
 
 def face_albedo(member: Part, material: Material) -> float:
@@ -96,8 +98,12 @@ def face_albedo(member: Part, material: Material) -> float:
 def metered(lighting: Lighting, aim: FaceAim, parts: Sequence[Part], albedo: float
             ) -> Lighting:
     """``lighting`` with the exposure that puts the aimed face, of luminance albedo
-    ``albedo`` (face_albedo), at MID_GREY: as a diffuse surface, its radiance is its albedo
-    times its irradiance over pi."""
-    luminance = albedo * face_irradiance(aim, parts, lighting) / math.pi
+    ``albedo`` (face_albedo), at MID_GREY (as a diffuse surface, its radiance is its albedo
+    times its irradiance over pi), and the white balance that makes the light on it white,
+    as a camera's automatic white balance does for a grey scene."""
+    irradiance = np.maximum(face_irradiance(aim, parts, lighting), 1e-9)
+    luminance = float(irradiance @ LUMINANCE)
+    balance = tuple(float(v) for v in luminance / irradiance)  # the light grey, as bright
     # A face in full shade under a closed deck: an exposure of at most 1000.
-    return replace(lighting, exposure=MID_GREY / max(luminance, MID_GREY / 1000.0))
+    exposure = MID_GREY / max(albedo * luminance / math.pi, MID_GREY / 1000.0)
+    return replace(lighting, exposure=exposure, white_balance=balance)

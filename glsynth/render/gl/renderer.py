@@ -690,11 +690,12 @@ class Renderer:
         """The uniforms that stay the same for every camera of an environment: all of them
         from ``lighting`` (the SH ambient light, the sky, the sun's strength, the exposure)."""
         sky = self.programs["sky"]
-        sky["u_exposure"].value = lighting.exposure
+        gains = tuple(lighting.exposure * w for w in lighting.white_balance)
+        sky["u_exposure"].value = gains
         sky_sh, ground_sh = lighting.irradiance_sh()
         for name in _COLOR_PROGRAMS:
             color = self.programs[name]
-            color["u_exposure"].value = lighting.exposure
+            color["u_exposure"].value = gains
             color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
             color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
             color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
