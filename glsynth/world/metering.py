@@ -5,9 +5,9 @@ A camera's light meter sets the exposure so that what it sees averages middle gr
 aimed at a member's face at 0.3-3 m sees little but that face, so the meter reads the face's
 luminance: its albedo times the irradiance it receives over pi (a diffuse surface); its
 automatic white balance makes that irradiance white (the ground's green bounce under a deck,
-the sky's blue on a face in shade). The
-irradiance is the sun's where the aimed point sees the sun, plus the sky's and the lit ground's
-(the renderer's spherical harmonics) through the share of the sky that no part hides.
+the sky's blue on a face in shade). The irradiance is the sun's where the aimed point sees
+the sun, plus the sky's and the lit ground's (the renderer's spherical harmonics) through the
+share of the sky that no part hides.
 Parts hide light by their boxes in their own mesh frames (columns, beams, slabs and the deck's
 girders are boxes, or nearly, at the metres that matter here): no GL, no ray-cast library.
 """
@@ -78,14 +78,17 @@ def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> 
     sun_share = lighting.sun_irradiance * max(float(sun @ normal), 0.0)
     if sun_share > 0.0 and blocked(origin, sun[None], others)[0]:
         sun_share = 0.0
-    dirs = hemisphere(normal)
-    up = dirs[dirs[:, 2] > 0.0]
-    sky_open = 1.0 - float(blocked(origin, up, others).mean()) if len(up) else 0.0
+    seen = hemisphere(normal)
+    seen = seen[seen[:, 2] > 0.0]  # the sky the face sees (none from a soffit)
+    face_open = 1.0 - float(blocked(origin, seen, others).mean()) if len(seen) else 0.0
+    point_open = 1.0 - float(blocked(origin, hemisphere(np.array([0.0, 0.0, 1.0])),
+                                     others).mean())
     sky_sh, ground_sh = lighting.irradiance_sh()
     basis = sh_basis(normal[None])[0]
-    # As shaders/color.frag weighs them: the ground's light through at least a quarter.
-    ambient = (np.maximum(basis @ sky_sh, 0.0) * sky_open
-               + np.maximum(basis @ ground_sh, 0.0) * (0.25 + 0.75 * sky_open))
+    # As shaders/color.frag weighs them: the sky through the share the face sees open, the
+    # ground's light through the point's openness to the whole sky, but at least a quarter.
+    ambient = (np.maximum(basis @ sky_sh, 0.0) * face_open
+               + np.maximum(basis @ ground_sh, 0.0) * (0.25 + 0.75 * point_open))
     return sun_share + ambient
 
 
