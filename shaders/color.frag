@@ -15,7 +15,8 @@
 // spalled or rebar (the filtered share u_spall_map), the intact concrete u_intact_map
 // elsewhere: no metal, no relief outside the zones. The detail variant (#define DETAIL)
 // multiplies the base colour by concrete's millimetre-scale detail (concrete_detail.glsl),
-// on the non-metallic share of the surface (not on exposed rebar).
+// on the non-metallic share of the surface (not on exposed rebar), weathered (weathering.glsl)
+// where u_weathering is set.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -34,7 +35,7 @@ uniform int u_vis_count;                // 0: no sky occlusion
 uniform sampler2D u_sky_light;          // (hidden irradiance rgb, visibility by the normal)
 uniform sampler2D u_sky_surface;        // (shading normal, linear depth)
 uniform sampler2D u_sky_open;           // mean visibility over all directions
-uniform float u_exposure;
+uniform vec3 u_exposure;  // per channel: the exposure times the white balance
 
 uniform bool u_has_shadows;
 uniform sampler2DShadow u_shadow_map;
@@ -62,7 +63,10 @@ uniform float u_intact_uv_ratio;  // the intact map's uv_scale over the damage m
 in vec3 v_detail_pos;
 in vec3 v_detail_normal;
 uniform uint u_detail_seed;
-#include "concrete_detail.glsl"
+uniform bool u_weathering;    // weathering.glsl on top of the detail
+uniform vec3 u_detail_tint;   // linear factor: the part's weathered albedo over its image's
+uniform float u_detail_top;   // the part's box's height, mesh frame (where rain runs from)
+#include "weathering.glsl"
 #endif
 
 #include "tonemap.glsl"
@@ -146,8 +150,13 @@ Surface surface_at_fragment() {
     metallic *= spalled;
 #endif
 #ifdef DETAIL
-    base.rgb *= mix(concrete_detail(v_detail_pos, v_detail_normal, u_detail_seed), 1.0,
-                    metallic);
+    if (u_weathering) {
+        base.rgb *= mix(weathered_concrete(v_detail_pos, v_detail_normal, u_detail_seed,
+                                           u_detail_top) * u_detail_tint, vec3(1.0), metallic);
+    } else {
+        base.rgb *= mix(concrete_detail(v_detail_pos, v_detail_normal, u_detail_seed), 1.0,
+                        metallic);
+    }
 #endif
     return Surface(base.rgb, metallic, clamp(u_roughness, 0.04, 1.0),
                    mix(vec3(0.04), base.rgb, metallic));

@@ -88,8 +88,13 @@ float holes(vec2 p, float footprint, float size_m, float share, float r0, float 
 
 // Formwork: plywood panels 1.22 x 2.44 m (a dark joint line 4 mm wide between them), tie
 // holes every 0.6 m (25 mm, mortar-filled: lighter), and the plywood's grain along the panel.
+// The formwork's panel and tie grid offset (in grid units) on the face of salt.
+vec2 formwork_offset(uint salt) {
+    return vec2(unit_float(detail_hash(salt ^ 7u)), unit_float(detail_hash(salt ^ 9u)));
+}
+
 float formwork(vec2 p, float footprint, uint salt) {
-    vec2 offset = vec2(unit_float(detail_hash(salt ^ 7u)), unit_float(detail_hash(salt ^ 9u)));
+    vec2 offset = formwork_offset(salt);
     vec2 panel = fract(p / vec2(1.22, 2.44) + offset) * vec2(1.22, 2.44);
     vec2 edge = min(panel, vec2(1.22, 2.44) - panel);
     float joint = clamp((0.002 + 0.5 * footprint - min(edge.x, edge.y)) / footprint, 0.0, 1.0);
@@ -102,14 +107,22 @@ float formwork(vec2 p, float footprint, uint salt) {
 
 // The detail's factor on the base colour at mesh-frame position pos (relative to the part's
 // own origin: float32 keeps sub-millimetre steps there), normal n (mesh frame), for part seed.
-float concrete_detail(vec3 pos, vec3 n, uint seed) {
+// The face's own plane, by the normal's dominant axis (returned: 0, 1 or 2): p, the position
+// in it (its second coordinate z where the axis is x or y), and its salt; each axis and side
+// its own salt, so that a member's faces differ.
+int detail_face(vec3 pos, vec3 n, uint seed, out vec2 p, out uint salt) {
     vec3 a = abs(n);
-    // The face's own plane, by the normal's dominant axis; each axis and side its own salt,
-    // so that a member's faces differ.
     int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
-    vec2 p = axis == 0 ? pos.yz : (axis == 1 ? pos.xz : pos.xy);
+    p = axis == 0 ? pos.yz : (axis == 1 ? pos.xz : pos.xy);
     float side = axis == 0 ? n.x : (axis == 1 ? n.y : n.z);
-    uint salt = detail_hash(seed ^ uint(2 * axis + int(side > 0.0)) * 0x27d4eb2du);
+    salt = detail_hash(seed ^ uint(2 * axis + int(side > 0.0)) * 0x27d4eb2du);
+    return axis;
+}
+
+float concrete_detail(vec3 pos, vec3 n, uint seed) {
+    vec2 p;
+    uint salt;
+    detail_face(pos, n, seed, p, salt);
     float footprint = max(max(length(dFdx(pos)), length(dFdy(pos))), 1e-6);
     float shade = 1.0 + paste(p, footprint, salt)
                   + 0.22 * resolved(0.0025, footprint) * grains(p, 0.0025, salt ^ 3u)

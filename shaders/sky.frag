@@ -7,7 +7,7 @@
 uniform vec4 u_intrinsics;      // fx, fy, cx, cy in pixels (image rows run top to bottom)
 uniform float u_height;         // image height in pixels
 uniform mat3 u_world_from_view;
-uniform float u_exposure;
+uniform vec3 u_exposure;  // per channel: the exposure times the white balance
 
 layout(location = 0) out vec4 f_color;
 // The colour pass's second target under MSAA (its shading normals, for the resolve): GL leaves

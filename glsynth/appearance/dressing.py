@@ -20,7 +20,9 @@ stream (item = their index); a girder's cracks are made per clear span on a stra
 mapped onto its curved sweep (glsynth.appearance.girder_cracks).
 
 Under ``[materials] concrete_detail = "on"`` every part of the concrete category gets concrete
-detail (Material.detail_seed) from the DETAIL stream (item = its index), which draws nothing.
+detail (Material.detail_seed) from the DETAIL stream (item = its index), which draws nothing;
+under ``weathering = true`` also its weathered albedo and hue (Material.weathering_tint) from
+the WEATHERING stream (item = its index).
 """
 
 import functools
@@ -46,12 +48,14 @@ from glsynth.appearance.materials import (
     Material,
     Materials,
     sample_assignment,
+    srgb_decode,
 )
 from glsynth.appearance.repository import TextureRepository, builtin_repository
 from glsynth.core.config import Config, DamageConfig
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng, make_seed
 from glsynth.world.environment import BOX_BEAMS, Environment, Part, PartKind
+from glsynth.world.lighting import LUMINANCE
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
 _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
@@ -241,14 +245,35 @@ def _spalling(env: Environment, config: Config, bank: DamageBank,
 
 def _with_detail(material: Material,
                  deferred: dict[str, tuple[Material, Callable[[], Material]]], name: str,
-                 seed: int) -> Material:
-    """``material`` with concrete detail of ``seed``; a deferred one's factors and builder
-    are replaced in ``deferred`` too."""
+                 detail: dict) -> Material:
+    """``material`` with the concrete detail fields ``detail`` (_detail); a deferred one's
+    factors and builder are replaced in ``deferred`` too."""
     if name in deferred:
         factors, build = deferred[name]
-        deferred[name] = (replace(factors, detail_seed=seed),
-                          lambda: replace(build(), detail_seed=seed))
-    return replace(material, detail_seed=seed)
+        deferred[name] = (replace(factors, **detail), lambda: replace(build(), **detail))
+    return replace(material, **detail)
+
+
+WARM_GREY = ((1.03, 1.0, 0.95), (1.10, 1.0, 0.84))
+"""The range of weathered concrete's hue, linear RGB over its luminance (docs/design.md,
+"Weathered concrete": concrete's reflectance rises from blue to red)."""
+
+
+def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray) -> dict:
+    """The Material fields of a concrete part's detail: its seed from the DETAIL stream and,
+    under [materials] weathering, the tint that gives it an albedo and hue drawn from the
+    WEATHERING stream (item = ``ordinal``, the part's index) in place of ``image``'s mean."""
+    detail: dict = {"detail_seed": make_seed(env.root_seed, env.env_index, Stream.DETAIL,
+                                             ordinal) % 2**32}
+    if config.materials.weathering:
+        rng = make_rng(env.root_seed, env.env_index, Stream.WEATHERING, ordinal)
+        albedo = rng.uniform(*config.materials.concrete_albedo)
+        warm, cool = np.array(WARM_GREY[1]), np.array(WARM_GREY[0])
+        hue = cool + rng.uniform() * (warm - cool)
+        target = albedo * hue / float(hue @ LUMINANCE)
+        mean = np.maximum(srgb_decode(image).mean((0, 1)), 1e-3)
+        detail["weathering_tint"] = tuple(float(v) for v in target / mean)
+    return detail
 
 
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
@@ -299,7 +324,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             a = replace(a, damage=damage)
         if cfg.concrete_detail == "on" and a.category == "concrete":
             material = _with_detail(material, deferred, part.name,
-                                    make_seed(root, index, Stream.DETAIL, ordinal) % 2**32)
+                                    _detail(config, env, ordinal, image))
         if part.name not in deferred:
             materials[part.name] = material
         assignments[part.name] = a

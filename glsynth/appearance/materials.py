@@ -82,6 +82,10 @@ class Material:
     detail_seed: int | None = None
     """Concrete's millimetre-scale detail (shaders/concrete_detail.glsl), drawn from this
     32-bit seed, multiplies the base colour where the surface is not metal; None: none."""
+    weathering_tint: tuple[float, float, float] | None = None
+    """With detail_seed: the detail is weathered (shaders/weathering.glsl), and this linear
+    factor on the base colour gives the part its weathered albedo (the drawn albedo over the
+    mean of its colour map); None: plain detail."""
 
     def __post_init__(self) -> None:
         if self.zones is not None and (not isinstance(self.zones, DamageZones)
@@ -92,6 +96,11 @@ class Material:
                                                  and 0 <= self.detail_seed < 2**32):
             raise ValueError(f"material.detail_seed = {self.detail_seed!r}: an int in "
                              "[0, 2**32) or None")
+        if self.weathering_tint is not None and (
+                self.detail_seed is None or len(self.weathering_tint) != 3
+                or not all(np.isfinite(v) and v > 0 for v in self.weathering_tint)):
+            raise ValueError(f"material.weathering_tint = {self.weathering_tint!r}: three "
+                             "positive factors, on a material with a detail_seed, or None")
         if self.cracks is not None and not isinstance(self.cracks, CrackNetwork):
             raise ValueError(f"material.cracks: {type(self.cracks).__name__}; must be a "
                              "CrackNetwork or None")

@@ -137,6 +137,15 @@ class Vector:
 
 
 @dataclass(frozen=True)
+class Flag:
+    """true or false (a TOML boolean, not a number)."""
+
+    def check(self, section: str, name: str, value: Any, owner: Any) -> None:
+        if not isinstance(value, bool):
+            fail(section, name, value, "true or false")
+
+
+@dataclass(frozen=True)
 class Numbers:
     """A non-empty tuple of numbers, each in [lo, hi]; ``expected`` says what it holds."""
 

@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 from glsynth.core import design
 from glsynth.core.checks import (
+    Flag,
     Interval,
     Number,
     Numbers,
@@ -208,6 +209,11 @@ class LightingConfig:
     gives no light levels; at 2 (one stop over 1) the Section 3.4 dark filter removes about as
     many views of each camera kind as the paper's did, in GL and in Cycles alike
     (bench/bench_views.py, README "Camera placement")."""
+    metering: Literal["scene", "face"] = "scene"
+    """"scene": every view at exposure; "face": a view aimed at a member's face ([cameras]
+    placement = "faces") is exposed as a camera's light meter sets it: the aimed face's mean
+    luminance, under the sun and sky that reach it, comes out at 18 % grey, and the light on
+    it is white-balanced (docs/design.md, "Metered exposure"). Other views keep exposure."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -407,11 +413,23 @@ class MaterialsConfig:
     draws it in glsynth fly's frames alone, where COLMAP needs features at 1-4 mm a pixel,
     and leaves generate's and render's images as the repository makes them; "on" draws it
     everywhere, "off" nowhere."""
+    weathering: bool = bounded(False, Flag())
+    """Where concrete detail is drawn, also weather the concrete (docs/design.md, "Weathered
+    concrete"): a mean albedo from concrete_albedo in place of the repository image's own,
+    mottling at 0.1-2 m, dirt collecting at the foot of each face, water streaks running down
+    from its top edge, the formwork's joints and tie holes, efflorescence and patch repairs."""
+    concrete_albedo: tuple[float, float] = bounded((0.22, 0.38), Interval(0.02, 0.9))
+    """Under weathering, the range a concrete part's mean albedo (Rec. 709 luminance of its
+    linear base colour) is drawn from, uniformly: weathered concrete's published visible and
+    solar reflectance (docs/design.md, "Weathered concrete")."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.repository, str):
             _reject(self, "repository", "a folder path (string)")
         _validate(self)
+        if self.weathering and self.concrete_detail == "off":
+            _reject(self, "weathering",
+                    'false while concrete_detail = "off" (weathering is drawn with the detail)')
 
 
 @dataclass(frozen=True)
@@ -558,6 +576,10 @@ class Config:
                     '0 unless [damage] model = "mechanics" (the paper model makes no cracks)')
 
 
+_WEATHERED = {"concrete_detail": "on", "weathering": True}
+"""Concrete as a camera at 0.3-3 m sees it (issue 39): every preset but the paper's, whose
+bytes stay those of Section 3.2's repository images."""
+
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
     "paper": {"damage": {"resolution": 2048}},
@@ -567,7 +589,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
-             "damage": {"resolution": 512, "model": "mechanics"}},
+             "damage": {"resolution": 512, "model": "mechanics"},
+             "materials": _WEATHERED},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
     # three in four aimed at a crack from where its width spans 3 pixels or more; slight
@@ -585,7 +608,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                    "spalling_severities": ("slight",), "undamaged_probability": 0.2,
                    "crack_width_mm": (0.05, 1.0)},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
-                    "rrdr_footprint_factor": 2.0}},
+                    "rrdr_footprint_factor": 2.0},
+        "materials": _WEATHERED, "lighting": {"metering": "face"}},
 }
 
 _SECTIONS: dict[str, type] = typing.get_type_hints(Config)

@@ -30,6 +30,9 @@ class Stream(IntEnum):
     DETAIL = 10
     """A concrete part's detail seed (glsynth.appearance.dressing; item = the part's index in
     the environment's part list)."""
+    WEATHERING = 11
+    """A concrete part's weathered albedo (glsynth.appearance.dressing; item = the part's
+    index in the environment's part list)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

@@ -5,7 +5,7 @@ renderer -> files. Every output is written atomically.
 """
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +23,7 @@ from glsynth.world.cameras import Camera, CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
 from glsynth.world.face_cameras import place_cameras
 from glsynth.world.lighting import Lighting, environment_lighting
+from glsynth.world.metering import face_albedo, metered
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
 
@@ -39,6 +40,8 @@ class EnvironmentView:
     placements: list[CameraPlacement] | None = None
     """The environment's sampled cameras, placed once when it was opened; None where it was
     opened for cameras given instead (a flight's)."""
+    _albedo: dict[str, float] = field(default_factory=dict)
+    """Metered members' albedo (glsynth.world.metering.face_albedo), found once each."""
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
@@ -97,8 +100,24 @@ class EnvironmentView:
 
     def render(self, index: int, passes: frozenset[str] = PASSES
                ) -> tuple[CameraPlacement, RenderOutput]:
+        """Sampled camera ``index``'s passes, exposed as [lighting] metering says."""
         placement = self.camera(index)
+        lighting = self.exposure(placement)
+        if lighting is not self.renderer.lighting:
+            self.renderer.relight(lighting)
         return placement, self.renderer.render(placement.camera, passes)
+
+    def exposure(self, placement: CameraPlacement) -> Lighting:
+        """The lighting ``placement`` is rendered under: the environment's, or under
+        [lighting] metering = "face" for a camera aimed at a face, metered on that face
+        (glsynth.world.metering)."""
+        aim = placement.face
+        if self.config.lighting.metering == "scene" or aim is None:
+            return self.lighting
+        if aim.member not in self._albedo:
+            member = next(p for p in self.environment.parts if p.name == aim.member)
+            self._albedo[aim.member] = face_albedo(member, self.dressing.materials[aim.member])
+        return metered(self.lighting, aim, self.environment.parts, self._albedo[aim.member])
 
 
 def free_camera_json(camera: Camera, meta: dict) -> dict:

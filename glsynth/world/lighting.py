@@ -118,6 +118,9 @@ class Lighting:
     """Linear RGB albedo of the ground that lights surfaces from below (the dressed ground's
     mean, glsynth.appearance.materials.surface_albedo; [lighting] ground_albedo without one)."""
     exposure: float
+    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    """Per-channel gains on top of the exposure (a camera's white balance:
+    glsynth.world.metering); the GL renderer applies them, Cycles and the export do not."""
 
     @property
     def sun_direction(self) -> np.ndarray:

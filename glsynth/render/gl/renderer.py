@@ -169,10 +169,17 @@ class DetailUniforms:
     """The part's box's lower corner in its mesh frame: shaders/mesh.vert subtracts it, so
     that a girder's fragments, hundreds of metres from its frame's origin, keep sub-mm
     steps."""
+    top: float
+    """The box's height: weathering's rain runs down from there."""
+    tint: tuple[float, float, float] | None
+    """Material.weathering_tint; None: the detail is not weathered."""
 
     def set(self, prog: moderngl.Program) -> None:
         prog["u_detail_seed"].value = self.seed
         prog["u_detail_origin"].value = self.origin
+        prog["u_weathering"].value = self.tint is not None
+        prog["u_detail_tint"].value = self.tint or (1.0, 1.0, 1.0)
+        prog["u_detail_top"].value = self.top
 
 
 @dataclass
@@ -622,8 +629,9 @@ class Renderer:
                                                                ibo)
         detail = None
         if material.detail_seed is not None:
-            detail = DetailUniforms(material.detail_seed,
-                                    tuple(float(v) for v in primitive.positions.min(0)))
+            low, high = primitive.positions.min(0), primitive.positions.max(0)
+            detail = DetailUniforms(material.detail_seed, tuple(float(v) for v in low),
+                                    float(high[2] - low[2]), material.weathering_tint)
         if material.cracks is not None or zones is not None or detail is not None:
             key = ("color", Variant.of(material.cracks is not None, zones is not None,
                                        detail is not None))
@@ -719,10 +727,11 @@ class Renderer:
         """The uniforms that stay the same for every camera of an environment: all of them
         from ``lighting`` (the SH ambient light, the sky, the sun's strength, the exposure)."""
         sky = self.programs.get("sky")
-        sky["u_exposure"].value = lighting.exposure
+        gains = tuple(lighting.exposure * w for w in lighting.white_balance)
+        sky["u_exposure"].value = gains
         sky_sh, ground_sh = lighting.irradiance_sh()
         for variant, color in self.programs.variants("color"):
-            color["u_exposure"].value = lighting.exposure
+            color["u_exposure"].value = gains
             color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
             color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
             color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())

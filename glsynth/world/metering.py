@@ -1,0 +1,112 @@
+"""A camera's exposure metered on the face it aims at ([lighting] metering = "face";
+docs/design.md, "Metered exposure").
+
+A camera's light meter sets the exposure so that what it sees averages middle grey. A view
+aimed at a member's face at 0.3-3 m sees little but that face, so the meter reads the face's
+luminance: its albedo times the irradiance it receives over pi (a diffuse surface); its
+automatic white balance makes that irradiance white (the ground's green bounce under a deck,
+the sky's blue on a face in shade). The irradiance is the sun's where the aimed point sees
+the sun, plus the sky's and the lit ground's (the renderer's spherical harmonics) through the
+share of the sky that no part hides.
+Parts hide light by their boxes in their own mesh frames (columns, beams, slabs and the deck's
+girders are boxes, or nearly, at the metres that matter here): no GL, no ray-cast library.
+"""
+
+import math
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from glsynth.appearance.materials import Material, surface_albedo
+from glsynth.world.cameras import FaceAim
+from glsynth.world.environment import Part
+from glsynth.world.lighting import LUMINANCE, Lighting, sh_basis
+
+MID_GREY = 0.18
+"""The linear luminance a metered view's aimed face gets (18 % grey, as light meters aim)."""
+
+FACE_NORMALS = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
+                "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
+"""FaceAim.face's outward normal in the member's mesh frame."""
+
+SKY_RAYS = 256
+"""Cosine-weighted directions over the face's hemisphere for its openness (a fixed spiral:
+no generator, the same directions every time); 1/sqrt(256) = 6 % at most in the share."""
+
+LIFT_M = 0.01
+"""Rays start this far off the face, along its normal, so that the member itself hides none."""
+
+
+def hemisphere(normal: np.ndarray, count: int = SKY_RAYS) -> np.ndarray:
+    """``count`` cosine-weighted unit directions about ``normal`` (a Fibonacci spiral on the
+    disk, lifted onto the hemisphere: equal weights)."""
+    k = np.arange(count) + 0.5
+    r, phi = np.sqrt(k / count), k * math.pi * (3.0 - math.sqrt(5.0))
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - r * r)], 1)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t = np.cross(normal, helper)
+    t /= np.linalg.norm(t)
+    return local @ np.stack([t, np.cross(normal, t), normal])
+
+
+def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part]) -> np.ndarray:
+    """(N,) bool: whether each ray from ``origin`` along ``dirs`` (N, 3) meets a part's box
+    (slab test in the part's mesh frame)."""
+    hit = np.zeros(len(dirs), bool)
+    for part in parts:
+        lo, hi = part.mesh.bounds
+        rotation = part.pose[:3, :3]
+        o = rotation.T @ (origin - part.pose[:3, 3])
+        d = dirs @ rotation
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (lo - o) / d, (hi - o) / d
+        near = np.nanmax(np.minimum(t0, t1), axis=1)
+        far = np.nanmin(np.maximum(t0, t1), axis=1)
+        hit |= (far >= np.maximum(near, 0.0))
+    return hit
+
+
+def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> np.ndarray:
+    """Linear RGB irradiance (3,) on the aimed face at its aimed point: the sun's (white)
+    where it is not hidden, and the sky's and ground's through the face's unhidden share."""
+    member = next(p for p in parts if p.name == aim.member)
+    normal = member.pose[:3, :3] @ np.array(FACE_NORMALS[aim.face])
+    origin = np.asarray(aim.point, float) + LIFT_M * normal
+    others = [p for p in parts if p.name != aim.member]
+    sun = lighting.sun_direction
+    sun_share = lighting.sun_irradiance * max(float(sun @ normal), 0.0)
+    if sun_share > 0.0 and blocked(origin, sun[None], others)[0]:
+        sun_share = 0.0
+    seen = hemisphere(normal)
+    seen = seen[seen[:, 2] > 0.0]  # the sky the face sees (none from a soffit)
+    face_open = 1.0 - float(blocked(origin, seen, others).mean()) if len(seen) else 0.0
+    point_open = 1.0 - float(blocked(origin, hemisphere(np.array([0.0, 0.0, 1.0])),
+                                     others).mean())
+    sky_sh, ground_sh = lighting.irradiance_sh()
+    basis = sh_basis(normal[None])[0]
+    # As shaders/color.frag weighs them: the sky through the share the face sees open, the
+    # ground's light through the point's openness to the whole sky, but at least a quarter.
+    ambient = (np.maximum(basis @ sky_sh, 0.0) * face_open
+               + np.maximum(basis @ ground_sh, 0.0) * (0.25 + 0.75 * point_open))
+    return sun_share + ambient
+
+
+def face_albedo(member: Part, material: Material) -> float:
+    """Luminance of the member's mean linear base colour, weathering tint included."""
+    albedo = surface_albedo([member], {member.name: material})
+    return float(albedo * np.asarray(material.weathering_tint or (1.0, 1.0, 1.0)) @ LUMINANCE)
+
+
+def metered(lighting: Lighting, aim: FaceAim, parts: Sequence[Part], albedo: float
+            ) -> Lighting:
+    """``lighting`` with the exposure that puts the aimed face, of luminance albedo
+    ``albedo`` (face_albedo), at MID_GREY (as a diffuse surface, its radiance is its albedo
+    times its irradiance over pi), and the white balance that makes the light on it white,
+    as a camera's automatic white balance does for a grey scene."""
+    irradiance = np.maximum(face_irradiance(aim, parts, lighting), 1e-9)
+    luminance = float(irradiance @ LUMINANCE)
+    balance = tuple(float(v) for v in luminance / irradiance)  # the light grey, as bright
+    # A face in full shade under a closed deck: an exposure of at most 1000.
+    exposure = MID_GREY / max(albedo * luminance / math.pi, MID_GREY / 1000.0)
+    return replace(lighting, exposure=exposure, white_balance=balance)

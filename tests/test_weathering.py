@@ -1,0 +1,171 @@
+"""Weathered concrete (shaders/weathering.glsl) and metered exposure (glsynth.world.metering):
+water marks lie below where the water comes from; inspection views are exposed and varied as
+docs/design.md "Weathered concrete" documents; the same seeds give the same bytes; the paper
+preset keeps neither."""
+
+import dataclasses
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+from shader_harness import WIDTH, GlslHarness
+
+from glsynth.appearance.damage_bank import DamageBank
+from glsynth.appearance.dressing import dress, open_repository
+from glsynth.core.config import MaterialsConfig, load_config
+from glsynth.core.errors import UserError
+from glsynth.core.labels import Component
+from glsynth.render.view import EnvironmentView
+from glsynth.world.cameras import FaceAim
+from glsynth.world.environment import Part, build_environment
+from glsynth.world.lighting import LUMINANCE as LUMINANCE_709
+from glsynth.world.lighting import environment_lighting
+from glsynth.world.metering import blocked, face_irradiance, metered
+
+LUMA = np.array([0.299, 0.587, 0.114])
+LUMA_RANGE = (95.0, 145.0)
+"""docs/design.md "Weathered concrete": an inspection view's mean luma."""
+SPREAD_RANGE = (6.0, 30.0)
+"""docs/design.md "Weathered concrete": an inspection view's luma standard deviation."""
+
+
+@pytest.fixture(scope="module")
+def harness():
+    with GlslHarness("weathering.glsl") as h:
+        yield h
+
+
+def face_grid(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(len(y) * len(x), 4) points (x, y, 0, 0) of a vertical face, rows by y."""
+    gx, gy = np.meshgrid(x, y)
+    pos = np.zeros((gx.size, 4), np.float32)
+    pos[:, 0], pos[:, 1] = gx.ravel(), gy.ravel()
+    return pos
+
+
+def test_rain_streaks_run_down_from_the_top_edge_and_fade(harness):
+    top = 3.0
+    x = np.arange(8 * WIDTH) * 0.004  # 2 m of face, 4 mm a sample
+    heights = np.array([3.4, 3.2, 2.95, 2.8, 2.0, 0.5])  # two above the top edge
+    out = harness.run(f"vec4(rain_streaks(in0.xy, {top}, 0.004, 77u))",
+                      face_grid(x, heights))[:, 0].reshape(len(heights), -1)
+    assert np.all(out[:2] == 0.0)  # no water above its source
+    band = out[2:].mean(1)
+    assert band[0] > 0.02 and np.all(np.diff(band) < 0)  # darkest near the top, then fading
+    assert band[-1] < 0.3 * band[0]
+
+
+def test_efflorescence_lies_below_its_joint(harness):
+    offset = 0.37  # the formwork's grid offset: joints at (k - 0.37) * 2.44
+    joints = (np.arange(1, 4) - offset) * 2.44
+    x = np.arange(16 * WIDTH) * 0.01  # 10 m along the joints
+    below = np.concatenate([joints - d for d in (0.02, 0.06, 0.1)])
+    above = np.concatenate([joints + d for d in (0.05, 0.2, 0.45)])
+    expr = f"vec4(efflorescence(in0.xy, vec2(0.0, {offset}), 0.01, 5u))"
+    under = harness.run(expr, face_grid(x, below))[:, 0]
+    over = harness.run(expr, face_grid(x, above))[:, 0]
+    assert under.mean() > 0.01 and np.all(over == 0.0)
+
+
+def test_a_box_between_a_point_and_the_sun_blocks_it():
+    box = Part("slab", Component.SLAB, None, trimesh.creation.box((2.0, 2.0, 0.2)),
+               np.eye(4))
+    box.pose[:3, 3] = (0.0, 0.0, 3.0)
+    dirs = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.2, 0.0, 1.0], [0.0, 0.0, -1.0]])
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    assert blocked(np.zeros(3), dirs, [box]).tolist() == [True, False, True, False]
+
+
+def test_a_face_in_shade_is_exposed_up_and_its_light_made_white():
+    """A beam's soffit 3 m up, lit by green-yellow grass and, with a slab over it, by no
+    sky: metered longer than its sunlit side, and white-balanced towards blue."""
+    beam = Part("beam", Component.BEAM, None, trimesh.creation.box((4.0, 0.6, 0.8)),
+                np.eye(4))
+    beam.pose[:3, 3] = (0.0, 0.0, 3.0)
+    slab = Part("slab", Component.SLAB, None, trimesh.creation.box((12.0, 12.0, 0.3)),
+                np.eye(4))
+    slab.pose[:3, 3] = (0.0, 0.0, 3.6)
+    config = load_config("inspection").lighting
+    lighting = environment_lighting(dataclasses.replace(
+        config, sun_elevation_deg=(60.0, 60.0), sun_azimuth_deg=(90.0, 90.0)), 0, 0,
+        ground_albedo=np.array([0.09, 0.09, 0.05]))
+    soffit = FaceAim("beam", "-z", (0.0, 0.0, 2.6), 1.0, 0.0, 0.0, 1)
+    side = FaceAim("beam", "+y", (0.0, 0.3, 3.0), 1.0, 0.0, 0.0, 1)
+    shade = metered(lighting, soffit, [beam, slab], 0.3)
+    sun = metered(lighting, side, [beam], 0.3)
+    assert shade.exposure > 4.0 * sun.exposure
+    light = np.array(shade.white_balance) * face_irradiance(soffit, [beam, slab], lighting)
+    assert np.allclose(light, light[1])  # white, and as bright as metered
+    assert np.isclose(light[1], face_irradiance(soffit, [beam, slab], lighting) @ LUMINANCE_709)
+    assert shade.white_balance[2] > 1.2 * shade.white_balance[1]  # against the green bounce
+
+
+@pytest.fixture(scope="module")
+def inspection_views():
+    """Cameras 0-3 of the inspection preset at seed 11, environment 0 (cameras 0-3: a column
+    face and three beam soffits), and camera 1 rendered again after the others."""
+    view = EnvironmentView.open(load_config("inspection"), 11, 0)
+    try:
+        outputs = [view.render(i, frozenset({"color", "damage"}))[1] for i in range(4)]
+        again = view.render(1, frozenset({"color"}))[1].color
+    finally:
+        view.renderer.release()
+    return outputs, again
+
+
+def test_inspection_views_are_exposed_and_varied_as_photographs(inspection_views):
+    outputs, _ = inspection_views
+    for image in (o.color for o in outputs):
+        luma = image.reshape(-1, 3).astype(float) @ LUMA
+        assert LUMA_RANGE[0] <= luma.mean() <= LUMA_RANGE[1]
+        assert SPREAD_RANGE[0] <= luma.std() <= SPREAD_RANGE[1]
+
+
+def test_the_same_seeds_give_the_same_bytes(inspection_views):
+    outputs, again = inspection_views
+    assert np.array_equal(outputs[1].color, again)  # metered again after other exposures
+
+
+def test_labelled_cracks_stay_darker_than_the_weathered_concrete_beside_them(
+        inspection_views):
+    """Each view's crack pixels against the pixels 3-6 px from them: the crack's cavity
+    must still show through the mottling, streaks and pores."""
+    shown = 0
+    for output in inspection_views[0]:
+        crack = output.crack_width > 0
+        if crack.sum() < 50:
+            continue
+        grown = [cv2.dilate(crack.astype(np.uint8), np.ones((3, 3), np.uint8),
+                            iterations=k) > 0 for k in (3, 6)]
+        ring = grown[1] & ~grown[0]
+        luma = output.color.astype(float) @ LUMA
+        assert np.median(luma[crack]) < 0.9 * np.median(luma[ring])
+        shown += 1
+    assert shown >= 2  # three in four inspection cameras aim at a crack
+
+
+def test_the_paper_preset_keeps_its_concrete():
+    paper = load_config("paper")
+    assert not paper.materials.weathering and paper.lighting.metering == "scene"
+    assert paper.materials.concrete_detail == "flights"
+    for preset in ("demo", "inspection"):
+        config = load_config(preset)
+        assert config.materials.weathering and config.materials.concrete_detail == "on"
+    small = dataclasses.replace(paper, materials=dataclasses.replace(
+        paper.materials, texture_size=32, images_per_category=4, concrete_detail="on"))
+    env = build_environment(small, 0, 0)
+    d = dress(env, small, open_repository(small), DamageBank(small.damage, 0), set())
+    assert all(d.materials.factors(p.name).weathering_tint is None for p in env.parts)
+    weathered = dataclasses.replace(small, materials=dataclasses.replace(
+        small.materials, weathering=True))
+    d = dress(env, weathered, open_repository(weathered), DamageBank(small.damage, 0), set())
+    tints = [d.materials.factors(p.name).weathering_tint for p in env.parts
+             if d.assignments[p.name].category == "concrete"]
+    assert tints and all(t is not None for t in tints)
+
+
+def test_weathering_without_detail_is_one_line():
+    with pytest.raises(UserError, match="weathering") as err:
+        MaterialsConfig(concrete_detail="off", weathering=True)
+    assert "\n" not in str(err.value)
