@@ -374,6 +374,7 @@ def test_slight_damage_only_with_cracks_of_005_to_1_mm(tmp_path):
     assert intact  # undamaged_probability = 0.2
 
 
+@pytest.mark.slow
 def test_generate_and_stats_on_the_inspection_preset(tmp_path):
     """The Tokaido layout at the preset's 1920x1080 with face cameras, and glsynth stats."""
     import json
