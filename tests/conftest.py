@@ -111,12 +111,12 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.slow)
 
 
-def generate_into(out, config, seed: int = 5, *extra: str) -> int:
-    """`glsynth generate --preset demo` of the config file ``config`` into ``out``."""
+def generate_into(out, config) -> int:
+    """`glsynth generate --preset demo --seed 5` of the config file ``config`` into ``out``."""
     from glsynth.cli import main
 
-    return main(["generate", "--preset", "demo", "--config", str(config), "--seed", str(seed),
-                 "--out", str(out), *extra])
+    return main(["generate", "--preset", "demo", "--config", str(config), "--seed", "5",
+                 "--out", str(out)])
 
 
 @pytest.fixture(scope="session")
