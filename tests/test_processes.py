@@ -194,6 +194,7 @@ def _silent_blender(folder: Path) -> Path:
     return fake
 
 
+@pytest.mark.slow  # generates a dataset, twice
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tmp_path,
                                                                                workers):
