@@ -1,9 +1,13 @@
 import dataclasses
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 from glsynth.core.config import Config, EnvironmentConfig
 from glsynth.world.environment import build_environment
+
+pytest_plugins = ["fixtures_cracks"]
+"""Shared fixtures kept in modules of their own, one per subject."""
 
 
 def env_config(**environment) -> Config:
@@ -56,13 +60,85 @@ def small_config(tmp_path_factory):
     return path
 
 
+QUICK = """
+[dataset]
+n_environments = 2
+n_test_environments = 1
+n_plates = 1
+n_test_plates = 0
+plates_per_task = 1
+[cameras]
+n_regular = 2
+n_closeup = 1
+[render]
+msaa = 0
+shadow_map_px = 512
+sky_visibility_maps = 4
+sky_visibility_px = 256
+[damage]
+resolution = 64
+[materials]
+texture_size = 32
+builtin_size = 64
+images_per_category = 3
+"""
+"""The cheapest run that still has two environments (one per split), a plate and the Tokaido
+image size (generate refuses any other): for the tests of workers, locks and resuming, which
+compare whole runs but not what is in the images."""
+
+settings.register_profile("full", max_examples=25, deadline=None, derandomize=True,
+                          suppress_health_check=[HealthCheck.function_scoped_fixture])
+settings.register_profile("quick", settings.get_profile("full"), max_examples=5)
+"""Fuzz tests draw examples by these profiles (derandomized: a failure repeats); a test that
+sets max_examples itself keeps it."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The quick loop (-m "not slow") draws the quick profile's examples, the full suite the
+    full profile's; --hypothesis-profile chooses another."""
+    if config.getoption("hypothesis_profile", None) is None:
+        quick = config.getoption("markexpr", "") == "not slow"
+        settings.load_profile("quick" if quick else "full")
+
+
+DATASET_FIXTURES = {"tiny_dataset", "quick_dataset"}
+"""Fixtures that generate a dataset: a test that uses one is marked slow."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
+
+
+def generate_into(out, config) -> int:
+    """`glsynth generate --preset demo --seed 5` of the config file ``config`` into ``out``."""
+    from glsynth.cli import main
+
+    return main(["generate", "--preset", "demo", "--config", str(config), "--seed", "5",
+                 "--out", str(out)])
+
+
+@pytest.fixture(scope="session")
+def quick_config(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cfg") / "quick.toml"
+    path.write_text(QUICK)
+    return path
+
+
+@pytest.fixture(scope="session")
+def quick_dataset(quick_config, tmp_path_factory):
+    """QUICK generated once (seed 5): the reference that reruns of it must equal byte for byte.
+    Tests read it and never write into it (copy it first)."""
+    out = tmp_path_factory.mktemp("quick") / "ds"
+    assert generate_into(out, quick_config) == 0
+    return out
+
+
 @pytest.fixture(scope="session")
 def tiny_dataset(small_config, tmp_path_factory):
     """A generated Tokaido-format dataset: 2 environments x 5 cameras at 1920x1080, 3 plates
     (seed 5). Tests read it and never write into it."""
-    from glsynth.cli import main
-
     out = tmp_path_factory.mktemp("tiny") / "ds"
-    assert main(["generate", "--preset", "demo", "--config", str(small_config), "--seed", "5",
-                 "--out", str(out)]) == 0
+    assert generate_into(out, small_config) == 0
     return out

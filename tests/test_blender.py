@@ -50,6 +50,7 @@ def test_bad_blender_path_camera_and_samples_are_clear_errors(tmp_path, capsys):
         assert "cameras 0 to 11" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("blender") is None, reason="Blender is not installed")
 def test_cycles_sees_the_same_components_and_depth(tmp_path):
     config = tmp_path / "small.toml"

@@ -21,6 +21,7 @@ focal_mm = 50.0
 """
 
 
+@pytest.mark.slow
 def test_colmap_reconstructs_a_small_orbit(tmp_path):
     pytest.importorskip("pycolmap", reason="pycolmap is not installed (the [flights] extra): "
                         "COLMAP's reconstruction is not checked")

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import SMALL
+from conftest import QUICK, generate_into
 from PIL import Image
 from test_statistics import write_dataset
 
@@ -265,17 +265,17 @@ def test_stats_with_crack_widths_count_the_maps_and_the_lists(tmp_path):
 
 
 # --- generated datasets ---------------------------------------------------------------------
-PAPER = SMALL.replace("[damage]\n", '[damage]\nmodel = "paper"\n')
-"""conftest's tiny dataset under the paper's damage model (the demo preset's is mechanics)."""
+PAPER = QUICK.replace("[damage]\n", '[damage]\nmodel = "paper"\n')
+"""conftest's quick run under the paper's damage model (the demo preset's is mechanics)."""
 
 
 @pytest.fixture(scope="module")
 def paper_dataset(tmp_path_factory):
-    """2 environments x 5 cameras at 1920x1080 under [damage] model = "paper" (seed 5)."""
+    """2 environments x 3 cameras and a plate at 1920x1080 under [damage] model = "paper"
+    (seed 5)."""
     root = tmp_path_factory.mktemp("paper")
     (root / "paper.toml").write_text(PAPER)
-    assert main(["generate", "--preset", "demo", "--config", str(root / "paper.toml"),
-                 "--seed", "5", "--out", str(root / "ds")]) == 0
+    assert generate_into(root / "ds", root / "paper.toml") == 0
     return root / "ds"
 
 
@@ -295,6 +295,7 @@ def frames(root):
                 row.damage, crack_width_path(row.damage))))
 
 
+@pytest.mark.slow
 def test_the_paper_model_writes_zero_crack_maps_and_no_crack_lists(paper_dataset):
     rows = list(frames(paper_dataset))
     assert rows

@@ -2,9 +2,11 @@
 "Damage by mechanics"). Pure numpy: no GL."""
 
 import dataclasses
+import shutil
 
 import numpy as np
 import pytest
+from fixtures_cracks import MECHANICS_SEED, SMALL
 
 from glsynth.appearance.cracks import (
     FLEXURAL_BAND_DEG,
@@ -25,7 +27,7 @@ from glsynth.appearance.cracks import (
 from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import beam_span, clear_spans, dress, open_repository
 from glsynth.core import design
-from glsynth.core.config import Config, DamageConfig, MaterialsConfig, config_from_dict
+from glsynth.core.config import DamageConfig, config_from_dict
 from glsynth.core.errors import UserError
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
@@ -252,19 +254,15 @@ def test_the_paper_preset_keeps_the_paper_model_and_the_others_use_mechanics():
     assert set(models.values()) == {"mechanics"}
 
 
-SMALL = dataclasses.replace(Config(), materials=MaterialsConfig(texture_size=32,
-                                                                images_per_category=4))
-
-
-def test_dressing_under_mechanics_puts_cracks_on_seen_damaged_columns(tmp_path):
-    paper = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64))
-    mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
-    env = build_environment(mech, 4, 0)
+def test_dressing_under_mechanics_puts_cracks_on_seen_damaged_columns(mechanics_dressing,
+                                                                      tmp_path):
+    mech, env, b = mechanics_dressing.config, mechanics_dressing.env, mechanics_dressing.dressing
+    paper = dataclasses.replace(mech, damage=DamageConfig(resolution=64))
     columns = [p for p in env.parts if p.kind is PartKind.COLUMN]
-    seen = {p.name for p in columns[::2]}
+    seen = set(mechanics_dressing.seen)
     repo = open_repository(mech)
-    a = dress(env, paper, repo, DamageBank(paper.damage, 4, cache_dir=tmp_path), seen)
-    b = dress(env, mech, repo, DamageBank(mech.damage, 4, cache_dir=tmp_path), seen)
+    a = dress(env, paper, repo, DamageBank(paper.damage, MECHANICS_SEED,
+                                           cache_dir=tmp_path / "paper"), seen)
     cracked = 0
     for part in columns:
         ra, rb, m = a.assignments[part.name].damage, b.assignments[part.name].damage, \
@@ -287,7 +285,9 @@ def test_dressing_under_mechanics_puts_cracks_on_seen_damaged_columns(tmp_path):
         assert faces(m.cracks.points, a_m, b_m).any(axis=-1).all()
         assert np.abs(m.cracks.points[..., 2]).max() <= height / 2 + TOL
     assert cracked > 5
-    again = dress(env, mech, repo, DamageBank(mech.damage, 4, cache_dir=tmp_path), seen)
+    bank_dir = shutil.copytree(mechanics_dressing.bank_dir, tmp_path / "mechanics")
+    again = dress(env, mech, repo, DamageBank(mech.damage, MECHANICS_SEED, cache_dir=bank_dir),
+                  seen)
     assert all(again.assignments[n].damage == b.assignments[n].damage for n in seen)
 
 

@@ -52,6 +52,7 @@ def _view() -> np.ndarray:
     return pose
 
 
+@pytest.mark.slow
 @needs_blender
 def test_a_matte_scene_agrees_with_cycles(tmp_path):
     parts, materials = _matte_scene()
@@ -77,6 +78,7 @@ def test_a_matte_scene_agrees_with_cycles(tmp_path):
     assert inner.sum() > 100 and np.abs(c - g).max() <= 3
 
 
+@pytest.mark.slow
 @needs_blender
 def test_cycles_is_deterministic_for_a_seed(tmp_path):
     parts, materials = _matte_scene()
@@ -138,6 +140,7 @@ def _profiles(dark: np.ndarray) -> list[np.ndarray]:
     return found
 
 
+@pytest.mark.slow
 @needs_blender
 def test_cracks_darken_the_same_pixels_by_the_same_share_in_cycles(tmp_path):
     width, height, focal = CRACK_VIEW
@@ -175,6 +178,7 @@ def _small_config(tmp_path: Path, extra: str = "") -> Path:
     return path
 
 
+@pytest.mark.slow
 @needs_blender
 def test_render_with_cycles_shares_the_gl_labels_and_depth(tmp_path):
     config = _small_config(tmp_path, "[render]\nwidth = 64\nheight = 36\n")
@@ -190,6 +194,7 @@ def test_render_with_cycles_shares_the_gl_labels_and_depth(tmp_path):
     assert not (tmp_path / "cy" / ".cycles").exists()
 
 
+@pytest.mark.slow
 @needs_blender
 def test_generate_with_cycles_writes_the_same_views_and_labels(tmp_path):
     config = _small_config(tmp_path, "[dataset]\nn_environments = 1\nn_test_environments = 0"

@@ -342,6 +342,7 @@ def _reprojection(out: Path, model, edge_px: int = 1) -> list[tuple[float, int]]
     return shares
 
 
+@pytest.mark.slow  # COLMAP's reader (pycolmap)
 def test_pycolmap_reprojects_points_onto_their_labels(flight, colmap_model):
     _, out = flight
     shares = _reprojection(out, colmap_model)
@@ -378,6 +379,7 @@ def _same_rays(out: Path, model, atol: float) -> None:
         assert np.allclose(c2w[:3, 3], image.projection_center(), atol=1e-12)
 
 
+@pytest.mark.slow  # COLMAP's reader (pycolmap)
 def test_transforms_json_and_colmap_give_the_same_rays(flight, colmap_model):
     _same_rays(flight[1], colmap_model, 1e-12)
 
@@ -392,6 +394,7 @@ def test_points_carry_their_frames_and_a_stated_density(flight):
     assert set(np.unique(cloud["damage"])) <= {1, 2, 3}
 
 
+@pytest.mark.slow  # COLMAP's reader (pycolmap)
 def test_single_frame_flight(tmp_path):
     cfg = tmp_path / "one.toml"
     cfg.write_text(SMALL + "max_frames = 1\n")
@@ -406,6 +409,7 @@ def test_single_frame_flight(tmp_path):
     assert len(model.images) == 1 and len(model.points3D) == len(cloud["xyz"])
 
 
+@pytest.mark.slow  # COLMAP's reader (pycolmap)
 def test_a_zero_length_flight_renders_and_exports(tmp_path):
     """An orbit of arc 0 is one frame per ring, each above the last."""
     cfg = tmp_path / "zero.toml"
@@ -425,6 +429,7 @@ def test_a_zero_length_flight_renders_and_exports(tmp_path):
     assert len(model.images) == 2 and len(model.points3D) == len(cloud["xyz"])
 
 
+@pytest.mark.slow  # COLMAP's reader (pycolmap)
 def test_under_mechanics_components_reproject_exactly(tmp_path):
     """The demo preset's mechanics damage labels every pixel a crack's centreline crosses, so
     a point's damage id may differ between frames; its component id may not."""
@@ -560,6 +565,7 @@ def test_distortion_maps_a_straight_edge_to_colmaps_curve():
     assert bow > 5  # a straight line would miss the curve by pixels
 
 
+@pytest.mark.slow  # COLMAP's reader (pycolmap)
 @pytest.mark.parametrize("model_name, k1, k2", [("OPENCV", -0.2, 0.05),
                                                  ("SIMPLE_RADIAL", 0.15, 0.0)])
 def test_a_distorted_flight_reprojects_through_colmaps_model(tmp_path, model_name, k1, k2):

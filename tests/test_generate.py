@@ -1,5 +1,7 @@
 """Dataset generation end to end at the Tokaido format size (1920x1080 images, 640x360 maps)
-on a tiny configuration: format compliance, resume after a kill, worker-count independence."""
+on a tiny configuration: format compliance, resume after a kill, worker-count independence.
+The tests that rerun a whole generation compare it with conftest's quick dataset (QUICK: 2
+environments of 3 cameras, a plate, cheap shadows and sky maps), so each rerun costs little."""
 
 import hashlib
 import json
@@ -33,13 +35,8 @@ def dataset_files(root: Path) -> dict[str, str]:
             for p in sorted(root.rglob("*")) if p.is_file() and p.name != "report.json"}
 
 
-@pytest.fixture(scope="module")
-def reference(tiny_dataset):
-    return tiny_dataset
-
-
-def test_format_compliance(reference):
-    root = reference
+def test_format_compliance(tiny_dataset):
+    root = tiny_dataset
     train = read_manifest(root, "files_train.csv")
     test = read_manifest(root, "files_test.csv")
     assert train and test
@@ -87,23 +84,23 @@ def test_format_compliance(reference):
     assert (root / "contact_sheet.png").stat().st_size > 1000
 
 
-def test_same_dataset_with_two_workers(small_config, reference, tmp_path):
+def test_same_dataset_with_two_workers(quick_config, quick_dataset, tmp_path):
     out = tmp_path / "ds"
-    assert generate(small_config, out, "--workers", "2") == 0
-    assert dataset_files(out) == dataset_files(reference)
+    assert generate(quick_config, out, "--workers", "2") == 0
+    assert dataset_files(out) == dataset_files(quick_dataset)
     peaks = json.loads((out / "report.json").read_text())["worker_peak_rss_mib"]
     assert 1 <= len(peaks) <= 2 and all(p > 50 for p in peaks)  # one entry per worker process
 
 
-def test_ray_engine_locally_gives_the_same_dataset(small_config, reference, tmp_path):
+def test_ray_engine_locally_gives_the_same_dataset(quick_config, quick_dataset, tmp_path):
     pytest.importorskip("ray")
     out = tmp_path / "ds"
-    assert generate(small_config, out, "--engine", "ray", "--workers", "2") == 0
-    assert dataset_files(out) == dataset_files(reference)
+    assert generate(quick_config, out, "--engine", "ray", "--workers", "2") == 0
+    assert dataset_files(out) == dataset_files(quick_dataset)
     assert json.loads((out / "report.json").read_text())["engine"] == "ray"
 
 
-def test_ray_cluster_of_two_nodes_gives_the_same_dataset(small_config, reference, tmp_path):
+def test_ray_cluster_of_two_nodes_gives_the_same_dataset(quick_config, quick_dataset, tmp_path):
     """The cluster path (--address) on two Ray nodes of this machine, one CPU each, so the two
     actors run on different nodes, as they would on two machines sharing the output folder."""
     ray = pytest.importorskip("ray")
@@ -114,9 +111,9 @@ def test_ray_cluster_of_two_nodes_gives_the_same_dataset(small_config, reference
         cluster.add_node(num_cpus=1)
         cluster.wait_for_nodes()
         out = tmp_path / "ds"
-        assert generate(small_config, out, "--engine", "ray", "--address", cluster.address,
+        assert generate(quick_config, out, "--engine", "ray", "--address", cluster.address,
                         "--workers", "2") == 0
-        assert dataset_files(out) == dataset_files(reference)
+        assert dataset_files(out) == dataset_files(quick_dataset)
         report = json.loads((out / "report.json").read_text())
         assert report["engine"] == "ray" and len(report["worker_peak_rss_mib"]) == 2
     finally:
@@ -142,10 +139,10 @@ def test_engine_arguments_are_checked(small_config, tmp_path, capsys):
     assert not (tmp_path / "b").exists()
 
 
-def test_resume_after_a_kill_gives_the_same_bytes(small_config, reference, tmp_path):
+def test_resume_after_a_kill_gives_the_same_bytes(quick_config, quick_dataset, tmp_path):
     out = tmp_path / "ds"
     cmd = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
-           str(small_config), "--seed", "5", "--out", str(out)]
+           str(quick_config), "--seed", "5", "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     # Kill it in the middle of the second environment: after its first image is written.
@@ -155,13 +152,13 @@ def test_resume_after_a_kill_gives_the_same_bytes(small_config, reference, tmp_p
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not (out / "files_train.csv").exists()
-    assert generate(small_config, out) == 0
-    assert dataset_files(out) == dataset_files(reference)
+    assert generate(quick_config, out) == 0
+    assert dataset_files(out) == dataset_files(quick_dataset)
     assert not list(out.rglob(".*.tmp"))
 
 
 def test_a_write_that_fails_in_the_writer_ends_the_run_and_resume_completes_it(
-        small_config, reference, tmp_path, capsys, monkeypatch):
+        quick_config, quick_dataset, tmp_path, capsys, monkeypatch):
     """Files are encoded and written in a background thread; its first failure ends the run
     with the file's name, the environment gets no marker, and a rerun gives the same bytes."""
     import glsynth.core.fileio as fileio
@@ -175,25 +172,25 @@ def test_a_write_that_fails_in_the_writer_ends_the_run_and_resume_completes_it(
 
     monkeypatch.setattr(fileio, "atomic_write_json", disk_full)
     out = tmp_path / "ds"
-    assert generate(small_config, out) == 2
+    assert generate(quick_config, out) == 2
     assert "image_case1_frame1.json': No space left" in capsys.readouterr().err
     # Environment 0 (written first) is done; environment 1 is not.
     assert (out / "progress" / "env_000000.json").exists()
     assert not (out / "progress" / "env_000001.json").exists()
     monkeypatch.setattr(fileio, "atomic_write_json", real)
-    assert generate(small_config, out) == 0
-    assert dataset_files(out) == dataset_files(reference)
+    assert generate(quick_config, out) == 0
+    assert dataset_files(out) == dataset_files(quick_dataset)
     assert not list(out.rglob(".*.tmp"))
 
 
-def test_a_finished_run_does_no_work_twice(small_config, reference, tmp_path, capsys):
+def test_a_finished_run_does_no_work_twice(quick_config, quick_dataset, tmp_path, capsys):
     import shutil
 
     out = tmp_path / "ds"
-    shutil.copytree(reference, out)
+    shutil.copytree(quick_dataset, out)
     before = {p: p.stat().st_mtime_ns for p in out.rglob("*.png")}
     first = json.loads((out / "report.json").read_text())
-    assert generate(small_config, out) == 0
+    assert generate(quick_config, out) == 0
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*.png")
             if p.name != "contact_sheet.png"} == {p: t for p, t in before.items()
                                                    if p.name != "contact_sheet.png"}
@@ -205,47 +202,47 @@ def test_a_finished_run_does_no_work_twice(small_config, reference, tmp_path, ca
     assert report["images_written_all_runs"] == first["images_written_this_run"] > 0
     # A broken report is refused with one line, before any work (glsynth.data.report).
     (out / "report.json").write_text("{truncated")
-    assert generate(small_config, out) == 2
+    assert generate(quick_config, out) == 2
     assert "report.json' is not valid JSON" in capsys.readouterr().err
 
 
-def test_bad_outputs_are_clear_errors(small_config, reference, tmp_path, capsys):
+def test_bad_outputs_are_clear_errors(quick_config, quick_dataset, tmp_path, capsys):
     other = tmp_path / "full"
     other.mkdir()
     (other / "x.txt").write_text("x")
-    assert generate(small_config, other) == 2
+    assert generate(quick_config, other) == 2
     assert "is not empty and holds no glsynth run" in capsys.readouterr().err
-    assert main(["generate", "--preset", "demo", "--config", str(small_config), "--seed", "6",
-                 "--out", str(reference)]) == 2
+    assert main(["generate", "--preset", "demo", "--config", str(quick_config), "--seed", "6",
+                 "--out", str(quick_dataset)]) == 2
     assert "holds a run with other settings" in capsys.readouterr().err
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    assert generate(small_config, blocker / "ds") == 2
+    assert generate(quick_config, blocker / "ds") == 2
     assert "Choose a writable --out" in capsys.readouterr().err
 
 
-def test_pytorch_dataset_reads_the_generated_layout(reference):
+def test_pytorch_dataset_reads_the_generated_layout(tiny_dataset):
     import torch
     from glsynth.model.data import TokaidoDataset
 
-    comp = TokaidoDataset(reference, "train", "component", image_size=(960, 540))
-    assert len(comp) == sum(r.regular for r in read_manifest(reference, "files_train.csv"))
+    comp = TokaidoDataset(tiny_dataset, "train", "component", image_size=(960, 540))
+    assert len(comp) == sum(r.regular for r in read_manifest(tiny_dataset, "files_train.csv"))
     image, target = comp[0]
     assert image.shape == (3, 540, 960) and image.dtype == torch.float32
     assert 0.0 <= float(image.min()) and float(image.max()) <= 1.0
     assert target.shape == (180, 320) and target.dtype == torch.int64
-    depth = TokaidoDataset(reference, "test", "depth")
+    depth = TokaidoDataset(tiny_dataset, "test", "depth")
     _, d = depth[0]
     assert d.shape == (360, 640) and d.dtype == torch.float32
     # A regular view stands 1-10 m above ground and 10 m from the track: it sees geometry
     # nearer than the 30 m clip, and nothing nearer than the 0.5 m one.
     assert float(d.min()) > 0.5 and (d < 30.0).any()
-    dmg = TokaidoDataset(reference, "train", "damage", puretex=True)
-    flagged = [r for r in read_manifest(reference, "files_train.csv") if r.damage_in_rrdr]
+    dmg = TokaidoDataset(tiny_dataset, "train", "damage", puretex=True)
+    flagged = [r for r in read_manifest(tiny_dataset, "files_train.csv") if r.damage_in_rrdr]
     assert len(dmg) == len(flagged) + 2
     _, labels = dmg[len(dmg) - 1]  # a plate
     assert set(labels.unique().tolist()) <= {1, 2, 3}
-    odd = TokaidoDataset(reference, "train", "component", image_size=(640, 360))
+    odd = TokaidoDataset(tiny_dataset, "train", "component", image_size=(640, 360))
     assert odd[0][1].shape == (120, 214)  # FCN58's ceil(H/3) x ceil(W/3)
     with pytest.raises(ValueError, match="puretex"):
-        TokaidoDataset(reference, task="depth", puretex=True)
+        TokaidoDataset(tiny_dataset, task="depth", puretex=True)

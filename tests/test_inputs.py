@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
@@ -27,8 +27,8 @@ from glsynth.data.tokaido import FrameRecord, frame_paths, manifest_text
 
 torch = pytest.importorskip("torch")
 
-FUZZ = settings(max_examples=25, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.function_scoped_fixture])
+FUZZ = settings()
+"""The profile conftest loads: 25 examples a test in the full suite, 5 in the quick loop."""
 IMAGE = (48, 27)
 MAPS = (16, 9)
 RUN_SIZE = (192, 108)

@@ -144,9 +144,9 @@ def test_a_crack_aimed_camera_labels_its_centre_pixel_with_the_crack(tmp_path):
     eight = TINY.replace("n_closeup = 3", "n_closeup = 8")
     (tmp_path / "tiny.toml").write_text(eight + "[render]\nwidth = 97\nheight = 55\nmsaa = 0\n")
     config = load_config("inspection", tmp_path / "tiny.toml")
-    view = EnvironmentView.open(config, 0, 0)
     checked = 0
-    try:
+    with Renderer(config.render) as renderer:
+        view = EnvironmentView.open(config, 0, 0, renderer)
         for index in range(config.cameras.total):
             placement, out = view.render(index, frozenset({"damage"}))
             if placement.face.crack_width_mm is None:
@@ -155,8 +155,6 @@ def test_a_crack_aimed_camera_labels_its_centre_pixel_with_the_crack(tmp_path):
             assert np.isclose(out.crack_width[27, 48], placement.face.crack_width_mm,
                               rtol=1e-4)
             checked += 1
-    finally:
-        view.renderer.release()
     assert checked >= 3
 
 
@@ -375,6 +373,7 @@ def test_slight_damage_only_with_cracks_of_005_to_1_mm(tmp_path):
     assert intact  # undamaged_probability = 0.2
 
 
+@pytest.mark.slow
 def test_generate_and_stats_on_the_inspection_preset(tmp_path):
     """The Tokaido layout at the preset's 1920x1080 with face cameras, and glsynth stats."""
     import json

@@ -362,6 +362,7 @@ needs_blender = pytest.mark.skipif(BLENDER is None, reason="Blender is not insta
                                    "Cycles comparisons are skipped")
 
 
+@pytest.mark.slow
 @needs_blender
 def test_cycles_sky_is_glsynths_sky(tmp_path):
     """Blender's own Preetham sky texture against glsynth's, pixel by pixel (no geometry in

@@ -141,6 +141,7 @@ def test_depth_errors_by_hand_within_the_range():
 
 
 # --- training --------------------------------------------------------------------------------
+@pytest.mark.slow  # trains
 def test_overfitting_one_tiny_batch_drives_the_loss_down():
     with seeded_torch(0):
         model = FCN58(3)

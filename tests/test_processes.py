@@ -165,6 +165,7 @@ def _render_args(tmp_path: Path, *extra: str) -> list[str]:
             "--camera", "0", "--renderer", "cycles", *extra, "--out", str(tmp_path / "out")]
 
 
+@pytest.mark.slow
 @needs_blender
 def test_a_killed_cycles_driver_leaves_no_blender_and_a_rerun_works(tmp_path):
     argv = [sys.executable, "-m", "glsynth.cli", *_render_args(tmp_path, "--samples", "1")]
@@ -193,6 +194,7 @@ def _silent_blender(folder: Path) -> Path:
     return fake
 
 
+@pytest.mark.slow  # generates a dataset, twice
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tmp_path,
                                                                                workers):

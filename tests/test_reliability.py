@@ -288,13 +288,14 @@ def _children(pid: int) -> list[int]:
     return found
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc (Linux)")
-def test_workers_end_with_a_killed_driver(small_config, tmp_path):
+def test_workers_end_with_a_killed_driver(quick_config, tmp_path):
     """After SIGKILL of the driver its workers stop at once (they would otherwise go on
     writing while a resumed run starts)."""
     out = tmp_path / "ds"
     driver = subprocess.Popen([sys.executable, "-m", "glsynth.cli", "generate", "--preset",
-                               "demo", "--config", str(small_config), "--seed", "3", "--out",
+                               "demo", "--config", str(quick_config), "--seed", "3", "--out",
                                str(out), "--workers", "2"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 180
@@ -312,14 +313,14 @@ def test_workers_end_with_a_killed_driver(small_config, tmp_path):
     assert not any(Path(f"/proc/{p}").exists() and
                    Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
                    for p in workers)
-    assert main(["generate", "--preset", "demo", "--config", str(small_config), "--seed", "3",
+    assert main(["generate", "--preset", "demo", "--config", str(quick_config), "--seed", "3",
                  "--out", str(out)]) == 0  # the folder is free again and the run resumes
 
 
-def test_two_runs_started_together_leave_one_writer(small_config, tmp_path):
+def test_two_runs_started_together_leave_one_writer(quick_config, tmp_path):
     out = tmp_path / "ds"
     cmd = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
-           str(small_config), "--seed", "4", "--out", str(out)]
+           str(quick_config), "--seed", "4", "--out", str(out)]
     runs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             for _ in range(2)]
     try:

@@ -10,6 +10,7 @@ import json
 
 import numpy as np
 import pytest
+from fixtures_cracks import SMALL
 from glhelpers import LIGHT, camera, render_config, scene_of
 from test_cracks import table3_column
 
@@ -29,7 +30,7 @@ from glsynth.appearance.damage import (
 from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import clear_spans, dress, open_repository
 from glsynth.appearance.materials import DamageZones, Material
-from glsynth.core.config import Config, DamageConfig, MaterialsConfig
+from glsynth.core.config import DamageConfig
 from glsynth.core.fileio import jsonable
 from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
@@ -43,8 +44,6 @@ SECTION, HEIGHT = (0.6, 0.6), 4.0
 DISTANCE = 3.2
 """The camera's distance from the column's axis: 4 m of column fill about 220 of 256 rows."""
 CFG = DamageConfig(model="mechanics", resolution=128)
-SMALL = dataclasses.replace(Config(), materials=MaterialsConfig(texture_size=32,
-                                                                images_per_category=4))
 
 
 def side_camera():
@@ -198,13 +197,11 @@ def test_zones_validation():
         True, True, True, False, True, False]
 
 
-def test_dressing_spalls_medium_and_severe_seen_columns_in_their_hinge_zones(tmp_path):
-    mech = dataclasses.replace(SMALL, damage=DamageConfig(resolution=64, model="mechanics"))
-    env = build_environment(mech, 4, 0)
+def test_dressing_spalls_medium_and_severe_seen_columns_in_their_hinge_zones(
+        mechanics_dressing):
+    mech, env, seen = mechanics_dressing.config, mechanics_dressing.env, mechanics_dressing.seen
+    dressing = mechanics_dressing.dressing
     columns = [p for p in env.parts if p.kind is PartKind.COLUMN]
-    seen = {p.name for p in columns[::2]}
-    bank = DamageBank(mech.damage, 4, cache_dir=tmp_path)
-    dressing = dress(env, mech, open_repository(mech), bank, seen)
     counts = {"slight": 0, "spalled": 0}
     for part in columns:
         record, materials = dressing.assignments[part.name].damage, dressing.materials

@@ -246,7 +246,7 @@ def test_relighting_draws_what_opening_under_that_light_draws():
     values = {"sun_elevation_deg": 35.0, "sun_azimuth_deg": 80.0, "turbidity": 5.0,
               "exposure": 1.5}
     relit = open_scene(settings, None, lambda *_: None)
-    try:
+    with relit.view.renderer:
         relit.relight(values)
         _, colour = relit.view.render(1)
         assert relit.view.lighting.sun_azimuth_deg == 80.0
@@ -254,8 +254,6 @@ def test_relighting_draws_what_opening_under_that_light_draws():
                            relit.view.renderer, lambda *_: None)
         _, expected = fresh.view.render(1)
         assert np.array_equal(colour.color, expected.color)
-    finally:
-        relit.view.renderer.release()
 
 
 def test_the_queue_keeps_the_newest_request_moves_first_and_forgets_closed_pages(tmp_path):
@@ -297,8 +295,8 @@ def test_a_banded_interruptible_render_is_the_same_bytes_and_stops_at_a_checkpoi
     from glsynth.view.scene import SceneSettings, open_scene
 
     scene = open_scene(SceneSettings("demo", 0, 0, quality="preview"), None, lambda *_: None)
-    try:
-        renderer, camera = scene.view.renderer, scene.cameras[1].camera
+    with scene.view.renderer as renderer:
+        camera = scene.cameras[1].camera
         whole = renderer.render(camera)
         asked = []
 
@@ -316,19 +314,31 @@ def test_a_banded_interruptible_render_is_the_same_bytes_and_stops_at_a_checkpoi
             assert np.array_equal(getattr(banded, name), getattr(whole, name)), name
             assert np.array_equal(getattr(again, name), getattr(whole, name)), name
         assert len(np.unique(whole.color.reshape(-1, 3), axis=0)) > 1000
-    finally:
-        scene.view.renderer.release()
 
 
-def test_a_move_interrupts_a_still_in_flight_and_the_stale_still_is_never_sent(tmp_path):
-    """The render thread's jobs run here, on a real scene: a move that arrives while a still
-    renders (after its label pass) stops it before its colour pass, the next job sends the
-    move's small frame, and no full-size frame follows; a still left alone is sent."""
+@pytest.fixture
+def preview_worker(tmp_path):
+    """A render worker with the demo's environment 0 open at preview quality, its jobs run by
+    the test. The renderer it holds at the end is released however the test ends, so a
+    failing test leaks no GL context."""
     from glsynth.view.scene import SceneSettings
-    from glsynth.view.worker import STILL_BANDS, RenderWorker
+    from glsynth.view.worker import RenderWorker
 
     worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
     worker._pick_job()()  # opens the scene
+    yield worker
+    if worker.scene is not None:
+        with worker.scene.view.renderer:  # leaving the block releases the context
+            pass
+
+
+def test_a_move_interrupts_a_still_in_flight_and_the_stale_still_is_never_sent(preview_worker):
+    """The render thread's jobs run here, on a real scene: a move that arrives while a still
+    renders (after its label pass) stops it before its colour pass, the next job sends the
+    move's small frame, and no full-size frame follows; a still left alone is sent."""
+    from glsynth.view.worker import STILL_BANDS
+
+    worker = preview_worker
     sent = []
     cid = worker.add_client(sent.append)
     renderer, placement = worker.scene.view.renderer, worker.scene.cameras[1]
@@ -375,10 +385,9 @@ def test_a_move_interrupts_a_still_in_flight_and_the_stale_still_is_never_sent(t
     assert frames() == []
     worker._pick_job()()
     assert [(f["still"], f["focal_mm"]) for f in frames()] == [(True, focal + 2)]
-    renderer.release()
 
 
-def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(tmp_path,
+def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(preview_worker,
                                                                           monkeypatch):
     """When the new environment's building starts, nothing holds the old one (its arrays
     are freed first: one environment at a time, not two, at the peak); then the new scene
@@ -387,11 +396,8 @@ def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(tmp_p
     import weakref
 
     import glsynth.view.worker as worker_module
-    from glsynth.view.scene import SceneSettings
-    from glsynth.view.worker import RenderWorker
 
-    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
-    worker._pick_job()()
+    worker = preview_worker
     old_view, renderer = weakref.ref(worker.scene.view), worker.scene.view.renderer
     seen = []
 
@@ -406,7 +412,6 @@ def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(tmp_p
     worker._pick_job()()
     assert seen == [True]
     assert worker.scene.settings.env == 1 and worker.scene.view.renderer is renderer
-    renderer.release()
 
 
 def test_a_failed_opening_releases_its_context(monkeypatch):
@@ -433,34 +438,29 @@ def test_a_failed_opening_releases_its_context(monkeypatch):
     assert released == [True]
     monkeypatch.setattr(scene_module.EnvironmentView, "open", real)
     again = open_scene(dataclasses.replace(settings, env=1), None, lambda *_: None)
-    assert again.view.renderer is not renderer and again.settings.env == 1
-    again.view.renderer.release()
+    with again.view.renderer:
+        assert again.view.renderer is not renderer and again.settings.env == 1
 
 
-def test_a_programming_error_in_a_switch_reopens_the_last_scene(tmp_path, monkeypatch):
+def test_a_programming_error_in_a_switch_reopens_the_last_scene(preview_worker, monkeypatch):
     """A switch that fails with a programming error keeps its traceback (the render thread
     prints it) but leaves no page waiting on a progress bar: loading clears and the last good
-    scene is asked for again."""
-    import glsynth.view.worker as worker_module
-    from glsynth.view.scene import SceneSettings
-    from glsynth.view.worker import RenderWorker
+    scene is asked for again. The failure is inside the opening, which releases the context
+    it was given (test_a_failed_opening_releases_its_context)."""
+    import glsynth.view.scene as scene_module
 
-    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
-    worker._pick_job()()
-    renderer = worker.scene.view.renderer
-    real_open = worker_module.open_scene
+    worker = preview_worker
+    real_open = scene_module.EnvironmentView.open
 
-    def broken(settings, *args):
-        if settings.env == 1:
+    def broken(config, seed, env, *args, **kwargs):
+        if env == 1:
             raise RuntimeError("a bug")
-        return real_open(settings, *args)
+        return real_open(config, seed, env, *args, **kwargs)
 
-    monkeypatch.setattr(worker_module, "open_scene", broken)
+    monkeypatch.setattr(scene_module.EnvironmentView, "open", broken)
     worker.submit(worker.add_client(lambda m: None), SceneRequest(0, 1, "preview", None))
     with pytest.raises(RuntimeError, match="a bug"):
         worker._pick_job()()
     assert worker.loading is None and worker.scene is None
     worker._pick_job()()  # the fallback
     assert worker.scene is not None and worker.scene.settings.env == 0
-    worker.scene.view.renderer.release()
-    del renderer

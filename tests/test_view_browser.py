@@ -16,6 +16,7 @@ import pytest
 from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB
 
+pytestmark = pytest.mark.slow
 CHROMIUM, DRIVER = shutil.which("chromium"), shutil.which("chromedriver")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",

@@ -94,6 +94,7 @@ def test_the_glb_confines_the_damage_material_to_the_zones():
 BLENDER = shutil.which("blender")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(BLENDER is None, reason="Blender is not installed")
 def test_the_cycles_twin_shows_spalling_only_in_the_zones(tmp_path):
     """The twin of a spalled column against the twin of its intact concrete: outside the
