@@ -106,11 +106,9 @@ def inspection_views():
     """Cameras 0-3 of the inspection preset at seed 11, environment 0 (cameras 0-3: a column
     face and three beam soffits), and camera 1 rendered again after the others."""
     view = EnvironmentView.open(load_config("inspection"), 11, 0)
-    try:
+    with view.renderer:
         outputs = [view.render(i, frozenset({"color", "damage"}))[1] for i in range(4)]
         again = view.render(1, frozenset({"color"}))[1].color
-    finally:
-        view.renderer.release()
     return outputs, again
 
 
