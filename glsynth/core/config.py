@@ -658,6 +658,57 @@ class FlightConfig:
 
 
 @dataclass(frozen=True)
+class SensorConfig:
+    """The photograph: lens, sensor and encoder applied to the rendered colour
+    (glsynth.render.camera_model; docs/design.md, "The camera model"). Named [sensor], not
+    [camera], because [cameras] already places the cameras. Each range is drawn per view from
+    the view's own generator (Stream.SENSOR); [a, a] fixes a value. Off in the paper preset,
+    whose images stay the paper's pinhole renders; on in the others."""
+
+    enabled: bool = False
+    iso: tuple[float, float] = (100.0, 1600.0)
+    """ISO speed: the gain over base ISO 100, which scales shot and read noise alike."""
+    full_well_e: float = 20000.0
+    """Electrons that fill a pixel at base ISO (linear 1.0): shot noise variance x / this."""
+    read_noise_e: float = 3.0
+    """Read noise, electrons RMS at base ISO."""
+    f_number: tuple[float, float] = (2.8, 11.0)
+    """Aperture N of the thin lens: blur-circle diameter f^2 |d - s| / (N (s - f) d)."""
+    exposure_s: tuple[float, float] = (1 / 1000, 1 / 60)
+    """Exposure time; motion blur is the image velocity times it."""
+    shake_deg_s: tuple[float, float] = (0.0, 2.0)
+    """Handheld shake: angular speed of the camera (fly uses the drone's path instead)."""
+    vignetting: tuple[float, float] = (0.3, 1.0)
+    """Strength v: a pixel at field angle t keeps 1 - v (1 - cos^4 t) of its light."""
+    chromatic_px: tuple[float, float] = (0.0, 1.5)
+    """Lateral chromatic aberration: red and blue shifted apart by this much at the corners."""
+    white_balance: tuple[float, float] = (0.92, 1.08)
+    """Gains of red and blue over green (each drawn on its own)."""
+    exposure_ev: tuple[float, float] = (-0.5, 0.5)
+    """Exposure error in stops."""
+    jpeg_quality: tuple[int, int] = (70, 95)
+    """Quality of the JPEG round trip the saved image takes (the files stay PNG)."""
+
+    def __post_init__(self) -> None:
+        s = "sensor"
+        if not isinstance(self.enabled, bool):
+            fail(s, "enabled", self.enabled, "true or false")
+        check_interval(s, "iso", self.iso, 25.0, 102400.0)
+        check_number(s, "full_well_e", self.full_well_e, 100.0, 1e7)
+        check_number(s, "read_noise_e", self.read_noise_e, 0.0, 1000.0)
+        check_interval(s, "f_number", self.f_number, 0.7, 64.0)
+        check_positive_interval(s, "exposure_s", self.exposure_s, 30.0, "seconds")
+        check_interval(s, "shake_deg_s", self.shake_deg_s, 0.0, 90.0)
+        check_interval(s, "vignetting", self.vignetting, 0.0, 1.0)
+        check_interval(s, "chromatic_px", self.chromatic_px, 0.0, 10.0)
+        check_interval(s, "white_balance", self.white_balance, 0.5, 2.0)
+        check_interval(s, "exposure_ev", self.exposure_ev, -4.0, 4.0)
+        check_interval(s, "jpeg_quality", self.jpeg_quality, 1, 100)
+        if any(not float(q).is_integer() for q in self.jpeg_quality):
+            fail(s, "jpeg_quality", self.jpeg_quality, "two whole numbers in [1, 100]")
+
+
+@dataclass(frozen=True)
 class Config:
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     design: StandardDesign = field(default_factory=StandardDesign)
@@ -670,6 +721,7 @@ class Config:
     materials: MaterialsConfig = field(default_factory=MaterialsConfig)
     filters: FiltersConfig = field(default_factory=FiltersConfig)
     flight: FlightConfig = field(default_factory=FlightConfig)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
 
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
@@ -690,7 +742,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
-             "damage": {"resolution": 512, "model": "mechanics"}},
+             "damage": {"resolution": 512, "model": "mechanics"},
+             "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
     # three in four aimed at a crack from where its width spans 3 pixels or more; slight
@@ -708,14 +761,16 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                    "spalling_severities": ("slight",), "undamaged_probability": 0.2,
                    "crack_width_mm": (0.05, 1.0)},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
-                    "rrdr_footprint_factor": 2.0}},
+                    "rrdr_footprint_factor": 2.0},
+        "sensor": {"enabled": True}},
 }
 
 _SECTIONS = {"environment": EnvironmentConfig, "design": StandardDesign, "dataset": DatasetConfig,
              "cameras": CameraConfig, "render": RenderConfig, "lighting": LightingConfig,
              "cycles": CyclesConfig, "damage": DamageConfig, "materials": MaterialsConfig,
              "filters": FiltersConfig,
-             "flight": FlightConfig}
+             "flight": FlightConfig,
+             "sensor": SensorConfig}
 
 
 def _coerce(cls: type, key: str, value: Any) -> Any:

@@ -131,17 +131,31 @@ def exposed(view: EnvironmentView, cameras: list[Camera], mode: str) -> Lighting
     return lighting
 
 
+def _velocities(cameras: list[Camera], times_s: list[float]) -> np.ndarray:
+    """(N, 3) world velocity of each frame's camera, m/s: central differences along the path
+    (one-sided at its ends); 0 between frames taken at the same time."""
+    centres = np.array([c.pose[:3, 3] for c in cameras], np.float64).reshape(-1, 3)
+    times = np.asarray(times_s, np.float64)
+    after = np.minimum(np.arange(len(times)) + 1, len(times) - 1)
+    before = np.maximum(np.arange(len(times)) - 1, 0)
+    dt = (times[after] - times[before])[:, None]
+    moved = centres[after] - centres[before]
+    return np.divide(moved, dt, out=np.zeros_like(moved), where=dt > 0)
+
+
 def _render_frames(view: EnvironmentView, out: Path, cameras: list[Camera],
                    sources: list[Camera], where: np.ndarray | None,
                    frame_meta: Callable[[int], dict]) -> int:
     """Render the frames without a marker from their ``sources`` (the pinhole cameras the
     lens resamples, glsynth.world.lens) and write them; how many were rendered."""
     rendered = 0
+    velocities = _velocities(cameras, [frame_meta(i)["time_s"] for i in range(len(cameras))])
     for index, (camera, source) in enumerate(zip(cameras, sources, strict=True)):
         marker = out / "progress" / f"{frame_name(index)}.done"
         if marker.exists():
             continue
-        output = _distorted(view.renderer.render(source), where)
+        output = view.photograph(_distorted(view.renderer.render(source), where), camera,
+                                 index, velocities[index])
         write_render(out / "frames" / frame_name(index), camera, output, frame_meta(index))
         atomic_write_bytes(marker, b"")
         rendered += 1
