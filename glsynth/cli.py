@@ -248,7 +248,8 @@ def cmd_render(args: argparse.Namespace) -> None:
     rendered = []
     for index in args.camera:
         t0 = time.perf_counter()
-        placement, output = view.render(index)
+        # Cycles replaces the colour below, unphotographed: the GL colour is not photographed.
+        placement, output = view.render(index, photo=config.render.renderer == "gl")
         rendered.append((placement, output, time.perf_counter() - t0))
     if config.render.renderer == "cycles":
         from glsynth.render.cycles import cycles_colour

@@ -134,6 +134,31 @@ def test_defocus_negligible_far_with_a_wide_lens(rendered):
     assert camera_model.blur_diameter_px(depth, 20.0, camera, 8.0).max() < 1.0
 
 
+def test_motion_blur_spreads_a_point_along_the_image_velocity(rendered):
+    """A drone flying sideways at 2 m/s past a surface s metres ahead, exposed 1/100 s:
+    a point smears into a line fx v t / s pixels long, across the image."""
+    placement, render, _ = rendered
+    camera = placement.camera
+    focus = camera_model.focus_distance(render.depth, camera.zfar)
+    right = camera.pose[:3, 0] * 2.0  # the camera's +x, in the world
+    vx, vy = camera_model.image_velocity(camera, right, focus)
+    assert vx == pytest.approx(-camera.fx * 2.0 / focus) and vy == pytest.approx(0, abs=1e-9)
+    path = (vx / 100, vy / 100)
+    linear = srgb_decode(render.color).astype(np.float32)
+    h, w = linear.shape[:2]
+    impulse = np.zeros_like(linear)
+    impulse[h // 2, w // 2] = 1.0
+    response = (camera_model.motion_blur(linear + impulse, path)
+                - camera_model.motion_blur(linear, path)).sum(axis=2)
+    rows, cols = np.nonzero(np.abs(response) > 1e-6)
+    assert set(rows) <= {h // 2 - 1, h // 2, h // 2 + 1}
+    weights = response[rows, cols]
+    spread = np.sqrt((weights * (cols - w // 2) ** 2).sum() / weights.sum())
+    # A uniform line of length L has a standard deviation of L / sqrt(12).
+    assert spread * math.sqrt(12) == pytest.approx(abs(path[0]), rel=0.1)
+    assert response.sum() == pytest.approx(3.0, abs=1e-3)
+
+
 def test_vignetting_darkens_corners_by_cos4(rendered):
     """A flat grey photographed with vignetting v only: the corners keep 1 - v (1 - cos^4 t)
     of the centre's light, t the corner's field angle from the sensor and the focal."""
