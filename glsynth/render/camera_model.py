@@ -171,21 +171,23 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
     levels = np.asarray(DEFOCUS_LEVELS, np.float32)
     index = np.interp(diameter_px, levels, np.arange(len(levels), dtype=np.float32))
     index = index.astype(np.float32)
-    used = np.bincount(index.astype(np.int64).ravel(), minlength=len(levels))
-    if used[0] == index.size and not index.any():
+    row_low, row_high = index.min(axis=1), index.max(axis=1)
+    if not row_high.any():
         return linear
     out = np.zeros_like(linear)
-    weight = np.empty_like(index)
     for level, diameter in enumerate(DEFOCUS_LEVELS):
-        # Level L serves the pixels whose index lies in (L - 1, L + 1).
-        if not used[max(0, level - 1):level + 1].any():
+        # Level L serves the pixels whose index lies in (L - 1, L + 1); depth is smooth, so
+        # they lie in a band of rows, and only the band is blended.
+        rows = np.flatnonzero((row_low < level + 1) & (row_high > level - 1))
+        if not rows.size:
             continue
-        np.subtract(index, np.float32(level), out=weight)
+        band = slice(rows[0], rows[-1] + 1)
+        weight = np.subtract(index[band], np.float32(level))
         np.abs(weight, out=weight)
         np.subtract(np.float32(1), weight, out=weight)
         np.maximum(weight, np.float32(0), out=weight)
         blurred = disc_blur(linear, diameter)
-        out += blurred * weight[..., None]
+        out[band] += blurred[band] * weight[..., None]
     return out
 
 
