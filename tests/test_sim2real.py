@@ -160,7 +160,9 @@ def test_sim2real_runs_end_to_end(tiny_inspection, tmp_path, capsys):
     assert "trained on ds " in capsys.readouterr().out
     result = json.loads((out / "sim2real.json").read_text())
     assert set(result["networks"]) == {"ds", "real"}  # the dataset's folder names its network
-    assert result["test_images"] == 2  # 30 % of 6
+    n = 2 * len(frames)  # the views the filters kept, two crops each; 30 % of them tested
+    assert result["test_images"] == min(n - 1, max(1, round(0.3 * n)))
+    assert result["real_train_images"] == n - result["test_images"]
     for s in result["networks"].values():
         assert 0 <= s["f1"] <= 1 and 0 <= s["iou"] <= 1 and 0.05 <= s["threshold"] <= 0.95
         assert np.isfinite(s["last_loss"])
