@@ -273,7 +273,8 @@ def _render_cameras(args: argparse.Namespace, config: Config) -> None:
     rendered = []
     for index in args.camera:
         t0 = time.perf_counter()
-        placement, output = view.render(index)
+        # Cycles replaces the colour below, unphotographed: the GL colour is not photographed.
+        placement, output = view.render(index, photo=config.render.renderer == "gl")
         rendered.append((placement, output, time.perf_counter() - t0))
     if config.render.renderer == "cycles":
         from glsynth.render.cycles import cycles_colour
@@ -306,7 +307,7 @@ def _render_camera_json(args: argparse.Namespace, config: Config) -> None:
     with RunLock(args.out):
         view = EnvironmentView.open(config, args.seed, args.env, cull=False, anywhere=True)
         t0 = time.perf_counter()
-        output = view.renderer.render(camera)
+        output = view.photograph(view.renderer.render(camera), camera, 0)
         elapsed = time.perf_counter() - t0
         write_render(args.out, camera, output, {"root_seed": args.seed, "env": args.env,
                                                 "renderer": "gl"})
@@ -670,10 +671,12 @@ def _print_rrdr_scores(result: dict) -> None:
 
 def add_bench_parser(sub: Commands) -> None:
     p = sub.add_parser("bench", help="measurements: 'quality' (speed against accuracy), "
-                                     "'blender' (against Cycles, if Blender is installed)")
+                                     "'blender' (against Cycles, if Blender is installed), "
+                                     "'sim2real' (glsynth-trained cracks on real photographs)")
     bench = p.add_subparsers(dest="bench", required=True)
     add_bench_quality_parser(bench)
     add_bench_blender_parser(bench)
+    add_bench_sim2real_parser(bench)
 
 
 def _add_sample_counts_arg(p: argparse.ArgumentParser, default: list[int], use: str) -> None:
@@ -755,6 +758,40 @@ def cmd_bench_blender(args: argparse.Namespace) -> int:
     print(blender_table(result), end="")
     print(f"-> {args.out}/blender.md, blender.json, blender_*spp.png")
     return 0
+
+
+def add_bench_sim2real_parser(sub: Commands) -> None:
+    p = sub.add_parser("sim2real", help="train a small crack segmenter on glsynth renders and "
+                                        "on real photographs; score both on real ones (needs "
+                                        "torch)")
+    p.add_argument("--synthetic", required=True, nargs="+",
+                   help="glsynth datasets (Tokaido layout, with crack-width maps: --preset "
+                        "inspection), one network each")
+    p.add_argument("--real", required=True,
+                   help="folder of real photographs: images/ and masks/ (same file names; "
+                        "crack pixels > 0 in a 0/1 mask, > 127 in a 0/255 one)")
+    p.add_argument("--steps", type=positive_int, default=300, help="optimiser steps a network")
+    p.add_argument("--crop", type=positive_int, default=128,
+                   help="training crop side, pixels (multiple of 8)")
+    p.add_argument("--batch", type=positive_int, default=8)
+    p.add_argument("--width", type=positive_int, default=16,
+                   help="U-Net channels at the first level")
+    p.add_argument("--learning-rate", type=float, default=2e-3)
+    p.add_argument("--test-share", type=float, default=0.3,
+                   help="share of the real folder held out for testing")
+    p.add_argument("--seed", type=non_negative_int, default=0)
+    p.add_argument("--out", required=True, help="folder for sim2real.json and predictions.png")
+    p.set_defaults(func=cmd_bench_sim2real)
+
+
+def cmd_bench_sim2real(args: argparse.Namespace) -> None:
+    from glsynth.model.sim2real import Sim2RealSettings, run_sim2real, summary
+
+    settings = Sim2RealSettings(args.steps, args.crop, args.batch, args.width,
+                                args.learning_rate, args.test_share, args.seed)
+    result = run_sim2real(args.synthetic, args.real, args.out, settings)
+    print(summary(result))
+    print(f"-> {args.out}/sim2real.json, predictions.png")
 
 
 def add_textures_parser(sub: Commands) -> None:

@@ -64,7 +64,7 @@ def test_textures_command(tmp_path):
 
 COMMANDS = [["export"], ["histograms"], ["render"], ["preview"], ["generate"], ["stats"],
             ["train"], ["evaluate"], ["predict"], ["assess"], ["bench", "quality"],
-            ["bench", "blender"], ["textures"]]
+            ["bench", "blender"], ["bench", "sim2real"], ["textures"]]
 
 
 @pytest.mark.parametrize("command", COMMANDS, ids=" ".join)

@@ -456,7 +456,9 @@ def test_a_flight_builds_only_what_its_frames_can_see(tmp_path):
     only those, and the parts that may shadow them, are built, and they render the same as
     with every part built."""
     cfg = tmp_path / "under.toml"
-    cfg.write_text(SMALL + "max_frames = 10\nplan = \"underdeck\"\ngimbal_pitch_deg = 60.0\n")
+    # The pinhole colour: the camera model (tests/test_camera_model.py) would redraw it.
+    cfg.write_text(SMALL + "max_frames = 10\nplan = \"underdeck\"\ngimbal_pitch_deg = 60.0\n"
+                   "[sensor]\nenabled = false\n")
     out = tmp_path / "under"
     assert main(["fly", "--seed", "0", "--env", "0", "--plan", "underdeck", "--config",
                  str(cfg), "--out", str(out)]) == 0

@@ -553,6 +553,45 @@ class FlightConfig:
 
 
 @dataclass(frozen=True)
+class SensorConfig:
+    """The photograph: lens, sensor and encoder applied to the rendered colour
+    (glsynth.render.camera_model; docs/design.md, "The camera model"). Named [sensor], not
+    [camera], because [cameras] already places the cameras. Each range is drawn per view from
+    the view's own generator (Stream.SENSOR); [a, a] fixes a value. Off in the paper preset,
+    whose images stay the paper's pinhole renders; on in the others."""
+
+    enabled: bool = bounded(False, Flag())
+    iso: tuple[float, float] = bounded((100.0, 1600.0), Interval(25.0, 102400.0))
+    """ISO speed: the gain over base ISO 100, which scales shot and read noise alike."""
+    full_well_e: float = bounded(20000.0, Number(100.0, 1e7))
+    """Electrons that fill a pixel at base ISO (linear 1.0): shot noise variance x / this."""
+    read_noise_e: float = bounded(3.0, Number(0.0, 1000.0))
+    """Read noise, electrons RMS at base ISO."""
+    f_number: tuple[float, float] = bounded((2.8, 11.0), Interval(0.7, 64.0))
+    """Aperture N of the thin lens: blur-circle diameter f^2 |d - s| / (N (s - f) d)."""
+    exposure_s: tuple[float, float] = bounded((1 / 1000, 1 / 60),
+                                              PositiveInterval(30.0, "seconds"))
+    """Exposure time; motion blur is the image velocity times it."""
+    shake_deg_s: tuple[float, float] = bounded((0.0, 2.0), Interval(0.0, 90.0))
+    """Handheld shake: angular speed of the camera (fly uses the drone's path instead)."""
+    vignetting: tuple[float, float] = bounded((0.3, 1.0), Interval(0.0, 1.0))
+    """Strength v: a pixel at field angle t keeps 1 - v (1 - cos^4 t) of its light."""
+    chromatic_px: tuple[float, float] = bounded((0.0, 1.5), Interval(0.0, 10.0))
+    """Lateral chromatic aberration: red and blue shifted apart by this much at the corners."""
+    white_balance: tuple[float, float] = bounded((0.92, 1.08), Interval(0.5, 2.0))
+    """Gains of red and blue over green (each drawn on its own)."""
+    exposure_ev: tuple[float, float] = bounded((-0.5, 0.5), Interval(-4.0, 4.0))
+    """Exposure error in stops."""
+    jpeg_quality: tuple[int, int] = bounded((70, 95), Interval(1, 100))
+    """Quality of the JPEG round trip the saved image takes (the files stay PNG)."""
+
+    def __post_init__(self) -> None:
+        _validate(self)
+        if any(not float(q).is_integer() for q in self.jpeg_quality):
+            _reject(self, "jpeg_quality", "two whole numbers in [1, 100]")
+
+
+@dataclass(frozen=True)
 class Config:
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     design: StandardDesign = field(default_factory=StandardDesign)
@@ -565,6 +604,7 @@ class Config:
     materials: MaterialsConfig = field(default_factory=MaterialsConfig)
     filters: FiltersConfig = field(default_factory=FiltersConfig)
     flight: FlightConfig = field(default_factory=FlightConfig)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
 
     def __post_init__(self) -> None:
         half_deck = self.design.deck_width_m / 2
@@ -590,7 +630,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
              "damage": {"resolution": 512, "model": "mechanics"},
-             "materials": _WEATHERED},
+             "materials": _WEATHERED, "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
     # three in four aimed at a crack from where its width spans 3 pixels or more; slight
@@ -609,7 +649,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                    "crack_width_mm": (0.05, 1.0)},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0},
-        "materials": _WEATHERED, "lighting": {"metering": "face"}},
+        "materials": _WEATHERED, "lighting": {"metering": "face"},
+        "sensor": {"enabled": True}},
 }
 
 _SECTIONS: dict[str, type] = typing.get_type_hints(Config)

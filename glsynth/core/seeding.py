@@ -33,6 +33,9 @@ class Stream(IntEnum):
     WEATHERING = 11
     """A concrete part's weathered albedo (glsynth.appearance.dressing; item = the part's
     index in the environment's part list)."""
+    SENSOR = 12
+    """The photograph's draws of one view (glsynth.render.camera_model; item = the camera
+    index, a flight's frame index, 0 for a camera given by hand)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

@@ -122,7 +122,8 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     to_cycles = []  # (placement, image path) of the kept views, with --renderer cycles
     with BackgroundWriter() as writer:
         for index in range(config.cameras.total):
-            placement, output = view.render(index)
+            # The filters judge the render; only the views they keep are photographed.
+            placement, output = view.render(index, photo=False)
             clock.lap("render and read back")
             reason = removal_reason(output.color, output.component, output.depth,
                                     config.filters)
@@ -140,7 +141,9 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
             if config.render.renderer == "cycles":
                 to_cycles.append((placement, paths["image"]))
             else:
-                images[paths["image"]] = (output.color, "PNG")
+                images[paths["image"]] = (view.photograph(output, placement.camera,
+                                                          index).color, "PNG")
+                clock.lap("camera model")
             meta = _view_meta(view, placement, root_seed, env, split, in_rrdr, columns)
             meta["cracks_in_view"] = cracks
             writer.submit(write_files, out, images,

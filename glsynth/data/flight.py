@@ -181,6 +181,18 @@ def _render_frames(view: EnvironmentView, out: Path, sources: list[Camera],
     return rendered
 
 
+def _velocities(cameras: list[Camera], times_s: list[float]) -> np.ndarray:
+    """(N, 3) world velocity of each frame's camera, m/s: central differences along the path
+    (one-sided at its ends); 0 between frames taken at the same time."""
+    centres = np.array([c.pose[:3, 3] for c in cameras], np.float64).reshape(-1, 3)
+    times = np.asarray(times_s, np.float64)
+    after = np.minimum(np.arange(len(times)) + 1, len(times) - 1)
+    before = np.maximum(np.arange(len(times)) - 1, 0)
+    dt = (times[after] - times[before])[:, None]
+    moved = centres[after] - centres[before]
+    return np.divide(moved, dt, out=np.zeros_like(moved), where=dt > 0)
+
+
 def export_flight(out: Path, frames: list[Frame], config: Config) -> dict:
     """sparse/0, transforms.json and points.ply from the frames' files; their counts."""
     points = sample_points(frames, config.flight.point_stride_px, config.flight.point_spacing_m)
@@ -269,7 +281,11 @@ def run_flight(config: Config, root_seed: int, env_index: int, out: Path,
         def read(index: int) -> Frame:
             return _read_frame(out, index, cameras[index], lens, info(index))
 
+        velocities = _velocities(cameras, list(plan.times_s))
+
         def write(index: int, output: RenderOutput) -> None:
+            # Photographed by [sensor]'s camera, moving along the path (motion blur).
+            output = view.photograph(output, cameras[index], index, velocities[index])
             write_render(out / "frames" / frame_name(index), cameras[index], output,
                          _frame_meta(lens, plan, index, meta))
 

@@ -56,11 +56,12 @@ def bench_blender(config: Config, root_seed: int, env: int, camera_index: int,
     view = EnvironmentView.open(config, root_seed, env)
     open_s = time.perf_counter() - t0
     try:
-        placement, output = view.render(camera_index)
+        # GL against Cycles, both without the camera model.
+        placement, output = view.render(camera_index, photo=False)
         times = []
         for _ in range(3):
             t = time.perf_counter()
-            view.render(camera_index)
+            view.render(camera_index, photo=False)
             times.append(time.perf_counter() - t)
     finally:
         view.renderer.release()

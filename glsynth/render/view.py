@@ -17,6 +17,8 @@ from glsynth.core.config import Config
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
 from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.render.camera_model import photograph
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera, CameraPlacement
@@ -98,14 +100,31 @@ class EnvironmentView:
                              f"[0, {len(self.placements) - 1}]")
         return self.placements[index]
 
-    def render(self, index: int, passes: frozenset[str] = PASSES
+    def render(self, index: int, passes: frozenset[str] = PASSES, photo: bool = True
                ) -> tuple[CameraPlacement, RenderOutput]:
-        """Sampled camera ``index``'s passes, exposed as [lighting] metering says."""
+        """Sampled camera ``index``'s ``passes``, exposed as [lighting] metering says; its
+        colour as [sensor]'s camera photographs it (``photo``; glsynth.render.camera_model),
+        or the render's own."""
         placement = self.camera(index)
         lighting = self.exposure(placement)
         if lighting is not self.renderer.lighting:
             self.renderer.relight(lighting)
-        return placement, self.renderer.render(placement.camera, passes)
+        if photo and self.config.sensor.enabled and "color" in passes:
+            passes = passes | {"depth"}  # defocus reads the depth
+        output = self.renderer.render(placement.camera, passes)
+        return placement, self.photograph(output, placement.camera, index) if photo else output
+
+    def photograph(self, output: RenderOutput, camera: Camera, item: int,
+                   velocity_mps: np.ndarray | None = None) -> RenderOutput:
+        """``output`` with its colour photographed by [sensor]'s camera, drawn from the
+        view's own generator (Stream.SENSOR, ``item``: the camera or frame index); labels and
+        depth stay the render's. ``velocity_mps``: camera_model.photograph's."""
+        if not self.config.sensor.enabled or output.color is None:
+            return output
+        rng = make_rng(self.environment.root_seed, self.environment.env_index, Stream.SENSOR,
+                       item)
+        return replace(output, color=photograph(output.color, output.depth, camera,
+                                                self.config.sensor, rng, velocity_mps))
 
     def exposure(self, placement: CameraPlacement) -> Lighting:
         """The lighting ``placement`` is rendered under: the environment's, or under

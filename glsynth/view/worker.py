@@ -436,7 +436,9 @@ class RenderWorker:
         if client.camera is None:
             raise UserError("save view: no camera yet")
         camera = self._camera(client.camera, self.scene.full_size[0])
-        output = self._render(camera)
+        # Photographed as render --camera-json photographs a camera given by hand (item 0);
+        # the live frames stay the render's, at interactive speed.
+        output = self.scene.view.photograph(self._render(camera), camera, 0)
         s = self.scene.settings
         try:  # the folder was checked at start; a disk may fill or a folder go since
             folder = new_folder(self.out_dir, "view")

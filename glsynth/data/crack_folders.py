@@ -1,0 +1,103 @@
+"""Crack images and their crack masks for the sim-to-real benchmark (glsynth bench sim2real):
+a folder of real photographs (``images/`` and ``masks/``, one mask per image by file stem)
+and a glsynth dataset in the Tokaido layout (crack pixels: crack-width map > 0, with its
+image brought down to the map's size)."""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from glsynth.core.errors import UserError
+from glsynth.data.readers import read_crack_width_map
+from glsynth.data.tokaido import crack_width_path, read_manifest
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
+MASK_SUFFIXES = (".png", ".bmp", ".tif", ".tiff")
+"""Lossless formats only: a JPEG mask's ringing would add crack pixels."""
+
+
+@dataclass(frozen=True)
+class CrackImage:
+    name: str
+    rgb: np.ndarray
+    """(H, W, 3) uint8."""
+    crack: np.ndarray
+    """(H, W) bool."""
+
+
+def _read_rgb(path: Path) -> np.ndarray:
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise UserError(f"image {str(path)!r} is not a readable image; replace or remove it")
+    return np.ascontiguousarray(bgr[..., ::-1])
+
+
+def _read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    """A crack mask: 0 is background; a 0/1 mask's 1 and a 0/255 mask's values over 127
+    are crack."""
+    mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if mask is None:
+        raise UserError(f"mask {str(path)!r} is not a readable image; replace or remove it")
+    if mask.shape != shape:
+        raise UserError(f"mask {str(path)!r} is {mask.shape[1]}x{mask.shape[0]} but its image "
+                        f"is {shape[1]}x{shape[0]}; give each image a mask of its own size")
+    return mask > (0 if mask.max() <= 1 else 127)
+
+
+def _listed(folder: Path, suffixes: tuple[str, ...]) -> dict[str, Path]:
+    return {p.stem: p for p in sorted(folder.iterdir())
+            if p.is_file() and p.suffix.lower() in suffixes}
+
+
+def read_real_folder(root: str | Path) -> list[CrackImage]:
+    """Every image of ``root``/images with its mask ``root``/masks/<stem>.<png|bmp|tif>,
+    sorted by name; an image without a mask, a mask without an image or a mask of another
+    size is refused."""
+    root = Path(root)
+    if not root.is_dir():
+        raise UserError(f"real folder {str(root)!r} does not exist or is not a folder; give a "
+                        "folder holding images/ and masks/")
+    for sub in ("images", "masks"):
+        if not (root / sub).is_dir():
+            raise UserError(f"real folder {str(root)!r} has no {sub}/ sub-folder; put the "
+                            f"photographs in images/ and their crack masks in masks/")
+    images, masks = _listed(root / "images", IMAGE_SUFFIXES), _listed(root / "masks",
+                                                                      MASK_SUFFIXES)
+    if not images:
+        raise UserError(f"{str(root / 'images')!r} holds no images "
+                        f"({', '.join(IMAGE_SUFFIXES)})")
+    for stems, have, lacks in ((images, "image", "masks"), (masks, "mask", "images")):
+        other = masks if lacks == "masks" else images
+        missing = sorted(set(stems) - set(other))
+        if missing:
+            raise UserError(f"{have} {str(stems[missing[0]])!r} has no counterpart in "
+                            f"{lacks}/ (same name{', lossless' if lacks == 'masks' else ''}; "
+                            f"{len(missing)} such); add it or remove the {have}")
+    out = []
+    for stem, path in images.items():
+        rgb = _read_rgb(path)
+        out.append(CrackImage(stem, rgb, _read_mask(masks[stem], rgb.shape[:2])))
+    return out
+
+
+def read_synthetic(root: str | Path) -> list[CrackImage]:
+    """Every frame of a glsynth dataset (train and test manifests), its image brought down
+    to its crack-width map's size (area averaging), crack = width > 0."""
+    root = Path(root)
+    frames = [*read_manifest(root, "files_train.csv"), *read_manifest(root, "files_test.csv")]
+    if not frames:
+        raise UserError(f"dataset {str(root)!r} lists no frames; generate one with glsynth "
+                        "generate --preset inspection")
+    out = []
+    for record in frames:
+        widths = read_crack_width_map(root / crack_width_path(record.damage))
+        rgb = _read_rgb(root / record.image)
+        size = (widths.shape[1], widths.shape[0])
+        small = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
+        out.append(CrackImage(Path(record.image).stem, small, widths > 0))
+    if not any(image.crack.any() for image in out):
+        raise UserError(f"dataset {str(root)!r} has no crack pixels; generate it with cracks "
+                        "(--preset inspection)")
+    return out

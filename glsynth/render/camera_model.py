@@ -1,0 +1,292 @@
+"""The photograph: what a real camera does to the light a pinhole render records.
+
+The renderer's colour is a pinhole's: everything sharp, no noise, no lens fall-off. Here the
+rendered colour goes through a camera's imaging chain ([sensor], docs/design.md "The camera
+model"), in this order:
+
+1. back to linear light by inverting the tone curve (the GL colour pass gives display sRGB
+   only; highlights it clipped stay clipped), times the exposure error;
+2. the lens: defocus by the thin lens from the depth map, motion blur (image velocity x
+   exposure time), vignetting (cos^4 of the field angle), lateral chromatic aberration;
+3. the sensor: Poisson-Gaussian noise, variance gain x / full_well + (gain read / full_well)^2
+   for linear signal x, gain = ISO / 100, drawn as a Gaussian of that variance (the normal
+   approximation of the Poisson counts: a pixel holds hundreds of electrons or more);
+4. the camera's processing: white balance gains, the tone curve, 8 bits, a JPEG round trip.
+
+Labels and depth are the scene's and are not touched. Pure numpy and OpenCV; every draw comes
+from the generator the caller makes for the view (Stream.SENSOR), so an image is reproduced
+from its seeds.
+"""
+
+import functools
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from glsynth.appearance.materials import srgb_decode
+from glsynth.core.config import SensorConfig
+from glsynth.render.tonemap import srgb_encode
+from glsynth.world.cameras import Camera
+
+BASE_ISO = 100.0
+DEFOCUS_LEVELS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
+"""Blur-circle diameters (px) blurred for: a pixel's blur blends the two levels around its
+own diameter; 1 px is sharp. Diameters past the last are cut to it."""
+DIRECT_BLUR_PX = 6.0
+"""A disc is blurred at the smallest power-of-two fraction of the image size that leaves it
+at least this wide (px), then scaled back up: a disc of 12 px or more loses no detail there."""
+FOCUS_WINDOW = 0.1
+"""The aimed point: the middle FOCUS_WINDOW x FOCUS_WINDOW of the frame."""
+_DECODE = srgb_decode(np.arange(256)).astype(np.float32).reshape(256, 1)
+"""8-bit sRGB to linear, as a table for cv2.LUT."""
+_ENCODE_STEPS = 16383
+_ENCODE = np.rint(srgb_encode(np.arange(_ENCODE_STEPS + 1) / _ENCODE_STEPS) * 255).astype(
+    np.uint8)
+"""Linear [0, 1] in 1/16383 steps to 8-bit sRGB: finer than one output code everywhere."""
+
+
+@dataclass(frozen=True)
+class Shot:
+    """One photograph's settings, drawn per view."""
+
+    iso: float
+    f_number: float
+    exposure_s: float
+    shake_rad_s: float
+    shake_angle: float
+    """Direction of the handheld image motion in the image plane, radians from +x."""
+    vignetting: float
+    chromatic_px: float
+    white_balance: tuple[float, float, float]
+    exposure_gain: float
+    jpeg_quality: int
+
+
+def draw_shot(config: SensorConfig, rng: np.random.Generator) -> Shot:
+    """The view's settings from ``rng``, in a fixed order (each field once)."""
+    def uniform(lo_hi: tuple[float, float]) -> float:
+        return float(rng.uniform(*lo_hi))
+
+    iso = math.exp(uniform((math.log(config.iso[0]), math.log(config.iso[1]))))
+    f_number = uniform(config.f_number)
+    exposure_s = math.exp(uniform((math.log(config.exposure_s[0]),
+                                   math.log(config.exposure_s[1]))))
+    shake = math.radians(uniform(config.shake_deg_s))
+    angle = uniform((0.0, 2 * math.pi))
+    vignetting = uniform(config.vignetting)
+    chromatic = uniform(config.chromatic_px)
+    red, blue = uniform(config.white_balance), uniform(config.white_balance)
+    gain = 2.0 ** uniform(config.exposure_ev)
+    quality = int(rng.integers(int(config.jpeg_quality[0]), int(config.jpeg_quality[1]) + 1))
+    return Shot(iso, f_number, exposure_s, shake, angle, vignetting, chromatic,
+                (red, 1.0, blue), gain, quality)
+
+
+def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: SensorConfig,
+               rng: np.random.Generator, velocity_mps: np.ndarray | None = None
+               ) -> np.ndarray:
+    """The rendered ``color`` (H, W, 3 uint8 sRGB) as the camera photographs it, with the
+    view's ``depth`` (metres along the axis). ``velocity_mps``: the world velocity of a
+    moving camera (a flight's); None draws handheld shake. A disabled [sensor] returns
+    ``color``."""
+    if not config.enabled:
+        return color
+    shot = draw_shot(config, rng)
+    linear = cv2.LUT(np.ascontiguousarray(color), _DECODE)
+    linear *= np.float32(shot.exposure_gain)
+    focus = focus_distance(depth, camera.zfar)
+    linear = defocus(linear, blur_diameter_px(depth, focus, camera, shot.f_number))
+    if velocity_mps is None:
+        speed = camera.fx * shot.shake_rad_s
+        velocity_px_s = (speed * math.cos(shot.shake_angle), speed * math.sin(shot.shake_angle))
+    else:
+        velocity_px_s = image_velocity(camera, velocity_mps, focus)
+    linear = motion_blur(linear, (velocity_px_s[0] * shot.exposure_s,
+                                  velocity_px_s[1] * shot.exposure_s))
+    linear *= vignetting_factor(camera, shot.vignetting)[..., None]
+    linear = chromatic_aberration(linear, shot.chromatic_px)
+    a, b = noise_parameters(config, shot.iso)
+    linear = add_sensor_noise(linear, a, b, rng)
+    linear *= np.asarray(shot.white_balance, np.float32)
+    return jpeg_round_trip(encode(linear), shot.jpeg_quality)
+
+
+def focus_distance(depth: np.ndarray, zfar: float) -> float:
+    """Where the camera focuses: the median depth of the aimed point (the middle of the
+    frame), or of the whole view where no surface is there (depth ``zfar``); 1 m where no
+    surface is anywhere."""
+    h, w = depth.shape
+    dh, dw = max(1, round(h * FOCUS_WINDOW)), max(1, round(w * FOCUS_WINDOW))
+    middle = depth[(h - dh) // 2:(h + dh) // 2, (w - dw) // 2:(w + dw) // 2]
+    for values in (middle, depth):
+        hit = values[values < np.float32(zfar) * np.float32(0.999)]
+        if hit.size:
+            return float(np.median(hit))
+    return 1.0
+
+
+def blur_diameter_px(depth: np.ndarray, focus_m: float, camera: Camera,
+                     f_number: float) -> np.ndarray:
+    """Thin-lens blur-circle diameter in pixels: c = f^2 |d - s| / (N (s - f) d) on the
+    sensor, over the pixel pitch (sensor_mm / width)."""
+    f = camera.focal_mm / 1000.0
+    s = max(focus_m, 1.01 * f)  # focus nearer than the focal length has no real image
+    d = np.maximum(depth.astype(np.float64), 1.01 * f)
+    c_m = f * f * np.abs(d - s) / (f_number * (s - f) * d)
+    return (c_m / (camera.sensor_mm / 1000.0 / camera.width)).astype(np.float32)
+
+
+def disc_kernel(diameter_px: float) -> np.ndarray:
+    """A uniform disc of the diameter, its edge anti-aliased; sums to 1."""
+    radius = diameter_px / 2
+    half = math.ceil(radius)
+    y, x = np.mgrid[-half:half + 1, -half:half + 1]
+    kernel = np.clip(radius + 0.5 - np.hypot(x, y), 0.0, 1.0).astype(np.float32)
+    return kernel / kernel.sum()
+
+
+def disc_blur(image: np.ndarray, diameter_px: float) -> np.ndarray:
+    """``image`` seen through a disc; wide discs at a smaller size (they lose no detail there)."""
+    if diameter_px <= 1.0:
+        return image
+    scale = 1
+    while diameter_px / (2 * scale) >= DIRECT_BLUR_PX and min(image.shape[:2]) >= 16 * scale:
+        scale *= 2
+    if scale == 1:
+        return cv2.filter2D(image, -1, disc_kernel(diameter_px), borderType=cv2.BORDER_REFLECT)
+    h, w = image.shape[:2]
+    small = cv2.resize(image, (max(1, w // scale), max(1, h // scale)),
+                       interpolation=cv2.INTER_AREA)
+    small = cv2.filter2D(small, -1, disc_kernel(diameter_px / scale),
+                         borderType=cv2.BORDER_REFLECT)
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
+    """Each pixel blurred by its own blur circle: the image blurred at each level of
+    DEFOCUS_LEVELS that some pixel needs, blended per pixel between the two levels around
+    its diameter (linear in the level index). Linear in ``linear`` for a fixed map."""
+    levels = np.asarray(DEFOCUS_LEVELS, np.float32)
+    index = np.interp(diameter_px, levels, np.arange(len(levels), dtype=np.float32))
+    index = index.astype(np.float32)
+    row_low, row_high = index.min(axis=1), index.max(axis=1)
+    if not row_high.any():
+        return linear
+    out = np.zeros_like(linear)
+    for level, diameter in enumerate(DEFOCUS_LEVELS):
+        # Level L serves the pixels whose index lies in (L - 1, L + 1); depth is smooth, so
+        # they lie in a band of rows, and only the band is blended.
+        rows = np.flatnonzero((row_low < level + 1) & (row_high > level - 1))
+        if not rows.size:
+            continue
+        band = slice(rows[0], rows[-1] + 1)
+        weight = np.subtract(index[band], np.float32(level))
+        np.abs(weight, out=weight)
+        np.subtract(np.float32(1), weight, out=weight)
+        np.maximum(weight, np.float32(0), out=weight)
+        blurred = disc_blur(linear, diameter)
+        out[band] += blurred[band] * weight[..., None]
+    return out
+
+
+def image_velocity(camera: Camera, velocity_mps: np.ndarray, depth_m: float
+                   ) -> tuple[float, float]:
+    """Image motion (px/s, x right, y down) of what lies ``depth_m`` ahead of a camera moving
+    at ``velocity_mps`` (world): the scene slides against the camera's motion across the
+    view, fx v / depth (motion along the axis, which only scales the view, is left out)."""
+    along = camera.pose[:3, :3].T @ np.asarray(velocity_mps, np.float64)  # camera: +y up
+    scale = camera.fx / max(depth_m, 1e-3)
+    return float(-along[0] * scale), float(along[1] * scale)
+
+
+def motion_blur(linear: np.ndarray, path_px: tuple[float, float]) -> np.ndarray:
+    """The image averaged along a straight path of ``path_px`` (dx, dy) pixels, the image's
+    motion during the exposure; under a pixel it is left as it is."""
+    length = math.hypot(*path_px)
+    if length < 1.0:
+        return linear
+    half = math.ceil(length / 2)
+    size = 2 * half + 1
+    kernel = np.zeros((size, size), np.float32)
+    steps = max(2, math.ceil(4 * length))
+    for t in np.linspace(-0.5, 0.5, steps):
+        x, y = half + t * path_px[0], half + t * path_px[1]
+        x0, y0 = math.floor(x), math.floor(y)
+        fx, fy = x - x0, y - y0
+        for dx, dy, w in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
+                          (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+            if 0 <= x0 + dx < size and 0 <= y0 + dy < size:
+                kernel[y0 + dy, x0 + dx] += w
+    return cv2.filter2D(linear, -1, kernel / kernel.sum(), borderType=cv2.BORDER_REFLECT)
+
+
+@functools.lru_cache(maxsize=4)
+def _offsets(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel centre's x and y from the principal point (the image centre), in px; read
+    only (made once per image size)."""
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    x -= np.float32((width - 1) / 2)
+    y -= np.float32((height - 1) / 2)
+    x.flags.writeable = y.flags.writeable = False
+    return x, y
+
+
+def vignetting_factor(camera: Camera, strength: float) -> np.ndarray:
+    """(H, W) share of light kept: 1 - v (1 - cos^4 t), t the field angle, tan t = r / fx."""
+    x, y = _offsets(camera.width, camera.height)
+    cos2 = 1.0 / (1.0 + (x * x + y * y) / np.float32(camera.fx ** 2))
+    return (1.0 - strength * (1.0 - cos2 * cos2)).astype(np.float32)
+
+
+def chromatic_aberration(linear: np.ndarray, corner_px: float) -> np.ndarray:
+    """Red magnified and blue shrunk about the centre, so that at the corners each lies
+    ``corner_px`` / 2 px from green (``corner_px`` apart)."""
+    if corner_px <= 0:
+        return linear
+    h, w = linear.shape[:2]
+    k = np.float32(corner_px / 2 / math.hypot(w / 2, h / 2))
+    x, y = _offsets(w, h)
+    cx, cy = np.float32((w - 1) / 2), np.float32((h - 1) / 2)
+    out = linear.copy()
+    for channel, sign in ((0, 1), (2, -1)):
+        # A channel magnified by (1 + k) reads its value at r / (1 + k).
+        scale = np.float32(1 / (1 + sign * k))
+        out[..., channel] = cv2.remap(linear[..., channel], cx + x * scale, cy + y * scale,
+                                      cv2.INTER_LINEAR,
+                                      borderMode=cv2.BORDER_REPLICATE)
+    return out
+
+
+def noise_parameters(config: SensorConfig, iso: float) -> tuple[float, float]:
+    """(a, b) of the Poisson-Gaussian variance a x + b of linear signal x at ``iso``."""
+    gain = iso / BASE_ISO
+    return gain / config.full_well_e, (gain * config.read_noise_e / config.full_well_e) ** 2
+
+
+def add_sensor_noise(linear: np.ndarray, a: float, b: float,
+                     rng: np.random.Generator) -> np.ndarray:
+    """Signal plus a Gaussian draw of variance a x + b per pixel and channel."""
+    sigma = np.maximum(linear, np.float32(0))  # in place from here: 6 M values a frame
+    sigma *= np.float32(a)
+    sigma += np.float32(b)
+    np.sqrt(sigma, out=sigma)
+    sigma *= rng.standard_normal(linear.shape, dtype=np.float32)
+    sigma += linear
+    return sigma
+
+
+def encode(linear: np.ndarray) -> np.ndarray:
+    """Linear light, clipped to [0, 1], to 8-bit sRGB."""
+    steps = np.rint(np.clip(linear, 0.0, 1.0) * _ENCODE_STEPS).astype(np.int32)
+    return _ENCODE[steps]
+
+
+def jpeg_round_trip(color: np.ndarray, quality: int) -> np.ndarray:
+    """``color`` (RGB uint8) as a JPEG of ``quality`` decodes it."""
+    ok, data = cv2.imencode(".jpg", np.ascontiguousarray(color[..., ::-1]),
+                            [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a JPEG")
+    return cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].copy()

@@ -1,0 +1,242 @@
+"""The sim-to-real benchmark (glsynth bench sim2real): how well does a crack segmenter trained
+on glsynth renders find cracks in real photographs, beside the same network trained on real
+photographs?
+
+A small U-Net (CrackUNet) is trained the same way on each glsynth dataset given (crack pixels
+of the crack-width maps) and on the training share of a real folder; all are scored on the
+rest of that folder (glsynth.measure.crack_scores: F1 with a 2 px tolerance at the best
+single threshold, IoU). Training samples square crops, half of them centred on a crack
+pixel, flipped at random; everything draws from Stream.TRAINING generators, so a run is
+repeated exactly on the same machine."""
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from glsynth.model.train import seeded_torch
+from torch import nn
+
+from glsynth.core.errors import UserError
+from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
+from glsynth.core.seeding import Stream, make_rng, make_seed
+from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
+from glsynth.measure.crack_scores import TOLERANCE_PX, best_threshold
+
+CRACK_WEIGHT = 10.0
+"""Weight of crack pixels in the loss: cracks are a few percent of the pixels or less."""
+EXAMPLES = 4
+"""Test images shown in predictions.png."""
+
+
+@dataclass(frozen=True)
+class Sim2RealSettings:
+    steps: int = 300
+    """Optimiser steps per network."""
+    crop: int = 128
+    """Side of the square training crops, pixels (a multiple of 8)."""
+    batch: int = 8
+    width: int = 16
+    """Channels of the U-Net's first level (doubled at each of its three levels down)."""
+    learning_rate: float = 2e-3
+    test_share: float = 0.3
+    """Share of the real folder held out for testing (the rest trains the real network)."""
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        checks = (("steps", 1 <= self.steps <= 10**6, "an integer in [1, 1000000]"),
+                  ("crop", 16 <= self.crop <= 1024 and self.crop % 8 == 0,
+                   "a multiple of 8 in [16, 1024]"),
+                  ("batch", 1 <= self.batch <= 256, "an integer in [1, 256]"),
+                  ("width", 4 <= self.width <= 128, "an integer in [4, 128]"),
+                  ("learning_rate", 0 < self.learning_rate <= 1, "in (0, 1]"),
+                  ("test_share", 0 < self.test_share < 1, "in (0, 1)"),
+                  ("seed", self.seed >= 0, "an integer >= 0"))
+        for name, ok, expected in checks:
+            if not ok:
+                value = getattr(self, name)
+                raise UserError(f"--{name.replace('_', '-')} {value}: must be {expected}")
+
+
+def _block(c_in: int, c_out: int) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(c_in, c_out, 3, padding=1), nn.BatchNorm2d(c_out),
+                         nn.ReLU(inplace=True), nn.Conv2d(c_out, c_out, 3, padding=1),
+                         nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
+
+
+class CrackUNet(nn.Module):
+    """A U-Net of three levels down and up (sides must be multiples of 8); one logit a
+    pixel."""
+
+    def __init__(self, width: int = 16) -> None:
+        super().__init__()
+        w = [width, 2 * width, 4 * width, 8 * width]
+        self.down = nn.ModuleList([_block(3, w[0]), _block(w[0], w[1]), _block(w[1], w[2])])
+        self.bottom = _block(w[2], w[3])
+        self.up = nn.ModuleList([nn.ConvTranspose2d(w[i + 1], w[i], 2, stride=2)
+                                 for i in (2, 1, 0)])
+        self.merge = nn.ModuleList([_block(2 * w[i], w[i]) for i in (2, 1, 0)])
+        self.head = nn.Conv2d(w[0], 1, 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        skips = []
+        for block in self.down:
+            x = block(x)
+            skips.append(x)
+            x = F.max_pool2d(x, 2)
+        x = self.bottom(x)
+        for up, merge, skip in zip(self.up, self.merge, reversed(skips)):
+            x = merge(torch.cat([up(x), skip], dim=1))
+        return self.head(x)[:, 0]
+
+
+def _normalised(rgb: np.ndarray) -> np.ndarray:
+    """(3, H, W) float32, each image to zero mean and unit spread per channel: the networks
+    see contrast, not a camera's overall brightness and tint."""
+    x = rgb.astype(np.float32).transpose(2, 0, 1) / 255.0
+    mean = x.mean(axis=(1, 2), keepdims=True)
+    std = x.std(axis=(1, 2), keepdims=True)
+    return (x - mean) / np.maximum(std, 1e-3)
+
+
+def _crop_at(image: CrackImage, crop: int, rng: np.random.Generator
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """A random crop (padded by reflection where the image is smaller), centred on a crack
+    pixel half of the time, flipped at random."""
+    rgb, crack = image.rgb, image.crack
+    pad_y, pad_x = max(0, crop - rgb.shape[0]), max(0, crop - rgb.shape[1])
+    if pad_y or pad_x:
+        rgb = np.pad(rgb, ((0, pad_y), (0, pad_x), (0, 0)), mode="reflect")
+        crack = np.pad(crack, ((0, pad_y), (0, pad_x)))
+    h, w = crack.shape
+    ys, xs = np.nonzero(crack)
+    if ys.size and rng.random() < 0.5:
+        k = int(rng.integers(ys.size))
+        top = int(np.clip(ys[k] - crop // 2, 0, h - crop))
+        left = int(np.clip(xs[k] - crop // 2, 0, w - crop))
+    else:
+        top, left = int(rng.integers(h - crop + 1)), int(rng.integers(w - crop + 1))
+    x = rgb[top:top + crop, left:left + crop]
+    y = crack[top:top + crop, left:left + crop]
+    if rng.random() < 0.5:
+        x, y = x[:, ::-1], y[:, ::-1]
+    if rng.random() < 0.5:
+        x, y = x[::-1], y[::-1]
+    return _normalised(np.ascontiguousarray(x)), np.ascontiguousarray(y)
+
+
+def train_network(images: list[CrackImage], settings: Sim2RealSettings, item: int
+                  ) -> tuple[CrackUNet, dict]:
+    """A CrackUNet trained on ``images``, its initial weights and draws from ``item``'s
+    generators."""
+    rng = make_rng(settings.seed, 0, Stream.TRAINING, item)
+    with seeded_torch(make_seed(settings.seed, 0, Stream.TRAINING, item)):
+        net = CrackUNet(settings.width)
+    optimiser = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
+    schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, settings.learning_rate,
+                                                   total_steps=settings.steps)
+    weight = torch.tensor(CRACK_WEIGHT)
+    net.train()
+    t0, losses = time.perf_counter(), []
+    for _ in range(settings.steps):
+        picks = rng.integers(len(images), size=settings.batch)
+        crops = [_crop_at(images[int(i)], settings.crop, rng) for i in picks]
+        x = torch.from_numpy(np.stack([c[0] for c in crops]))
+        y = torch.from_numpy(np.stack([c[1] for c in crops]).astype(np.float32))
+        loss = F.binary_cross_entropy_with_logits(net(x), y, pos_weight=weight)
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        schedule.step()
+        losses.append(float(loss.detach()))
+    return net, {"train_s": time.perf_counter() - t0, "images": len(images),
+                 "first_loss": losses[0], "last_loss": float(np.mean(losses[-20:]))}
+
+
+@torch.no_grad()
+def predict(net: CrackUNet, rgb: np.ndarray) -> np.ndarray:
+    """(H, W) float32 crack probability of a whole image (padded to multiples of 8)."""
+    net.eval()
+    h, w = rgb.shape[:2]
+    x = _normalised(rgb)
+    x = np.pad(x, ((0, 0), (0, -h % 8), (0, -w % 8)), mode="reflect")
+    logits = net(torch.from_numpy(x)[None])[0, :h, :w]
+    return torch.sigmoid(logits).numpy()
+
+
+def split_real(images: list[CrackImage], settings: Sim2RealSettings
+               ) -> tuple[list[CrackImage], list[CrackImage]]:
+    """(train, test) of a real folder: a seeded shuffle, ``test_share`` of it (at least one
+    image each) for testing."""
+    if len(images) < 2:
+        raise UserError(f"the real folder holds {len(images)} image; give at least 2, one to "
+                        "train on and one to test on")
+    order = make_rng(settings.seed, 0, Stream.TRAINING, 2).permutation(len(images))
+    n_test = min(len(images) - 1, max(1, round(settings.test_share * len(images))))
+    test = {int(i) for i in order[:n_test]}
+    return ([im for i, im in enumerate(images) if i not in test],
+            [im for i, im in enumerate(images) if i in test])
+
+
+def _picture(test: list[CrackImage], predictions: dict[str, list[np.ndarray]],
+             thresholds: dict[str, float]) -> np.ndarray:
+    """Rows of test images: the photograph, its true cracks, then each network's cracks at
+    its threshold (white; a true crack it missed in red)."""
+    rows = []
+    for k in range(min(EXAMPLES, len(test))):
+        image = test[k]
+        tiles = [image.rgb, np.repeat(image.crack[..., None] * np.uint8(255), 3, axis=2)]
+        for name, probs in predictions.items():
+            found = probs[k] >= thresholds[name]
+            tile = np.repeat(found[..., None] * np.uint8(255), 3, axis=2)
+            tile[image.crack & ~found] = (255, 0, 0)
+            tiles.append(tile)
+        rows.append(np.concatenate(tiles, axis=1))
+    width = max(r.shape[1] for r in rows)
+    return np.concatenate([np.pad(r, ((0, 4), (0, width - r.shape[1]), (0, 0)))
+                           for r in rows], axis=0)
+
+
+def run_sim2real(synthetic: list[str | Path], real: str | Path, out: str | Path,
+                 settings: Sim2RealSettings) -> dict:
+    """Train one network on each dataset of ``synthetic`` and one on the training share of
+    ``real``, the same way; score them all on the rest of ``real``. Writes sim2real.json and
+    predictions.png into ``out`` and returns the result (networks by name: each synthetic
+    dataset's folder name, then "real")."""
+    out = Path(out)
+    names = [Path(s).name or str(s) for s in synthetic]
+    if len(set(names)) != len(names) or "real" in names:
+        raise UserError(f"--synthetic {' '.join(map(str, synthetic))}: give datasets of "
+                        "different folder names, none named 'real' (they name the networks)")
+    real_train, test = split_real(read_real_folder(real), settings)
+    sets = [(name, read_synthetic(path)) for name, path in zip(names, synthetic)]
+    out.mkdir(parents=True, exist_ok=True)
+    result: dict = {"settings": dataclasses.asdict(settings),
+                    "synthetic": [str(s) for s in synthetic], "real": str(real),
+                    "tolerance_px": TOLERANCE_PX, "test_images": len(test),
+                    "real_train_images": len(real_train), "networks": {}}
+    predictions, thresholds = {}, {}
+    for name, images in [*sets, ("real", real_train)]:
+        # Every network draws the same crops' randomness and initial weights: item 0.
+        net, training = train_network(images, settings, 0)
+        predictions[name] = [predict(net, image.rgb) for image in test]
+        score = best_threshold(predictions[name], [image.crack for image in test])
+        thresholds[name] = score["threshold"]
+        result["networks"][name] = {**score, **training}
+    atomic_write_json(out / "sim2real.json", result)
+    atomic_write_bytes(out / "predictions.png", png_bytes(_picture(test, predictions,
+                                                                   thresholds)))
+    return result
+
+
+def summary(result: dict) -> str:
+    lines = [f"{len(result['networks'])} networks, scored on {result['test_images']} held-out "
+             f"real images (F1 with a {result['tolerance_px']:g} px tolerance):"]
+    for name, s in result["networks"].items():
+        lines.append(f"  trained on {name:12s} ({s['images']} images, {s['train_s']:.0f} s): "
+                     f"F1 {s['f1']:.3f} (P {s['precision']:.3f}, R {s['recall']:.3f}) IoU "
+                     f"{s['iou']:.3f} at threshold {s['threshold']:.2f}")
+    return "\n".join(lines)

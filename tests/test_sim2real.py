@@ -1,0 +1,186 @@
+"""The sim-to-real benchmark: the tolerant crack scores against hand-made masks, the real
+folder reader's refusals, and a tiny end-to-end run of glsynth bench sim2real."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from glsynth.cli import main
+from glsynth.core.errors import UserError
+from glsynth.data.crack_folders import read_real_folder, read_synthetic
+from glsynth.measure.crack_scores import best_threshold, count, scores
+
+
+def blank() -> np.ndarray:
+    return np.zeros((20, 20), bool)
+
+
+def test_scores_of_hand_made_masks():
+    truth, predicted = blank(), blank()
+    truth[2:12, 5] = True                 # 10 true crack pixels
+    predicted[2:12, 6] = True             # 10 pixels 1 px off: near
+    predicted[2:7, 15] = True             # 5 pixels 10 px off: false
+    predicted[2:4, 5] = True              # 2 pixels on the truth
+    c = count(predicted, truth)
+    assert (c.predicted, c.predicted_near_truth, c.truth, c.truth_near_prediction,
+            c.intersection, c.union) == (17, 12, 10, 10, 2, 25)
+    s = scores(c)
+    assert s["precision"] == pytest.approx(12 / 17)
+    assert s["recall"] == 1.0
+    assert s["f1"] == pytest.approx(24 / 29)
+    assert s["iou"] == pytest.approx(2 / 25)
+
+
+def test_tolerance_is_two_pixels_euclidean():
+    truth, predicted = blank(), blank()
+    truth[10, 10] = True
+    predicted[10, 12] = True              # 2 px: counts
+    predicted[11, 12] = True              # sqrt(5) px: does not
+    s = scores(count(predicted, truth))
+    assert (s["precision"], s["recall"], s["f1"], s["iou"]) == (0.5, 1.0, pytest.approx(2 / 3),
+                                                                 0.0)
+
+
+def test_empty_prediction_and_truth_score_zero():
+    s = scores(count(blank(), blank()))
+    assert s == {"precision": 0.0, "recall": 0.0, "f1": 0.0, "iou": 0.0}
+
+
+def test_best_single_threshold_over_the_set():
+    truths, probs = [], []
+    for column in (4, 9):
+        truth = blank()
+        truth[:, column] = True
+        prob = np.where(truth, 0.9, 0.0).astype(np.float32)
+        prob[:10, 17] = 0.3               # false cracks that only low thresholds keep
+        truths.append(truth)
+        probs.append(prob)
+    best = best_threshold(probs, truths)
+    assert best == {"threshold": 0.5, "precision": 1.0, "recall": 1.0, "f1": 1.0, "iou": 1.0}
+    low = best_threshold(probs, truths, thresholds=(0.2,))
+    assert low["precision"] == pytest.approx(40 / 60) and low["recall"] == 1.0
+
+
+def write_real(root, names=("a", "b"), size=(40, 32), mask_size=None, mask_values=255):
+    (root / "images").mkdir(parents=True)
+    (root / "masks").mkdir()
+    for i, name in enumerate(names):
+        image = np.full((size[1], size[0], 3), 120 + i, np.uint8)
+        mask = np.zeros((mask_size or size)[::-1], np.uint8)
+        mask[5:9, 3:30] = mask_values
+        cv2.imwrite(str(root / "images" / f"{name}.jpg"), image)
+        cv2.imwrite(str(root / "masks" / f"{name}.png"), mask)
+    return root
+
+
+def test_real_folder_reads_masks_of_both_conventions(tmp_path):
+    for values in (1, 255):
+        images = read_real_folder(write_real(tmp_path / str(values), mask_values=values))
+        assert [im.name for im in images] == ["a", "b"]
+        assert images[0].crack.sum() == 4 * 27 and images[0].rgb.shape == (32, 40, 3)
+
+
+@pytest.mark.parametrize("damage, words", [
+    ("no folder", "does not exist"),
+    ("no masks", "has no masks/ sub-folder"),
+    ("no images", "holds no images"),
+    ("mask missing", "has no counterpart in masks/"),
+    ("image missing", "has no counterpart in images/"),
+    ("mask size", "is 20x16 but its image is 40x32"),
+    ("unreadable", "is not a readable image"),
+])
+def test_real_folder_refusals_are_one_line(tmp_path, damage, words):
+    root = tmp_path / "real"
+    if damage == "mask size":
+        write_real(root, mask_size=(20, 16))
+    elif damage != "no folder":
+        write_real(root)
+    if damage == "no masks":
+        for p in (root / "masks").iterdir():
+            p.unlink()
+        (root / "masks").rmdir()
+    elif damage == "no images":
+        for p in (root / "images").iterdir():
+            p.unlink()
+    elif damage == "mask missing":
+        (root / "masks" / "b.png").unlink()
+    elif damage == "image missing":
+        (root / "images" / "a.jpg").unlink()
+    elif damage == "unreadable":
+        (root / "images" / "a.jpg").write_bytes(b"not a jpeg")
+    with pytest.raises(UserError) as err:
+        read_real_folder(root)
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+TINY = """
+[dataset]
+n_environments = 1
+n_test_environments = 0
+[cameras]
+n_closeup = 3
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny_inspection(tmp_path_factory):
+    """An inspection-preset dataset of 3 views (seed 0, environment 0)."""
+    root = tmp_path_factory.mktemp("insp")
+    (root / "tiny.toml").write_text(TINY)
+    out = root / "ds"
+    assert main(["generate", "--preset", "inspection", "--config", str(root / "tiny.toml"),
+                 "--seed", "0", "--out", str(out)]) == 0
+    return out
+
+
+def test_sim2real_runs_end_to_end(tiny_inspection, tmp_path, capsys):
+    frames = read_synthetic(tiny_inspection)
+    assert frames and any(f.crack.any() for f in frames)
+    assert frames[0].rgb.shape[:2] == frames[0].crack.shape == (360, 640)
+    # A stand-in "real" folder: crops of the renders, with their cracks as masks.
+    real = tmp_path / "real"
+    (real / "images").mkdir(parents=True)
+    (real / "masks").mkdir()
+    for k, frame in enumerate(frames):
+        for j, left in enumerate((0, 320)):
+            name = f"{k}_{j}"
+            cv2.imwrite(str(real / "images" / f"{name}.png"), frame.rgb[:, left:left + 320, ::-1])
+            cv2.imwrite(str(real / "masks" / f"{name}.png"),
+                        frame.crack[:, left:left + 320].astype(np.uint8) * 255)
+    out = tmp_path / "bench"
+
+    def argv(folder):
+        return ["bench", "sim2real", "--synthetic", str(tiny_inspection), "--real", str(real),
+                "--out", str(folder), "--steps", "6", "--crop", "64", "--batch", "2",
+                "--width", "4"]
+
+    assert main(argv(out)) == 0
+    assert "trained on ds " in capsys.readouterr().out
+    result = json.loads((out / "sim2real.json").read_text())
+    assert set(result["networks"]) == {"ds", "real"}  # the dataset's folder names its network
+    n = 2 * len(frames)  # the views the filters kept, two crops each; 30 % of them tested
+    assert result["test_images"] == min(n - 1, max(1, round(0.3 * n)))
+    assert result["real_train_images"] == n - result["test_images"]
+    for s in result["networks"].values():
+        assert 0 <= s["f1"] <= 1 and 0 <= s["iou"] <= 1 and 0.05 <= s["threshold"] <= 0.95
+        assert np.isfinite(s["last_loss"])
+    picture = cv2.imread(str(out / "predictions.png"))
+    assert picture.shape[1] == 4 * 320
+    # The same seeds give the same run.
+    assert main(argv(tmp_path / "again")) == 0
+    again = json.loads((tmp_path / "again" / "sim2real.json").read_text())
+    assert again["networks"]["real"]["f1"] == result["networks"]["real"]["f1"]
+
+
+def test_sim2real_bad_options_are_one_line(tmp_path, capsys):
+    assert main(["bench", "sim2real", "--synthetic", str(tmp_path), "--real",
+                 str(tmp_path / "none"), "--out", str(tmp_path / "o"), "--crop", "60"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--crop 60: must be a multiple of 8" in err and "\n" not in err
+    assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "a" / "ds"),
+                 str(tmp_path / "b" / "ds"), "--real", str(tmp_path), "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "different folder names" in err and "\n" not in err
