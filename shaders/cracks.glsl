@@ -10,6 +10,19 @@ uniform isampler2D u_crack_cells;    // (first entry, count) per grid cell
 uniform isampler2D u_crack_entries;  // segment ids, cell after cell
 uniform float u_crack_cell_m;        // its cells' edge
 uniform ivec3 u_crack_dims;          // its cells along x, y, z
+uniform bool u_crack_rough;          // carry each segment's path on below its ends (below)
+
+// A crack's path is self-affine (glsynth.appearance.crack_paths, which reads these): the
+// lateral offset between points x apart has variance (A xi)^2 (x / xi)^(2H), H fine below the
+// coarse aggregate's size xi, coarse above it.
+const float CRACK_AGGREGATE_M = 0.016;
+const float CRACK_ROUGHNESS = 0.25;
+const float CRACK_HURST_FINE = 0.8;
+const float CRACK_HURST_COARSE = 0.5;
+const float CRACK_REACH_M = 0.03;   // the most a path strays from its segment
+const int CRACK_LEVELS = 12;        // halvings at most: 7 cm segments to 17 um
+const float CRACK_LIP_M = 3e-4;     // a rough crack's lips: at most this wide each side,
+const float CRACK_LIP_SHARE = 0.35; // darkened by this share of the interior's darkening
 
 // Texel of entry i of a texture filled row by row.
 ivec2 crack_texel(int i, int row) {
@@ -62,6 +75,68 @@ int crack_cell(vec3 p) {
     return c.x + u_crack_dims.x * (c.y + u_crack_dims.y * c.z);
 }
 
+// lowbias32 (Wellons): a 32-bit integer hash, the same bits in numpy.
+uint crack_hash(uint x) {
+    x ^= x >> 16u; x *= 0x7feb352du; x ^= x >> 15u; x *= 0x846ca68bu; x ^= x >> 16u;
+    return x;
+}
+
+// A draw of mean 0 and variance 1 (the sum of two uniforms) keyed by a segment's seed, a level
+// of halving and an interval's index in it.
+float crack_draw(uint seed, int level, uint index) {
+    uint h1 = crack_hash(seed + uint(level) * 0x9e3779b9u + index * 0x85ebca6bu);
+    uint h2 = crack_hash(h1);
+    return (float(h1 >> 8u) + float(h2 >> 8u) + 1.0) / 16777216.0 * 2.449489743 - 2.449489743;
+}
+
+// S(x), the variance of the lateral offset between points x apart (m^2).
+float crack_structure(float x) {
+    float h = x < CRACK_AGGREGATE_M ? CRACK_HURST_FINE : CRACK_HURST_COARSE;
+    return pow(CRACK_ROUGHNESS * CRACK_AGGREGATE_M, 2.0) * pow(x / CRACK_AGGREGATE_M, 2.0 * h);
+}
+
+// The lateral offset (m) at parameter t of a segment ``length_m`` long, and its slope, by
+// random midpoint displacement from 0 at both ends (the polyline's vertices), halving while
+// the new points lie at least ``finest_m`` apart; clamped to CRACK_REACH_M.
+vec2 crack_offset(float t, float length_m, uint seed, float finest_m) {
+    float lo = 0.0, hi = 0.0, a = 0.0, b = 1.0, interval = length_m;
+    uint index = 0u;
+    for (int level = 0; level < CRACK_LEVELS && 0.5 * interval >= finest_m; ++level) {
+        float sd = sqrt(max(crack_structure(0.5 * interval) - 0.25 * crack_structure(interval),
+                            0.0));
+        float mid = 0.5 * (lo + hi) + sd * crack_draw(seed, level, index);
+        float m = 0.5 * (a + b);
+        bool left = t < m;
+        lo = left ? lo : mid;
+        hi = left ? mid : hi;
+        a = left ? a : m;
+        b = left ? m : b;
+        index = 2u * index + (left ? 0u : 1u);
+        interval *= 0.5;
+    }
+    float offset = clamp(mix(lo, hi, (t - a) / (b - a)), -CRACK_REACH_M, CRACK_REACH_M);
+    return vec2(offset, (hi - lo) / interval);
+}
+
+// The surface's normal with its largest component positive, whichever way the view sees it:
+// the side a path strays to belongs to the surface, not to the view.
+vec3 crack_normal(vec3 dpdx, vec3 dpdy) {
+    vec3 n = cross(dpdx, dpdy), m = abs(n);
+    float lead = m.x >= m.y && m.x >= m.z ? n.x : (m.y >= m.z ? n.y : n.z);
+    return lead < 0.0 ? -n : n;
+}
+
+// The darkening a crack gives a pixel, as a share of the interior's (CRACK_CONTRAST): the
+// band it covers, and on a rough crack its lips, rounded and chipped edges min(w,
+// CRACK_LIP_M) wide each side, which turn from the light and darken by CRACK_LIP_SHARE of the
+// interior's. The lips are surface, not crack: they label nothing.
+float crack_coverage(float d, float w, float f) {
+    float inside = band_coverage(d, w, f);
+    if (!u_crack_rough) return inside;
+    float lips = band_coverage(d, w + 2.0 * min(w, CRACK_LIP_M), f) - inside;
+    return inside + CRACK_LIP_SHARE * lips;
+}
+
 struct CrackHit {
     float coverage;  // the largest share of the pixel a crack covers
     float width_mm;  // the width of the nearest crack that labels the pixel; 0 if none
@@ -74,16 +149,32 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
                 inout float nearest) {
     int cell_row = textureSize(u_crack_cells, 0).x, entry_row = textureSize(u_crack_entries, 0).x;
     int segment_row = textureSize(u_crack_segments, 0).x;
+    float size = length(dpdx) + length(dpdy);
     ivec2 list = texelFetch(u_crack_cells, crack_texel(cell, cell_row), 0).xy;
     for (int k = 0; k < list.y; ++k) {
         int s = texelFetch(u_crack_entries, crack_texel(list.x + k, entry_row), 0).r;
         vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
         vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1, segment_row), 0);
         float t = segment_param(p, a.xyz, b.xyz);
-        float d = distance(p, a.xyz + (b.xyz - a.xyz) * t);
+        vec3 ab = b.xyz - a.xyz, r = p - (a.xyz + ab * t), along = ab;
+        float d = length(r);
         float width_mm = crack_width_at(a.w, b.w, t);
-        float w = 0.001 * width_mm, f = footprint_across(dpdx, dpdy, b.xyz - a.xyz);
-        hit.coverage = max(hit.coverage, band_coverage(d, w, f));
+        float w = 0.001 * width_mm;
+        if (u_crack_rough && t > 0.0 && t < 1.0
+            && d < CRACK_REACH_M + 0.5 * size + 0.5 * w + CRACK_LIP_M) {
+            vec3 across = cross(crack_normal(dpdx, dpdy), ab);
+            if (dot(across, across) > 0.0) {
+                across = normalize(across);
+                uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
+                vec2 o = crack_offset(t, length(ab), seed, 0.5 * size);
+                float ra = dot(r, across);
+                d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y)
+                         + max(dot(r, r) - ra * ra, 0.0));
+                along = normalize(ab) + o.y * across;
+            }
+        }
+        float f = footprint_across(dpdx, dpdy, along);
+        hit.coverage = max(hit.coverage, crack_coverage(d, w, f));
         bool labels = d <= 0.5 * max(w, f);
         hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
         nearest = labels ? min(d, nearest) : nearest;
@@ -99,7 +190,8 @@ CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     CrackHit hit = CrackHit(0.0, 0.0, false);
     float nearest = 1e30;
     float h = u_crack_cell_m;
-    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) - h, 0.0, h);
+    float reach = u_crack_rough ? CRACK_REACH_M : 0.0;
+    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) + reach - h, 0.0, h);
     ivec3 lo = max(crack_grid(p - extra), ivec3(0));
     ivec3 hi = min(crack_grid(p + extra), u_crack_dims - 1);
     for (int z = lo.z; z <= hi.z; ++z)

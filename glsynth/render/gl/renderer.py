@@ -117,6 +117,7 @@ class CrackTextures:
     origin: tuple[float, float, float]
     cell_m: float
     dims: tuple[int, int, int]
+    rough: bool
     """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
     demo environment's would add 155 MB to the RSS)."""
 
@@ -133,6 +134,7 @@ class CrackTextures:
             origin.value = self.origin
         prog["u_crack_cell_m"].value = self.cell_m
         prog["u_crack_dims"].value = self.dims
+        prog["u_crack_rough"].value = self.rough
 
 
 @dataclass(frozen=True, eq=False)
@@ -303,7 +305,7 @@ def upload_cracks(ctx: moderngl.Context, index: CrackIndex) -> CrackTextures:
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         textures.append(texture)
     return CrackTextures(tuple(textures), tuple(float(v) for v in index.origin), index.cell_m,
-                         index.dims)
+                         index.dims, index.rough)
 
 
 class Renderer:
