@@ -118,7 +118,7 @@ def test_rough_cracks_widths_are_measured_back_within_10_percent(rough_renders):
     for out in outs:
         truth = out.crack_width
         labelled = out.damage == Damage.CONCRETE
-        assert np.all(truth[labelled] == pytest.approx(0.5, rel=2e-3)) and not truth[~labelled].any()
+        assert np.abs(truth[labelled] / 0.5 - 1).max() < 2e-3 and not truth[~labelled].any()
         errors.append(width_errors(measure_cracks(out.damage, out.depth, intrinsics), truth))
     summary = error_summary(errors)
     assert summary["at_least_2px"]["pixels"] > 5000
