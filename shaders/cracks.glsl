@@ -101,9 +101,16 @@ float crack_structure(float x) {
 vec2 crack_offset(float t, float length_m, uint seed, float finest_m) {
     float lo = 0.0, hi = 0.0, a = 0.0, b = 1.0, interval = length_m;
     uint index = 0u;
-    for (int level = 0; level < CRACK_LEVELS && 0.5 * interval >= finest_m; ++level) {
-        float sd = sqrt(max(crack_structure(0.5 * interval) - 0.25 * crack_structure(interval),
-                            0.0));
+    float s_whole = crack_structure(interval);
+    // Counted before the loop, not bounded by a constant in it: a loop with a constant bound
+    // is unrolled, and llvmpipe runs unrolled code for every pixel, needed or not (40 % of a
+    // view's time).
+    float finest = max(finest_m, length_m * exp2(-float(CRACK_LEVELS)));
+    int levels = int(floor(log2(length_m / finest)));
+    for (int level = 0; level < levels; ++level) {
+        float s_half = crack_structure(0.5 * interval);
+        float sd = sqrt(max(s_half - 0.25 * s_whole, 0.0));
+        s_whole = s_half;
         float mid = 0.5 * (lo + hi) + sd * crack_draw(seed, level, index);
         float m = 0.5 * (a + b);
         bool left = t < m;
@@ -143,10 +150,38 @@ struct CrackHit {
     bool labelled;   // a crack covers the pixel's centre or its centreline crosses the pixel
 };
 
-// The segments listed in grid cell ``cell`` (x fastest) into ``hit``; ``nearest``: the
-// distance to the nearest labelling crack so far. A segment seen again changes nothing.
+// One crack's share in ``hit``: at distance d from its centreline, width w (m, width_mm in
+// mm) there, the pixel's footprint f across it.
+void crack_apply(float d, float w, float width_mm, float f, inout CrackHit hit,
+                 inout float nearest) {
+    hit.coverage = max(hit.coverage, crack_coverage(d, w, f));
+    bool labels = d <= 0.5 * max(w, f);
+    hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
+    nearest = labels ? min(d, nearest) : nearest;
+    hit.labelled = hit.labelled || labels;
+}
+
+// Segments whose rough paths may reach the pixel wait in ``near``, the two nearest to p by
+// their chords (ids; -1: none; a segment seen again is kept once), and are drawn after the
+// walk (crack_rough): the path's refinement runs at most twice per pixel rather than for every
+// listed segment, which keeps a rough network's cost that of a straight one. A pixel within a
+// path's reach of three segments or more (where forks meet) loses the third's.
+void crack_defer(int s, float d, inout ivec2 near, inout vec2 near_d) {
+    if (s == near.x || s == near.y) return;
+    if (d < near_d.x) {
+        near = ivec2(s, near.x);
+        near_d = vec2(d, near_d.x);
+    } else if (d < near_d.y) {
+        near.y = s;
+        near_d.y = d;
+    }
+}
+
+// The segments listed in grid cell ``cell`` (x fastest) into ``hit``, or into ``near`` where
+// a rough path may reach p; ``nearest``: the distance to the nearest labelling crack so far.
+// A segment seen again changes nothing.
 void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
-                inout float nearest) {
+                inout float nearest, inout ivec2 near, inout vec2 near_d) {
     int cell_row = textureSize(u_crack_cells, 0).x, entry_row = textureSize(u_crack_entries, 0).x;
     int segment_row = textureSize(u_crack_segments, 0).x;
     float size = length(dpdx) + length(dpdy);
@@ -156,30 +191,37 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
         vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
         vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1, segment_row), 0);
         float t = segment_param(p, a.xyz, b.xyz);
-        vec3 ab = b.xyz - a.xyz, r = p - (a.xyz + ab * t), along = ab;
-        float d = length(r);
+        float d = distance(p, a.xyz + (b.xyz - a.xyz) * t);
         float width_mm = crack_width_at(a.w, b.w, t);
         float w = 0.001 * width_mm;
         if (u_crack_rough && t > 0.0 && t < 1.0
-            && d < CRACK_REACH_M + 0.5 * size + 0.5 * w + CRACK_LIP_M) {
-            vec3 across = cross(crack_normal(dpdx, dpdy), ab);
-            if (dot(across, across) > 0.0) {
-                across = normalize(across);
-                uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
-                vec2 o = crack_offset(t, length(ab), seed, 0.5 * size);
-                float ra = dot(r, across);
-                d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y)
-                         + max(dot(r, r) - ra * ra, 0.0));
-                along = normalize(ab) + o.y * across;
-            }
-        }
-        float f = footprint_across(dpdx, dpdy, along);
-        hit.coverage = max(hit.coverage, crack_coverage(d, w, f));
-        bool labels = d <= 0.5 * max(w, f);
-        hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
-        nearest = labels ? min(d, nearest) : nearest;
-        hit.labelled = hit.labelled || labels;
+            && d < CRACK_REACH_M + 0.5 * size + 0.5 * w + CRACK_LIP_M)
+            crack_defer(s, d, near, near_d);
+        else
+            crack_apply(d, w, width_mm, footprint_across(dpdx, dpdy, b.xyz - a.xyz), hit,
+                        nearest);
     }
+}
+
+// Segment s drawn along its rough path (crack_offset), across the chord on the surface.
+void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout float nearest) {
+    int segment_row = textureSize(u_crack_segments, 0).x;
+    vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
+    vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1, segment_row), 0);
+    float t = segment_param(p, a.xyz, b.xyz);
+    vec3 ab = b.xyz - a.xyz, r = p - (a.xyz + ab * t), along = ab;
+    float d = length(r), width_mm = crack_width_at(a.w, b.w, t);
+    vec3 across = cross(crack_normal(dpdx, dpdy), ab);
+    if (dot(across, across) > 0.0) {
+        across = normalize(across);
+        uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
+        vec2 o = crack_offset(t, length(ab), seed, 0.5 * (length(dpdx) + length(dpdy)));
+        float ra = dot(r, across);
+        d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y) + max(dot(r, r) - ra * ra, 0.0));
+        along = normalize(ab) + o.y * across;
+    }
+    crack_apply(d, 0.001 * width_mm, width_mm, footprint_across(dpdx, dpdy, along), hit,
+                nearest);
 }
 
 // The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a pixel whose derivatives are dpdx, dpdy.
@@ -194,10 +236,15 @@ CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) + reach - h, 0.0, h);
     ivec3 lo = max(crack_grid(p - extra), ivec3(0));
     ivec3 hi = min(crack_grid(p + extra), u_crack_dims - 1);
+    ivec2 near = ivec2(-1);
+    vec2 near_d = vec2(1e30);
     for (int z = lo.z; z <= hi.z; ++z)
         for (int y = lo.y; y <= hi.y; ++y)
             for (int x = lo.x; x <= hi.x; ++x)
                 crack_walk(x + u_crack_dims.x * (y + u_crack_dims.y * z), p, dpdx, dpdy, hit,
-                           nearest);
+                           nearest, near, near_d);
+    int deferred = int(near.x >= 0) + int(near.y >= 0);  // not unrolled (crack_offset)
+    for (int i = 0; i < deferred; ++i)
+        crack_rough(near[i], p, dpdx, dpdy, hit, nearest);
     return hit;
 }
