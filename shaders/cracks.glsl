@@ -155,7 +155,7 @@ struct CrackHit {
 void crack_apply(float d, float w, float width_mm, float f, inout CrackHit hit,
                  inout float nearest) {
     hit.coverage = max(hit.coverage, crack_coverage(d, w, f));
-    bool labels = d <= 0.5 * max(w, f);
+    bool labels = d <= 0.5 * max(w, f) && w > 0.0;  // closed at a tip: no crack to label
     hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
     nearest = labels ? min(d, nearest) : nearest;
     hit.labelled = hit.labelled || labels;
