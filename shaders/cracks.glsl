@@ -10,6 +10,19 @@ uniform isampler2D u_crack_cells;    // (first entry, count) per grid cell
 uniform isampler2D u_crack_entries;  // segment ids, cell after cell
 uniform float u_crack_cell_m;        // its cells' edge
 uniform ivec3 u_crack_dims;          // its cells along x, y, z
+uniform bool u_crack_rough;          // carry each segment's path on below its ends (below)
+
+// A crack's path is self-affine (glsynth.appearance.crack_paths, which reads these): the
+// lateral offset between points x apart has variance (A xi)^2 (x / xi)^(2H), H fine below the
+// coarse aggregate's size xi, coarse above it.
+const float CRACK_AGGREGATE_M = 0.016;
+const float CRACK_ROUGHNESS = 0.25;
+const float CRACK_HURST_FINE = 0.8;
+const float CRACK_HURST_COARSE = 0.5;
+const float CRACK_REACH_M = 0.03;   // the most a path strays from its segment
+const int CRACK_LEVELS = 12;        // halvings at most: 7 cm segments to 17 um
+const float CRACK_LIP_M = 3e-4;     // a rough crack's lips: at most this wide each side,
+const float CRACK_LIP_SHARE = 0.35; // darkened by this share of the interior's darkening
 
 // Texel of entry i of a texture filled row by row.
 ivec2 crack_texel(int i, int row) {
@@ -59,18 +72,116 @@ int crack_cell_index(ivec3 c) {
     return c.x + u_crack_dims.x * (c.y + u_crack_dims.y * c.z);
 }
 
+// lowbias32 (Wellons): a 32-bit integer hash, the same bits in numpy.
+uint crack_hash(uint x) {
+    x ^= x >> 16u; x *= 0x7feb352du; x ^= x >> 15u; x *= 0x846ca68bu; x ^= x >> 16u;
+    return x;
+}
+
+// A draw of mean 0 and variance 1 (the sum of two uniforms) keyed by a segment's seed, a level
+// of halving and an interval's index in it.
+float crack_draw(uint seed, int level, uint index) {
+    uint h1 = crack_hash(seed + uint(level) * 0x9e3779b9u + index * 0x85ebca6bu);
+    uint h2 = crack_hash(h1);
+    return (float(h1 >> 8u) + float(h2 >> 8u) + 1.0) / 16777216.0 * 2.449489743 - 2.449489743;
+}
+
+// S(x), the variance of the lateral offset between points x apart (m^2).
+float crack_structure(float x) {
+    float h = x < CRACK_AGGREGATE_M ? CRACK_HURST_FINE : CRACK_HURST_COARSE;
+    return pow(CRACK_ROUGHNESS * CRACK_AGGREGATE_M, 2.0) * pow(x / CRACK_AGGREGATE_M, 2.0 * h);
+}
+
+// The lateral offset (m) at parameter t of a segment ``length_m`` long, and its slope, by
+// random midpoint displacement from 0 at both ends (the polyline's vertices), halving while
+// the new points lie at least ``finest_m`` apart; clamped to CRACK_REACH_M.
+vec2 crack_offset(float t, float length_m, uint seed, float finest_m) {
+    float lo = 0.0, hi = 0.0, a = 0.0, b = 1.0, interval = length_m;
+    uint index = 0u;
+    float s_whole = crack_structure(interval);
+    // Counted before the loop, not bounded by a constant in it: a loop with a constant bound
+    // is unrolled, and llvmpipe runs unrolled code for every pixel, needed or not (40 % of a
+    // view's time).
+    float finest = max(finest_m, length_m * exp2(-float(CRACK_LEVELS)));
+    int levels = int(floor(log2(length_m / finest)));
+    for (int level = 0; level < levels; ++level) {
+        float s_half = crack_structure(0.5 * interval);
+        float sd = sqrt(max(s_half - 0.25 * s_whole, 0.0));
+        s_whole = s_half;
+        float mid = 0.5 * (lo + hi) + sd * crack_draw(seed, level, index);
+        float m = 0.5 * (a + b);
+        bool left = t < m;
+        lo = left ? lo : mid;
+        hi = left ? mid : hi;
+        a = left ? a : m;
+        b = left ? m : b;
+        index = 2u * index + (left ? 0u : 1u);
+        interval *= 0.5;
+    }
+    float offset = clamp(mix(lo, hi, (t - a) / (b - a)), -CRACK_REACH_M, CRACK_REACH_M);
+    return vec2(offset, (hi - lo) / interval);
+}
+
+// The surface's normal with its largest component positive, whichever way the view sees it:
+// the side a path strays to belongs to the surface, not to the view.
+vec3 crack_normal(vec3 dpdx, vec3 dpdy) {
+    vec3 n = cross(dpdx, dpdy), m = abs(n);
+    float lead = m.x >= m.y && m.x >= m.z ? n.x : (m.y >= m.z ? n.y : n.z);
+    return lead < 0.0 ? -n : n;
+}
+
+// The darkening a crack gives a pixel, as a share of the interior's (CRACK_CONTRAST): the
+// band it covers, and on a rough crack its lips, rounded and chipped edges min(w,
+// CRACK_LIP_M) wide each side, which turn from the light and darken by CRACK_LIP_SHARE of the
+// interior's. The lips are surface, not crack: they label nothing.
+float crack_coverage(float d, float w, float f) {
+    float inside = band_coverage(d, w, f);
+    if (!u_crack_rough) return inside;
+    float lips = band_coverage(d, w + 2.0 * min(w, CRACK_LIP_M), f) - inside;
+    return inside + CRACK_LIP_SHARE * lips;
+}
+
 struct CrackHit {
     float coverage;  // the largest share of the pixel a crack covers
     float width_mm;  // the width of the nearest crack that labels the pixel; 0 if none
     bool labelled;   // a crack covers the pixel's centre or its centreline crosses the pixel
 };
 
-// The segments listed in grid cell ``cell`` (crack_cell_index) into ``hit``; ``nearest``:
-// the distance to the nearest labelling crack so far. A segment seen again changes nothing.
+// One crack's share in ``hit``: at distance d from its centreline, width w (m, width_mm in
+// mm) there, the pixel's footprint f across it.
+void crack_apply(float d, float w, float width_mm, float f, inout CrackHit hit,
+                 inout float nearest) {
+    hit.coverage = max(hit.coverage, crack_coverage(d, w, f));
+    bool labels = d <= 0.5 * max(w, f) && w > 0.0;  // closed at a tip: no crack to label
+    hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
+    nearest = labels ? min(d, nearest) : nearest;
+    hit.labelled = hit.labelled || labels;
+}
+
+// Segments whose rough paths may reach the pixel wait in ``near``, the two nearest to p by
+// their chords (ids; -1: none; a segment seen again is kept once), and are drawn after the
+// walk (crack_rough): the path's refinement runs at most twice per pixel rather than for every
+// listed segment, which keeps a rough network's cost that of a straight one. A pixel within a
+// path's reach of three segments or more (where forks meet) loses the third's.
+void crack_defer(int s, float d, inout ivec2 near, inout vec2 near_d) {
+    if (s == near.x || s == near.y) return;
+    if (d < near_d.x) {
+        near = ivec2(s, near.x);
+        near_d = vec2(d, near_d.x);
+    } else if (d < near_d.y) {
+        near.y = s;
+        near_d.y = d;
+    }
+}
+
+// The segments listed in grid cell ``cell`` (crack_cell_index) into ``hit``, or into ``near``
+// where a rough path may reach p; ``nearest``: the distance to the nearest labelling crack so
+// far. A segment seen again changes nothing.
 void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
-                inout float nearest) {
+                inout float nearest, inout ivec2 near, inout vec2 near_d) {
     int cell_row = textureSize(u_crack_cells, 0).x, entry_row = textureSize(u_crack_entries, 0).x;
     int segment_row = textureSize(u_crack_segments, 0).x;
+    float size = length(dpdx) + length(dpdy);
     ivec2 list = texelFetch(u_crack_cells, crack_texel(cell, cell_row), 0).xy;
     for (int k = 0; k < list.y; ++k) {
         int s = texelFetch(u_crack_entries, crack_texel(list.x + k, entry_row), 0).r;
@@ -79,13 +190,35 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
         float t = segment_param(p, a.xyz, b.xyz);
         float d = distance(p, a.xyz + (b.xyz - a.xyz) * t);
         float width_mm = crack_width_at(a.w, b.w, t);
-        float w = 0.001 * width_mm, f = footprint_across(dpdx, dpdy, b.xyz - a.xyz);
-        hit.coverage = max(hit.coverage, band_coverage(d, w, f));
-        bool labels = d <= 0.5 * max(w, f);
-        hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
-        nearest = labels ? min(d, nearest) : nearest;
-        hit.labelled = hit.labelled || labels;
+        float w = 0.001 * width_mm;
+        if (u_crack_rough && t > 0.0 && t < 1.0
+            && d < CRACK_REACH_M + 0.5 * size + 0.5 * w + CRACK_LIP_M)
+            crack_defer(s, d, near, near_d);
+        else
+            crack_apply(d, w, width_mm, footprint_across(dpdx, dpdy, b.xyz - a.xyz), hit,
+                        nearest);
     }
+}
+
+// Segment s drawn along its rough path (crack_offset), across the chord on the surface.
+void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout float nearest) {
+    int segment_row = textureSize(u_crack_segments, 0).x;
+    vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
+    vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1, segment_row), 0);
+    float t = segment_param(p, a.xyz, b.xyz);
+    vec3 ab = b.xyz - a.xyz, r = p - (a.xyz + ab * t), along = ab;
+    float d = length(r), width_mm = crack_width_at(a.w, b.w, t);
+    vec3 across = cross(crack_normal(dpdx, dpdy), ab);
+    if (dot(across, across) > 0.0) {
+        across = normalize(across);
+        uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
+        vec2 o = crack_offset(t, length(ab), seed, 0.5 * (length(dpdx) + length(dpdy)));
+        float ra = dot(r, across);
+        d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y) + max(dot(r, r) - ra * ra, 0.0));
+        along = normalize(ab) + o.y * across;
+    }
+    crack_apply(d, 0.001 * width_mm, width_mm, footprint_across(dpdx, dpdy, along), hit,
+                nearest);
 }
 
 // The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a pixel whose derivatives are dpdx, dpdy.
@@ -96,12 +229,19 @@ CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     CrackHit hit = CrackHit(0.0, 0.0, false);
     float nearest = 1e30;
     float h = u_crack_cell_m;
-    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) - h, 0.0, h);
+    float reach = u_crack_rough ? CRACK_REACH_M : 0.0;
+    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) + reach - h, 0.0, h);
     ivec3 lo = max(crack_grid(p - extra), ivec3(0));
     ivec3 hi = min(crack_grid(p + extra), u_crack_dims - 1);
+    ivec2 near = ivec2(-1);
+    vec2 near_d = vec2(1e30);
     for (int z = lo.z; z <= hi.z; ++z)
         for (int y = lo.y; y <= hi.y; ++y)
             for (int x = lo.x; x <= hi.x; ++x)
-                crack_walk(crack_cell_index(ivec3(x, y, z)), p, dpdx, dpdy, hit, nearest);
+                crack_walk(crack_cell_index(ivec3(x, y, z)), p, dpdx, dpdy, hit, nearest, near,
+                           near_d);
+    int deferred = int(near.x >= 0) + int(near.y >= 0);  // not unrolled (crack_offset)
+    for (int i = 0; i < deferred; ++i)
+        crack_rough(near[i], p, dpdx, dpdy, hit, nearest);
     return hit;
 }

@@ -217,12 +217,12 @@ def test_extremes_no_demand_and_width_bounds():
                             make_rng(0, 0, Stream.CRACKS))
         assert net.points.shape == (0, 2, 3) and net.kinds == () and crack_records(net) == []
     widths = np.concatenate([network(s, "severe")[0].widths_m.ravel() for s in range(5)])
-    assert widths.min() == pytest.approx(0.05e-3) and widths.max() == pytest.approx(5e-3)
+    assert widths.min() == 0.0 and widths.max() == pytest.approx(5e-3)  # 0 at the tips
     for bound in (0.05, 5.0):
         cfg = dataclasses.replace(CFG, crack_width_mm=(bound, bound))
         net = column_cracks(cfg, (0.7, 0.8), [(-2.5, 2.5)], DriftDemand(0.05, 0),
                             make_rng(1, 0, Stream.CRACKS))
-        assert len(net.kinds) > 0 and np.allclose(net.widths_m, bound / 1e3)
+        assert len(net.kinds) > 0 and net.widths_m.max() == pytest.approx(bound / 1e3)
     # Below first cracking (M < M_cr everywhere) there are no cracks.
     rng = make_rng(0, 0, Stream.CRACKS)
     assert column_cracks(CFG, (0.7, 0.7), [(-3.0, 3.0)], DriftDemand(5e-4, 1), rng).kinds == ()
@@ -324,9 +324,10 @@ def test_beam_cracks_near_the_supports_and_in_the_soffit_at_midspan(axis):
         on_side = np.abs(np.abs(p[..., other]) - 0.45) < TOL
         on_top_bottom = np.abs(np.abs(p[..., 2]) - 0.475) < TOL
         assert (on_side | on_top_bottom).all() and (np.abs(p[..., axis]) <= 2.6 + TOL).all()
-        d = p[:, 1] - p[:, 0]
-        along = np.degrees(np.arctan2(np.abs(d[:, axis]), np.hypot(d[:, other], d[:, 2])))
-        assert (along[net.lengths_m > 0.01] <= FLEXURAL_BAND_DEG).mean() >= 0.9
+        d = p[:, 1] - p[:, 0]  # a crack's chord (its path is rough: crack_paths)
+        rise = np.bincount(net.crack, d[:, axis], len(net.kinds))
+        run = np.bincount(net.crack, np.hypot(d[:, other], d[:, 2]), len(net.kinds))
+        assert (np.degrees(np.arctan2(np.abs(rise), run)) <= FLEXURAL_BAND_DEG).mean() >= 0.9
         u = np.abs(p[..., axis]).mean(axis=1)
         top = (np.abs(p[..., 2] - 0.475) < TOL).all(axis=1)
         assert (u[top] >= 2.6 - span.cracked_m - 0.2).all()  # hogging near the supports only

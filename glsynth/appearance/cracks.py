@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glsynth.appearance import crack_paths
 from glsynth.core.config import MAX_CRACK_WIDTH_MM, DamageConfig
 
 KINDS = ("flexural", "shear")
@@ -36,7 +37,8 @@ FLEXURAL_BAND_DEG = 10.0
 SHEAR_BAND_DEG = (30.0, 60.0)
 """Shear cracks run at these angles to the axis."""
 STEP_M = 0.05
-"""Length of a crack polyline's steps: the scale of its wiggle."""
+"""About the length of a crack polyline's steps; its roughness at shorter scales is drawn in
+shaders/cracks.glsl (crack_paths)."""
 MIN_FORK_M = 0.02
 """A fork with less room than this on its face is not made."""
 
@@ -50,11 +52,14 @@ class CrackNetwork:
     widths_m: np.ndarray
     """(N, 2) float64: the crack's width at each end point, in metres, measured across the
     crack on the surface; linear in between. Within [damage] crack_width_mm, at most
-    MAX_WIDTH_M."""
+    MAX_WIDTH_M; 0 at a crack's tips."""
     crack: np.ndarray
     """(N,) int32: the crack (0 .. K-1) each segment belongs to."""
     kinds: tuple[str, ...]
     """(K,) per crack: "flexural" or "shear"."""
+    rough: bool = False
+    """The renderer carries each segment's path on below its end points, self-affine down to
+    the pixel (shaders/cracks.glsl; the generators' cracks); false: straight segments."""
 
     def __post_init__(self) -> None:
         n = len(self.points) if isinstance(self.points, np.ndarray) else -1
@@ -67,9 +72,11 @@ class CrackNetwork:
                                  f"of shape {shape}")
         if not (np.all(np.isfinite(self.points)) and np.all(np.isfinite(self.widths_m))):
             raise ValueError("CrackNetwork: points and widths must be finite")
-        if n and not (self.widths_m.min() > 0 and self.widths_m.max() <= MAX_WIDTH_M):
+        if n and not (self.widths_m.min() >= 0 and self.widths_m.max(axis=1).min() > 0
+                      and self.widths_m.max() <= MAX_WIDTH_M):
             raise ValueError(f"CrackNetwork.widths_m: {self.widths_m.min()} .. "
-                             f"{self.widths_m.max()} m; must lie in (0, {MAX_WIDTH_M}] m")
+                             f"{self.widths_m.max()} m; must lie in [0, {MAX_WIDTH_M}] m, "
+                             "positive at one end of every segment at least")
         if not isinstance(self.kinds, tuple) or any(k not in KINDS for k in self.kinds):
             raise ValueError(f"CrackNetwork.kinds = {self.kinds!r}: a tuple of {KINDS}")
         used = np.unique(self.crack)
@@ -87,7 +94,7 @@ class CrackNetwork:
         cracks left keep their order, numbered from 0."""
         ids, crack = np.unique(self.crack[keep], return_inverse=True)
         return CrackNetwork(self.points[keep], self.widths_m[keep], crack.astype(np.int32),
-                            tuple(self.kinds[k] for k in ids))
+                            tuple(self.kinds[k] for k in ids), self.rough)
 
 
 def empty_network() -> CrackNetwork:
@@ -290,40 +297,29 @@ _Polyline = tuple[np.ndarray, np.ndarray, np.ndarray]
 """(s, z, width) of a crack's vertices on the unrolled surface."""
 
 
-def _trace(s_lo: float, s_hi: float, z_at: float, angles_deg: np.ndarray) -> np.ndarray:
-    """z of a polyline from s_lo to s_hi in len(angles_deg) equal steps, each rising at its
-    angle from the horizontal; shifted so that its middle vertex sits at z_at."""
-    s = np.linspace(s_lo, s_hi, len(angles_deg) + 1)
-    z = np.concatenate([[0.0], np.cumsum(np.diff(s) * np.tan(np.radians(angles_deg)))])
-    return z + z_at - z[len(z) // 2]
-
-
-def _steps(length_m: float) -> int:
-    return max(2, int(np.ceil(length_m / STEP_M)))
-
-
-def _branch(line: _Polyline, face: tuple[float, float], w_lo: float, rng: np.random.Generator
+def _branch(line: _Polyline, face: tuple[float, float], rng: np.random.Generator
             ) -> _Polyline | None:
-    """A fork from an inner vertex of ``line``, 15-35 degrees off the crack's direction there,
-    5-20 % of its length, half its width at the fork, tapering to w_lo; kept on the face
-    ``face`` (its s range), or None where there is no room."""
+    """A fork from a vertex of ``line`` in its outer quarter at either tip (where a crack
+    meets tougher material ahead and splits), 15-35 degrees off the crack's chord, 5-20 % of
+    its length, about half its width at the fork and closing to zero at its own tip; kept on the
+    face ``face`` (its s range), or None where there is no room."""
     s, z, w = line
-    inner = np.flatnonzero((s[1:-1] > face[0]) & (s[1:-1] < face[1])) + 1
+    quarter = max(1, (len(s) - 1) // 4)
+    outer = np.r_[1:quarter + 1, len(s) - 1 - quarter:len(s) - 1]
+    inner = outer[(s[outer] > face[0]) & (s[outer] < face[1])]
     if len(inner) == 0:
         return None
     k = int(rng.choice(inner))
     sense = 1.0 if s[-1] > s[0] else -1.0
-    local = np.degrees(np.arctan2(z[k + 1] - z[k], abs(s[k + 1] - s[k])))
-    angle = float(np.clip(local + rng.choice([-1.0, 1.0]) * rng.uniform(15, 35), -70, 70))
+    chord = np.degrees(np.arctan2(z[-1] - z[0], abs(s[-1] - s[0])))
+    angle = float(np.clip(chord + rng.choice([-1.0, 1.0]) * rng.uniform(15, 35), -70, 70))
     reach = rng.uniform(0.05, 0.2) * float(np.hypot(np.diff(s), np.diff(z)).sum())
     end = float(np.clip(s[k] + sense * reach * np.cos(np.radians(angle)), *face))
     if abs(end - s[k]) < MIN_FORK_M:
         return None
-    n = _steps(abs(end - s[k]))
-    angles = np.clip(angle + rng.normal(0, 3, n), -75, 75) * sense
-    zb = _trace(s[k], end, 0.0, angles)
-    return (np.linspace(s[k], end, n + 1), zb - zb[0] + z[k],
-            np.linspace(max(w[k] / 2, w_lo), w_lo, n + 1))
+    sb, zb, arc = crack_paths.path(s[k], end, 0.0, angle, STEP_M, rng)
+    widths = crack_paths.width_profile(arc, np.full(len(arc), w[k] / 2), rng, first_is_tip=False)
+    return sb, zb - zb[0] + z[k], np.minimum(widths, w[k])  # no wider than its trunk
 
 
 def _clip_z(line: _Polyline, z0: float, z1: float) -> _Polyline | None:
@@ -341,35 +337,37 @@ def _clip_z(line: _Polyline, z0: float, z1: float) -> _Polyline | None:
 def _flexural(cfg: DamageConfig, sec: _Section, face: int, z_at: float, width_m: float,
               rng: np.random.Generator) -> _Polyline:
     """A crack across tension face ``face`` at width_m, turning both corners onto the side
-    faces for 15-45 % of their width and tapering there to the smallest width: the strain
-    falls towards the neutral axis. Within FLEXURAL_BAND_DEG of horizontal at every step."""
-    w_lo = cfg.crack_width_m[0]
+    faces for 15-45 % of their width and narrowing there to the smallest width (the strain
+    falls towards the neutral axis), then closing at its tips. Its chord runs within
+    FLEXURAL_BAND_DEG of horizontal; its path is rough (crack_paths)."""
+    w_lo, w_hi = cfg.crack_width_m
     start = float(sec.starts[face])
     end = start + sec.face_width(face)
     side = sec.face_width(face + 1)
     lo, hi = start - rng.uniform(0.15, 0.45) * side, end + rng.uniform(0.15, 0.45) * side
-    n = _steps(hi - lo)
-    angles = np.clip(rng.normal(0.0, 3.0, n), -0.8 * FLEXURAL_BAND_DEG,
-                     0.8 * FLEXURAL_BAND_DEG)
-    s = np.linspace(lo, hi, n + 1)
-    past = np.maximum(start - s, 0.0) / (start - lo) + np.maximum(s - end, 0.0) / (hi - end)
-    return s, _trace(lo, hi, z_at, angles), width_m + (w_lo - width_m) * past
+    angle = float(np.clip(rng.normal(0.0, 3.0), -0.8 * FLEXURAL_BAND_DEG,
+                          0.8 * FLEXURAL_BAND_DEG))
+    s, z, arc = crack_paths.path(lo, hi, z_at, angle, STEP_M, rng)
+    past = np.clip(np.maximum(start - s, 0.0) / (start - lo)
+                   + np.maximum(s - end, 0.0) / (hi - end), 0.0, 1.0)
+    mechanics = width_m + (w_lo - width_m) * past
+    return s, z, np.minimum(crack_paths.width_profile(arc, mechanics, rng), w_hi)
 
 
 def _shear(cfg: DamageConfig, sec: _Section, face: int, z_at: float, width_m: float,
            rng: np.random.Generator) -> _Polyline:
-    """A diagonal crack across face ``face`` (parallel to the drift), at 35-55 degrees to the
-    axis with either sense (the load reverses), widest mid-face, tapering to both tips."""
-    w_lo = cfg.crack_width_m[0]
+    """A diagonal crack across face ``face`` (parallel to the drift), its chord at 35-55
+    degrees to the axis with either sense (the load reverses), widest mid-face, closing at
+    both tips; its path is rough (crack_paths)."""
+    w_lo, w_hi = cfg.crack_width_m
     start, wide = float(sec.starts[face]), sec.face_width(face)
     lo, hi = start + rng.uniform(0.02, 0.1) * wide, start + wide - rng.uniform(0.02, 0.1) * wide
-    n = _steps((hi - lo) * 1.5)
-    inclination = rng.uniform(35.0, 55.0)
-    angles = rng.choice([-1.0, 1.0]) * np.clip(inclination + rng.normal(0.0, 3.0, n),
-                                               SHEAR_BAND_DEG[0] + 1, SHEAR_BAND_DEG[1] - 1)
-    taper = 1.0 - np.abs(np.linspace(-1.0, 1.0, n + 1))
-    return (np.linspace(lo, hi, n + 1), _trace(lo, hi, z_at, angles),
-            w_lo + (width_m - w_lo) * taper)
+    inclination = rng.uniform(SHEAR_BAND_DEG[0] + 5, SHEAR_BAND_DEG[1] - 5)
+    s, z, arc = crack_paths.path(lo, hi, z_at, rng.choice([-1.0, 1.0]) * inclination,
+                                 STEP_M, rng)
+    s = np.clip(s, start, start + wide)  # a diagonal crack stays on its face
+    mechanics = w_lo + (width_m - w_lo) * (1.0 - np.abs(2 * arc / arc[-1] - 1.0))
+    return s, z, np.minimum(crack_paths.width_profile(arc, mechanics, rng), w_hi)
 
 
 def _positions(extent_m: float, spacing_m: float, rng: np.random.Generator) -> np.ndarray:
@@ -421,7 +419,7 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
         lines = [line]
         if rng.random() < cfg.branch_probability:
             middle = float(line[0][len(line[0]) // 2])
-            fork = _branch(line, sec.face_bounds(middle), cfg.crack_width_m[0], rng)
+            fork = _branch(line, sec.face_bounds(middle), rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
                 lines.append(fork)
         out.append((kind, lines))
@@ -441,7 +439,7 @@ def _network(sec: _Section, cracks: list[tuple[str, list[_Polyline]]],
     mesh = np.empty_like(canonical)
     mesh[..., list(axes)] = canonical
     owner = np.array([k for k, _ in lines], np.int32)
-    return CrackNetwork(mesh, widths, owner[which], tuple(kind for kind, _ in cracks))
+    return CrackNetwork(mesh, widths, owner[which], tuple(kind for kind, _ in cracks), True)
 
 
 def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],

@@ -29,6 +29,7 @@ The girder's top lies under the slab, so segments on it are dropped: the hogging
 the supports show only where they turn down the sides.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +113,8 @@ def _split_at(net: CrackNetwork, cuts: np.ndarray) -> CrackNetwork:
         rows = slice(start[i], start[i] + counts[i])
         points[rows] = np.stack([ends[:-1], ends[1:]], axis=1)
         widths[rows] = np.stack([width[:-1], width[1:]], axis=1)
-    return CrackNetwork(points, widths, np.repeat(c, counts).astype(np.int32), net.kinds)
+    return CrackNetwork(points, widths, np.repeat(c, counts).astype(np.int32), net.kinds,
+                        net.rough)
 
 
 def _edges(profile: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -153,7 +155,7 @@ def _joined(nets: list[CrackNetwork]) -> CrackNetwork:
                         np.concatenate([n.widths_m for n in nets]),
                         np.concatenate([n.crack + o for n, o in zip(nets, offsets)]
                                        ).astype(np.int32),
-                        tuple(k for n in nets for k in n.kinds))
+                        tuple(k for n in nets for k in n.kinds), any(n.rough for n in nets))
 
 
 def girder_cracks(cfg: DamageConfig, sweep: GirderSweep, spans: list[tuple[float, float]],
@@ -169,7 +171,7 @@ def girder_cracks(cfg: DamageConfig, sweep: GirderSweep, spans: list[tuple[float
         if not len(box.points):
             continue
         shifted = box.points + np.array([g0 + half, 0.0, 0.0])
-        box = _split_at(CrackNetwork(shifted, box.widths_m, box.crack, box.kinds), sweep.g)
+        box = _split_at(dataclasses.replace(box, points=shifted), sweep.g)
         mapped = on_mesh(sweep, box.points.reshape(-1, 3)).reshape(box.points.shape)
-        nets.append(CrackNetwork(mapped, box.widths_m, box.crack, box.kinds))
+        nets.append(dataclasses.replace(box, points=mapped))
     return _joined(nets)

@@ -68,6 +68,8 @@ class CrackIndex:
     dims: tuple[int, int, int]
     longest: int
     """The longest cell list: the most segments one fragment tests."""
+    rough: bool = False
+    """The network's segments carry their paths on below their ends (CrackNetwork.rough)."""
 
 
 def _rows(flat: np.ndarray) -> np.ndarray:
@@ -134,7 +136,7 @@ def pack_cracks(network: CrackNetwork) -> CrackIndex:
         return CrackIndex(_rows(np.zeros((0, 4), np.float32)),
                           _rows(np.zeros((int(np.prod(dims)), 2), np.int32)),
                           _rows(np.zeros(0, np.int32)), origin.astype(np.float32), cell,
-                          tuple(int(d) for d in dims), 0)
+                          tuple(int(d) for d in dims), 0, network.rough)
     half = widths.max(1) / 2
     origin, cell, dims = _grid(points.reshape(-1, 3), float(half.max()))
     origin = origin.astype(np.float32).astype(np.float64)  # the corner the shader subtracts
@@ -149,4 +151,4 @@ def pack_cracks(network: CrackNetwork) -> CrackIndex:
     return CrackIndex(_rows(segments.astype(np.float32)),
                       _rows(np.stack([starts, counts], 1).astype(np.int32)), _rows(entries),
                       origin.astype(np.float32), cell, tuple(int(d) for d in dims),
-                      int(counts.max()))
+                      int(counts.max()), network.rough)

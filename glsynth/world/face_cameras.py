@@ -245,9 +245,13 @@ class CrackAims:
     """(N,) each segment's share of the cracks' length."""
 
     def draw(self, rng: np.random.Generator) -> tuple[int, np.ndarray, float]:
-        """A face, a point on it uniform along the cracks' length, and the width there."""
+        """A face, an open end of a segment drawn by length (the cracks' vertices: a rough
+        crack's path strays from its segments between them, docs/design.md "Crack paths", and
+        passes through them; a crack's tip, of width 0, is not aimed at), and the width
+        there."""
         k = int(rng.choice(len(self.weights), p=self.weights))
-        (a, b), (wa, wb), t = self.segments[k], self.widths_m[k], rng.uniform()
+        (a, b), (wa, wb), end = self.segments[k], self.widths_m[k], int(rng.integers(2))
+        t = float(end if (wa, wb)[end] > 0 else 1 - end)
         return int(self.faces[k]), a + t * (b - a), float(wa + t * (wb - wa))
 
 

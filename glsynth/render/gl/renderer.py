@@ -120,6 +120,7 @@ class CrackTextures:
     origin: tuple[float, float, float]
     cell_m: float
     dims: tuple[int, int, int]
+    rough: bool
     """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
     demo environment's would add 155 MB to the RSS)."""
 
@@ -134,6 +135,7 @@ class CrackTextures:
             origin.value = self.origin
         prog["u_crack_cell_m"].value = self.cell_m
         prog["u_crack_dims"].value = self.dims
+        prog["u_crack_rough"].value = self.rough
 
 
 @dataclass(frozen=True, eq=False)
@@ -311,7 +313,7 @@ def upload_cracks(ctx: moderngl.Context, index: CrackIndex) -> CrackTextures:
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         textures.append(texture)
     return CrackTextures(tuple(textures), tuple(float(v) for v in index.origin), index.cell_m,
-                         index.dims)
+                         index.dims, index.rough)
 
 
 class Renderer:
