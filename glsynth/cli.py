@@ -182,10 +182,11 @@ def add_export_parser(sub: Commands) -> None:
 def cmd_export(args: argparse.Namespace) -> None:
     from glsynth.appearance.damage_bank import DamageBank
     from glsynth.appearance.dressing import dress, open_repository
-    from glsynth.render.export import export_environment
+    from glsynth.render.export import export_environment, glb_path
     from glsynth.world.environment import build_environment
     from glsynth.world.lighting import environment_lighting
 
+    glb_path(args.out)  # a wrong path is refused before the environment is built
     t0 = time.perf_counter()
     config = _config(args)
     env = build_environment(config, args.seed, args.env)
