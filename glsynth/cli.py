@@ -23,7 +23,7 @@ from glsynth.core.config import (
     config_from_dict,
     load_config,
 )
-from glsynth.core.errors import UserError, clipped
+from glsynth.core.errors import UserError, clipped, shown
 from glsynth.core.options import (
     add_options,
     argparse_type,
@@ -40,18 +40,24 @@ from glsynth.model.settings import TrainSettings
 # function below.
 
 
+MAX_INT = 2**63 - 1
+"""The largest seed, index or count an option takes: numpy's seeds and indices are 64-bit."""
+
+
 def non_negative_int(text: str) -> int:
-    """Seeds, indices and counts that may be zero."""
+    """Seeds, indices and counts that may be zero, up to MAX_INT."""
     value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 0")
+    if not 0 <= value <= MAX_INT:
+        raise argparse.ArgumentTypeError(f"{shown(text, 30)}: must be an integer in "
+                                         "[0, 2**63 - 1]")
     return value
 
 
 def positive_int(text: str) -> int:
     value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value}: must be an integer >= 1")
+    if not 1 <= value <= MAX_INT:
+        raise argparse.ArgumentTypeError(f"{shown(text, 30)}: must be an integer in "
+                                         "[1, 2**63 - 1]")
     return value
 
 
@@ -182,10 +188,11 @@ def add_export_parser(sub: Commands) -> None:
 def cmd_export(args: argparse.Namespace) -> None:
     from glsynth.appearance.damage_bank import DamageBank
     from glsynth.appearance.dressing import dress, open_repository
-    from glsynth.render.export import export_environment
+    from glsynth.render.export import export_environment, glb_path
     from glsynth.world.environment import build_environment
     from glsynth.world.lighting import environment_lighting
 
+    glb_path(args.out)  # a wrong path is refused before the environment is built
     t0 = time.perf_counter()
     config = _config(args)
     env = build_environment(config, args.seed, args.env)
@@ -851,6 +858,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.debug:  # a warning (a unit or cache entry redone) is one line too
             warnings.showwarning = functools.partial(_warning_line, args.command)
         try:
+            _refuse_held_outputs(args)
             return args.func(args) or 0
         except (UserError, OSError) as err:
             if args.debug:
@@ -861,6 +869,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"glsynth {args.command}: interrupted; run the same command again to resume",
                   file=sys.stderr)
             return 130
+
+
+def _refuse_held_outputs(args: argparse.Namespace) -> None:
+    """No command writes into a folder another run holds: its --out (a folder or a file),
+    or, where --out defaults into a run folder (evaluate), that --run."""
+    from glsynth.core.runlock import refuse_held
+
+    out = getattr(args, "out", None) or (getattr(args, "run", None)
+                                         if args.command == "evaluate" else None)
+    if out is not None:
+        refuse_held(Path(out))
 
 
 def _warning_line(command: str, message: Warning | str, *_: object, **__: object) -> None:

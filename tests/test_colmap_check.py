@@ -12,12 +12,16 @@ from glsynth.core.errors import UserError
 from glsynth.measure import colmap_check
 from glsynth.world.environment import build_environment
 
+# The ring checks the poses' conventions against COLMAP's own reconstruction: the pinhole
+# render (the camera model's noise, blur and JPEG are tested in test_camera_model).
 RING = """[render]
 width = 640
 height = 360
 [flight]
 heights_m = [2.0]
 focal_mm = 50.0
+[sensor]
+enabled = false
 """
 
 

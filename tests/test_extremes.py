@@ -31,6 +31,7 @@ from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.filters import pixels_per_cm, removal_reason, rrdr
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.view import EnvironmentView, preview_config
+from glsynth.world.lighting import environment_lighting
 from glsynth.world.visibility import occlusion_extent
 
 PLAIN = Material(base_color=(0.6, 0.6, 0.6, 1.0))
@@ -197,26 +198,40 @@ def test_bf16_against_fp32_network_outputs():
     assert float((half - reference).abs().max()) < 0.05 * float(reference.std())
 
 
-@pytest.mark.parametrize("elevation", [90.0, 50.0, 1.0, -5.0])
-def test_shadows_only_darken_with_the_sun_anywhere(elevation):
+@pytest.fixture(scope="module")
+def sunlit():
+    """Environment 0 at preview size, opened once for every sun elevation and relit per test
+    (Renderer.relight draws what opening under that light draws). cull=False uploads every
+    part, so whatever a sun anywhere shadows with is there; beside it a renderer without
+    shadow maps holding the same scene."""
     config = preview_config(Config(), 160)
     config = dataclasses.replace(
-        config, lighting=dataclasses.replace(config.lighting,
-                                             sun_elevation_deg=(elevation, elevation)),
-        cameras=dataclasses.replace(config.cameras, n_regular=2, n_closeup=2))
+        config, cameras=dataclasses.replace(config.cameras, n_regular=2, n_closeup=2))
     with (Renderer(config.render) as renderer,
           Renderer(dataclasses.replace(config.render, shadow_map_px=0)) as unshadowed):
-        view = EnvironmentView.open(config, 0, 0, renderer)
+        view = EnvironmentView.open(config, 0, 0, renderer, cull=False)
         # The same sky-visibility maps as the view's (fitted to the whole environment).
         unshadowed.load(view.scene, view.lighting, occlusion_extent(view.environment.parts))
-        darker = 0
-        for index in range(4):
-            placement, out = view.render(index)
-            lit = unshadowed.render(placement.camera)
-            assert_sane(out)
-            for name in ("component", "damage", "depth"):
-                assert np.array_equal(getattr(out, name), getattr(lit, name))
-            assert np.all(out.color.astype(int) <= lit.color.astype(int) + 1)
-            darker += int((out.color.astype(int) < lit.color.astype(int) - 8).any(axis=2).sum())
-        if elevation == 50.0:  # a mid-height sun: the deck's shadow is in these views
-            assert darker > 0
+        yield view, unshadowed
+
+
+@pytest.mark.parametrize("elevation", [90.0, 50.0, 1.0, -5.0])
+def test_shadows_only_darken_with_the_sun_anywhere(sunlit, elevation):
+    view, unshadowed = sunlit
+    lighting = dataclasses.replace(view.config.lighting, sun_elevation_deg=(elevation, elevation))
+    view.lighting = environment_lighting(lighting, 0, 0,
+                                         ground_albedo=np.array(view.lighting.ground_albedo))
+    assert view.lighting.sun_elevation_deg == elevation
+    view.renderer.relight(view.lighting)
+    unshadowed.relight(view.lighting)
+    darker = 0
+    for index in range(4):
+        placement, out = view.render(index)
+        lit = unshadowed.render(placement.camera)
+        assert_sane(out)
+        for name in ("component", "damage", "depth"):
+            assert np.array_equal(getattr(out, name), getattr(lit, name))
+        assert np.all(out.color.astype(int) <= lit.color.astype(int) + 1)
+        darker += int((out.color.astype(int) < lit.color.astype(int) - 8).any(axis=2).sum())
+    if elevation == 50.0:  # a mid-height sun: the deck's shadow is in these views
+        assert darker > 0

@@ -105,9 +105,14 @@ class DamageBank:
         with np.load(path, allow_pickle=False) as data:
             meta = _meta(path, data)
             maps = DamageMaps(data["mask"], data["displacement"], meta["threshold"])
-        if maps.mask.ndim != 2 or maps.displacement_m.shape != maps.mask.shape:
-            raise ValueError(f"mask {maps.mask.shape} and displacement "
-                             f"{maps.displacement_m.shape} differ")
+        mask, depth = maps.mask, maps.displacement_m
+        if mask.ndim != 2 or depth.shape != mask.shape:
+            raise ValueError(f"mask {mask.shape} and displacement {depth.shape} differ")
+        # DamageMaps' contract: uint8 ids up to 3, float32 depths >= 0 (NaN fails the test).
+        if mask.dtype != np.uint8 or depth.dtype != np.float32 or not (
+                mask.size and mask.max() <= 3 and depth.min() >= 0
+                and np.isfinite(depth).all()):
+            raise ValueError(f"mask {mask.dtype} or displacement {depth.dtype} out of contract")
         params, images = _record(meta)
         return BankEntry(severity, index, params, maps, images)
 

@@ -31,6 +31,7 @@ from glsynth.assess.cracks import (
     measure_cracks,
     width_errors,
 )
+from glsynth.core.config import MAX_CRACK_WIDTH_MM
 from glsynth.core.errors import UserError, named
 from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.labels import Component, Damage
@@ -382,7 +383,8 @@ def render_photos(folders: list[Path], limit: int | None = None) -> list[Photo]:
                         read_label_map(folder / "damage.png", "damage", size),
                         read_float_map(folder / "depth.npy", "depth map", size),
                         _render_focal_px(folder / "camera.json"), 1.0,
-                        read_float_map(folder / "crack_width.npy", "crack-width map", size))
+                        read_float_map(folder / "crack_width.npy", "crack-width map", size,
+                                       high=MAX_CRACK_WIDTH_MM))
             return rgb, maps
         return load
 

@@ -23,10 +23,16 @@ def fail(section: str, name: str, value: Any, expected: str) -> typing.NoReturn:
     )
 
 
+def is_nan(value: Any) -> bool:
+    """Whether a parsed number is NaN. Only floats can be: an integer (however many digits,
+    where math.isnan would overflow) compares with any bound exactly."""
+    return isinstance(value, float) and math.isnan(value)
+
+
 def check_number(section: str, name: str, value: Any, lo: float, hi: float,
                  *, lo_open: bool = False, integer: bool = False) -> None:
     kind = int if integer else (int, float)
-    if isinstance(value, bool) or not isinstance(value, kind) or math.isnan(value):
+    if isinstance(value, bool) or not isinstance(value, kind) or is_nan(value):
         fail(section, name, value, "an integer" if integer else "a number")
     above = value > lo if lo_open else value >= lo
     if not (above and value <= hi):
@@ -36,7 +42,7 @@ def check_number(section: str, name: str, value: Any, lo: float, hi: float,
 def check_interval(section: str, name: str, value: Any, lo: float, hi: float) -> None:
     ok = (isinstance(value, tuple) and len(value) == 2
           and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
-    if not ok or math.isnan(value[0]) or math.isnan(value[1]) or not (
+    if not ok or is_nan(value[0]) or is_nan(value[1]) or not (
             lo <= value[0] <= value[1] <= hi):
         fail(section, name, value, f"an interval [a, b] with {lo} <= a <= b <= {hi}")
 
@@ -55,7 +61,7 @@ def check_positive_interval(section: str, name: str, value: Any, hi: float, unit
 def check_vector(section: str, name: str, value: Any, size: int, lo: float, hi: float) -> None:
     ok = (isinstance(value, tuple) and len(value) == size
           and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
-    if not ok or not all(lo <= v <= hi for v in value):
+    if not ok or not all(lo <= v <= hi for v in value):  # NaN fails every comparison
         fail(section, name, value, f"{size} numbers in [{lo}, {hi}]")
 
 

@@ -669,13 +669,20 @@ def _reject(section: Any, name: str, expected: str) -> typing.NoReturn:
     fail(_SECTION_OF[type(section)], name, getattr(section, name), expected)
 
 
+def _as_float(value: Any) -> Any:
+    """A TOML integer as the float a field holds; one too large for a float stays an integer
+    (its field's bound refuses it, naming it)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) < 2 ** 1023:
+        return float(value)
+    return value
+
+
 def _coerce(cls: type, key: str, value: Any) -> Any:
     hint = typing.get_type_hints(cls)[key]
     if isinstance(value, list):
-        return tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-                     for v in value)
-    if hint is float and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
+        return tuple(_as_float(v) for v in value)
+    if hint is float:
+        return _as_float(value)
     return value
 
 
@@ -749,16 +756,23 @@ def load_config(preset: str = "paper", path: str | Path | None = None) -> Config
         path = Path(path)
         text = read_bytes(path, "config file", MAX_TOML_BYTES, "give a .toml file")
         try:
-            data = tomllib.loads(text.decode("utf-8"))
-        except RecursionError:
-            raise UserError(f"config file {str(path)!r} nests too deeply") from None
+            decoded = text.decode("utf-8")
         except UnicodeDecodeError as err:
             raise UserError(f"config file {str(path)!r} is not UTF-8 text (byte {err.start}); "
                             "save it as UTF-8") from None
-        except tomllib.TOMLDecodeError as err:
-            raise UserError(f"config file {str(path)!r} is not valid TOML: {err}") from None
-        config = config_from_dict(data, config)
+        config = config_from_dict(parse_toml(decoded, f"config file {str(path)!r}"), config)
     return config
+
+
+def parse_toml(text: str, what: str) -> dict[str, Any]:
+    """A config file's text as tables; ``what`` names it in the one-line refusal of text that
+    is not TOML or nests deeper than Python's stack (tomllib recurses per level)."""
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise UserError(f"{what} nests too deeply") from None
+    except tomllib.TOMLDecodeError as err:
+        raise UserError(f"{what} is not valid TOML: {' '.join(str(err).split())}") from None
 
 
 def config_to_dict(config: Config) -> dict[str, Any]:

@@ -51,14 +51,19 @@ def argparse_type(parse: typing.Callable[[str], Any], flag: str) -> typing.Calla
     return convert
 
 
+MAX_SIDE_PX = 16384
+"""The largest image side any glsynth option takes (GL's own limit on the GPUs we know)."""
+
+
 def parse_size(text: str, minimum: int) -> tuple[int, int]:
-    """'WxH' (e.g. '480x270') -> (W, H) in pixels, each side at least ``minimum``."""
+    """'WxH' (e.g. '480x270') -> (W, H) in pixels, each side at least ``minimum`` and at
+    most MAX_SIDE_PX."""
     try:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"{text!r}: write WIDTHxHEIGHT, e.g. 480x270") from None
-    if min(width, height) < minimum:
-        raise UserError(f"{text!r}: each side must be at least {minimum} px")
+    if min(width, height) < minimum or max(width, height) > MAX_SIDE_PX:
+        raise UserError(f"{text!r}: each side must be {minimum} to {MAX_SIDE_PX} px")
     return width, height
 
 

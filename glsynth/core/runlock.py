@@ -45,6 +45,7 @@ class RunLock:
         """Whether this lock made the folder: a run refused inside it leaves none behind."""
 
     def _open(self, name: str) -> int:
+        resolved(self.folder)  # a symbolic-link loop is one line, before any other test
         if self.folder.exists() and not self.folder.is_dir():
             raise UserError(f"--out {named(self.folder)} is a file; give a folder")
         if self.folder.resolve().parts[1:2] in (("proc",), ("sys",), ("dev",)):
@@ -61,6 +62,8 @@ class RunLock:
                             f"file ({err.strerror}). Choose a writable --out location.") from err
 
     def acquire(self) -> "RunLock":
+        if not self.worker:
+            refuse_held(self.folder.parent)
         if self.worker:
             fd = self._open(WORKERS_LOCK)
             fcntl.flock(fd, fcntl.LOCK_SH)  # only a driver's brief check can hold it exclusively
@@ -214,3 +217,43 @@ def describe(holders: list[tuple[int, str]], shown: int = 2, width: int = 40) ->
              for pid, command in holders[:shown]]
     more = f" and {len(holders) - shown} more" if len(holders) > shown else ""
     return ", ".join(parts) + more
+
+
+def resolved(path: Path) -> Path:
+    """``path`` made absolute with its links followed; a link loop is a UserError (Python
+    raises RuntimeError or OSError for it, depending on the version)."""
+    try:
+        return Path(path).resolve()
+    except (RuntimeError, OSError):
+        raise UserError(f"--out {named(path)} is a loop of symbolic links; give a folder") \
+            from None
+
+
+def held_by_another(path: Path) -> Path | None:
+    """The nearest folder at or above ``path`` whose driver lock another process holds (a
+    run writing there), or None. A lock this process holds does not count."""
+    mine = {resolved(lock.folder) for lock in _HELD}
+    for folder in (resolved(path), *resolved(path).parents):
+        lock = folder / DRIVER_LOCK
+        if folder in mine or not lock.is_file():
+            continue
+        try:
+            fd = os.open(lock, os.O_RDONLY | os.O_NONBLOCK)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return folder
+        finally:
+            os.close(fd)  # and with it the shared lock just taken
+    return None
+
+
+def refuse_held(path: Path) -> None:
+    """Refuse, before anything is written, an output at or inside a folder another glsynth run
+    holds (every command's --out passes here, with or without a run lock of its own)."""
+    held = held_by_another(path)
+    if held is not None:
+        raise UserError(f"--out {named(path)} is inside {named(held)}, which another glsynth "
+                        "run is writing; wait for it to end, or choose a folder outside it")

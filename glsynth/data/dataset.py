@@ -17,7 +17,7 @@ import shutil
 import time
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
@@ -347,6 +347,13 @@ def pending_tasks(config: Config, out: Path) -> list[Task]:
 MARKER_FIX = "remove it and run the same command again to redo its unit"
 
 
+def _inside(image: object) -> bool:
+    """Whether a marker row's image names a file inside the dataset (a relative path that
+    never climbs out), as run_task writes them."""
+    return (isinstance(image, str) and bool(image) and not PurePosixPath(image).is_absolute()
+            and ".." not in PurePosixPath(image).parts)
+
+
 def read_marker(path: Path, task: Task) -> dict:
     """A progress marker of ``task``, as run_task wrote it: its kind and unit, its manifest
     rows and its image counts, each of the right form."""
@@ -356,10 +363,10 @@ def read_marker(path: Path, task: Task) -> dict:
         if data["kind"] == "env":
             ok = (data["env"] == task.first and data["split"] in ("train", "test")
                   and isinstance(data["removed"], dict)
-                  and all(isinstance(FrameRecord(**r).image, str) for r in data["rows"]))
+                  and all(_inside(FrameRecord(**r).image) for r in data["rows"]))
         else:
             ok = data["first"] == task.first and all(
-                isinstance(PuretexRecord(*r).image, str)
+                _inside(PuretexRecord(*r).image)
                 for split in ("train", "test") for r in data["rows"][split])
         ok = ok and data["kind"] == task.kind and all(isinstance(c.split, str) for c in counts)
     except (TypeError, KeyError, ValueError, AttributeError) as err:

@@ -172,18 +172,20 @@ def read_crack_width_map(path: Path, size: tuple[int, int] | None = None) -> np.
 
 
 def read_float_map(path: Path, what: str, size: tuple[int, int],
-                   fix: str = "write it again with glsynth render") -> np.ndarray:
-    """A float32 (height, width) ``.npy`` map of ``size`` = (width, height), finite and >= 0
-    everywhere: ``glsynth render``'s and ``glsynth fly``'s depth.npy (metres, zfar where
-    nothing is) and crack_width.npy (millimetres, 0 where no crack is)."""
+                   fix: str = "write it again with glsynth render",
+                   high: float = math.inf) -> np.ndarray:
+    """A float32 (height, width) ``.npy`` map of ``size`` = (width, height), finite and in
+    [0, ``high``] everywhere: ``glsynth render``'s and ``glsynth fly``'s depth.npy (metres,
+    zfar where nothing is) and crack_width.npy (millimetres, 0 where no crack is)."""
     data = read_npy(path, what, fix)
     if data.dtype != np.float32 or data.shape != (size[1], size[0]):
         raise UserError(f"{what} {named(path)} is {data.dtype} of shape {shown(data.shape, 30)}; "
                         f"it must be float32 of shape {(size[1], size[0])}, the image's: {fix}")
-    bad = ~(np.isfinite(data) & (data >= 0))
+    bad = ~(np.isfinite(data) & (data >= 0) & (data <= high))
     if bad.any():
         raise UserError(f"{what} {named(path)} holds {int(bad.sum()):,} values that are not "
-                        f"finite and >= 0 (NaN, infinite or negative); {fix}")
+                        f"finite and in [0, {high:g}] (NaN, infinite, negative or too large); "
+                        f"{fix}")
     return data
 
 

@@ -96,16 +96,23 @@ def describe_lighting(light: Lighting) -> dict[str, Any]:
             "exposure": light.exposure, "tone_map_formula": TONE_MAP_FORMULA}
 
 
+def glb_path(out: str | Path) -> Path:
+    """``out`` as a Path, refused unless it names a .glb file; callers check it before they
+    build anything, so a wrong path costs no environment."""
+    out = Path(out)
+    if out.suffix.lower() != ".glb":
+        raise UserError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
+                        "in .glb")
+    return out
+
+
 def export_environment(env: Environment, out: str | Path,
                        materials: Mapping[str, Material] | None = None,
                        light: Lighting | None = None) -> tuple[Path, Path]:
     """Write ``out`` (.glb) and scene.json beside it; both atomically. With ``materials`` (the
     dressing) and ``light`` (the environment's sun, sky and exposure) the export is the scene
     as glsynth renders it; without, flat colours per component and no light."""
-    out = Path(out)
-    if out.suffix.lower() != ".glb":
-        raise UserError(f"--out {str(out)!r}: the export is glTF binary; give a path ending "
-                        "in .glb")
+    out = glb_path(out)
     data = gltf_binary(env.parts, materials or preview_materials(env.parts),
                        None if light is None else light.sun_direction,
                        1.0 if light is None else light.sun_irradiance)

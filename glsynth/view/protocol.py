@@ -113,7 +113,9 @@ def json_type(value: object) -> str:
 
 def number_field(data: dict, key: str, low: float, high: float) -> float:
     value = data[key]
-    if json_type(value) not in (NUMBER, INTEGER) or not math.isfinite(value):
+    # A float is checked for finiteness; an integer of any size compares exactly below.
+    if json_type(value) not in (NUMBER, INTEGER) or isinstance(value, float) and not \
+            math.isfinite(value):
         raise UserError(f"{key} = {shown(value, 40)}: must be a finite number")
     if not low <= value <= high:
         raise UserError(f"{key} = {shown(value, 40)}: must be in [{low:g}, {high:g}]")

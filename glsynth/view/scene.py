@@ -3,7 +3,6 @@ quality, fixed lighting), one environment opened on the renderer, its sampled ca
 their Section 3.4 verdicts. Opening and relighting run on the render thread."""
 
 import dataclasses
-import tomllib
 import types
 import typing
 from collections.abc import Callable
@@ -13,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.appearance.caches import disk_caches
-from glsynth.core.config import Config, config_from_dict, load_config
+from glsynth.core.config import Config, config_from_dict, load_config, parse_toml
 from glsynth.core.errors import UserError, shown
 from glsynth.data.filters import removal_reason
 from glsynth.data.quality import apply_quality
@@ -48,11 +47,7 @@ def with_lighting(config: Config, values: dict[str, float]) -> Config:
 
 
 def _overlay(config: Config, text: str) -> Config:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise UserError(f"config file: not valid TOML: {' '.join(str(err).split())}") from None
-    return config_from_dict(data, config)
+    return config_from_dict(parse_toml(text, "config file"), config)
 
 
 def _finish(config: Config, settings: SceneSettings) -> Config:
