@@ -18,6 +18,7 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,6 +58,9 @@ from glsynth.data.tokaido import (
     puretex_paths,
 )
 from glsynth.data.visible_cracks import visible_cracks
+
+if TYPE_CHECKING:  # the world layer is imported where a view is opened, not at import
+    from glsynth.world.cameras import CameraPlacement
 
 RUN_FILE = "glsynth_run.json"
 REASONS = ("dark", "single_component", "too_close")
@@ -104,6 +108,23 @@ def plan(config: Config) -> list[Task]:
     return tasks
 
 
+def _row(placement: "CameraPlacement", paths: dict[str, str], in_rrdr: bool) -> dict:
+    """A kept view's manifest row."""
+    return dataclasses.asdict(FrameRecord(
+        paths["image"], paths["component"], paths["damage"], paths["depth"],
+        round(placement.camera.focal_mm, 6), placement.kind == "regular", in_rrdr))
+
+
+def _counts(placement: "CameraPlacement", split: str, maps: dict[str, np.ndarray],
+            in_rrdr: bool, cracks: list[dict]) -> dict:
+    """A kept view's image counts (glsynth.data.statistics)."""
+    return dataclasses.asdict(image_counts(
+        placement.kind, split, maps["component"], maps["damage"], maps["depth"],
+        round(placement.camera.focal_mm, 6), in_rrdr, maps["crackwidth"], CrackLength(
+            sum(c["labelled_length_m"] for c in cracks), placement.camera.fx,
+            placement.camera.width)))
+
+
 def run_environment(config: Config, root_seed: int, env: int, out: Path, renderer) -> dict:
     """Render, filter and write every camera of one environment; returns its marker data:
     manifest rows, the counts of each written image (glsynth.data.statistics) and the views
@@ -148,15 +169,8 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
             meta["cracks_in_view"] = cracks
             writer.submit(write_files, out, images,
                           {f"meta/{split}/image_case{env}_frame{index}.json": meta})
-            focal = round(placement.camera.focal_mm, 6)
-            rows.append(dataclasses.asdict(FrameRecord(
-                paths["image"], paths["component"], paths["damage"], paths["depth"], focal,
-                placement.kind == "regular", in_rrdr)))
-            counts.append(dataclasses.asdict(image_counts(
-                placement.kind, split, maps["component"], maps["damage"], maps["depth"], focal,
-                in_rrdr, maps["crackwidth"], CrackLength(
-                    sum(c["labelled_length_m"] for c in cracks), placement.camera.fx,
-                    placement.camera.width))))
+            rows.append(_row(placement, paths, in_rrdr))
+            counts.append(_counts(placement, split, maps, in_rrdr, cracks))
             clock.lap("queue files")
     clock.lap("wait for the writer")
     if to_cycles:
