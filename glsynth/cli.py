@@ -23,7 +23,7 @@ from glsynth.core.config import (
     config_from_dict,
     load_config,
 )
-from glsynth.core.errors import UserError, clipped, shown
+from glsynth.core.errors import UserError, clipped
 from glsynth.core.options import (
     add_options,
     argparse_type,
@@ -44,21 +44,22 @@ MAX_INT = 2**63 - 1
 """The largest seed, index or count an option takes: numpy's seeds and indices are 64-bit."""
 
 
+def _bounded_int(text: str, low: int) -> int:
+    """An integer option in [low, MAX_INT]; the refusal quotes at most 30 characters of it."""
+    value = int(text)
+    if not low <= value <= MAX_INT:
+        quoted = text if len(text) <= 30 else f"{text[:27]}..."
+        raise argparse.ArgumentTypeError(f"{quoted}: must be an integer in [{low}, 2**63 - 1]")
+    return value
+
+
 def non_negative_int(text: str) -> int:
     """Seeds, indices and counts that may be zero, up to MAX_INT."""
-    value = int(text)
-    if not 0 <= value <= MAX_INT:
-        raise argparse.ArgumentTypeError(f"{shown(text, 30)}: must be an integer in "
-                                         "[0, 2**63 - 1]")
-    return value
+    return _bounded_int(text, 0)
 
 
 def positive_int(text: str) -> int:
-    value = int(text)
-    if not 1 <= value <= MAX_INT:
-        raise argparse.ArgumentTypeError(f"{shown(text, 30)}: must be an integer in "
-                                         "[1, 2**63 - 1]")
-    return value
+    return _bounded_int(text, 1)
 
 
 def positive_int_list(text: str) -> list[int]:
