@@ -16,8 +16,8 @@ import numpy as np
 from common import write_results
 
 from glsynth.core.config import FiltersConfig, load_config
+from glsynth.core.filters import removal_reason, view_rrdr
 from glsynth.core.labels import Component
-from glsynth.data.filters import removal_reason, view_rrdr
 from glsynth.render.view import EnvironmentView
 
 

@@ -33,8 +33,8 @@ from common import write_results  # noqa: E402
 
 from glsynth.core.checks import literal_choices  # noqa: E402
 from glsynth.core.config import CameraConfig, Config, load_config  # noqa: E402
+from glsynth.core.filters import removal_reason  # noqa: E402
 from glsynth.core.labels import Component  # noqa: E402
-from glsynth.data.filters import removal_reason  # noqa: E402
 from glsynth.data.statistics import PAPER  # noqa: E402
 from glsynth.render.cycles import cycles_seed, render_linear, require_blender  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402

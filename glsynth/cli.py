@@ -7,6 +7,7 @@ import logging
 import math
 import sys
 import time
+import typing
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -825,8 +826,16 @@ def cmd_textures(args: argparse.Namespace) -> None:
           f"{time.perf_counter() - t0:.1f} s -> {root}")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse that refuses bad options in one line (the usage block stays with --help), as
+    every other bad input is refused; sub-commands' parsers are of this class too."""
+
+    def error(self, message: str) -> typing.NoReturn:
+        self.exit(2, clipped(f"{self.prog}: error: {' '.join(message.split())}") + "\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="glsynth", description=__doc__)
+    parser = _Parser(prog="glsynth", description=__doc__)
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of every error, user errors too")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -15,8 +15,8 @@ from glsynth.model.settings import CLASS_NAMES, TASKS
 from glsynth.assess.condition import ASSESS_DEFAULTS, AssessSettings, Maps, Photo
 from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import distinct_stems
+from glsynth.core.filters import rrdr
 from glsynth.core.images import read_photo
-from glsynth.data.filters import rrdr
 
 
 def parse_runs(text: str) -> dict[str, str]:

@@ -120,3 +120,19 @@ def test_the_held_check_ignores_this_processs_own_locks(tmp_path):
     with RunLock(tmp_path / "mine"):
         assert held_by_another(tmp_path / "mine" / "sub") is None
     assert held_by_another(Path(tmp_path)) is None
+
+
+def test_a_bad_option_is_one_line_without_the_usage_block(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["render", "--preset", "demo", "--seed", "0", "--env", "0", "--camera", "9" * 50,
+              "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and err.count("\n") == 1 and "usage" not in err
+    assert err.startswith("glsynth render: error: argument --camera:")
+
+
+def test_a_pose_with_an_integer_too_large_for_a_float_is_refused():
+    from glsynth.view.protocol import rigid_pose
+
+    with pytest.raises(UserError, match="4 rows of 4 finite numbers"):
+        rigid_pose([[1, 0, 0, 10 ** 400], [0, 0, -1, -12], [0, 1, 0, 5], [0, 0, 0, 1]])

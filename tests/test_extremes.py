@@ -26,9 +26,9 @@ from glhelpers import LIGHT, camera, quad, render_config, scene_of
 from glsynth.appearance.damage import damage_maps, sample_params
 from glsynth.appearance.materials import Material
 from glsynth.core.config import Config, DamageConfig, EnvironmentConfig
+from glsynth.core.filters import pixels_per_cm, removal_reason, rrdr
 from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS, Component
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.data.filters import pixels_per_cm, removal_reason, rrdr
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.view import EnvironmentView, preview_config
 from glsynth.world.lighting import environment_lighting

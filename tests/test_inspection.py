@@ -20,10 +20,10 @@ from glsynth.core.config import (
     load_config,
 )
 from glsynth.core.errors import UserError
+from glsynth.core.filters import crack_rrdr, pixels_per_cm, removal_reason, rrdr, view_rrdr
 from glsynth.core.geometry import segment_distance
 from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.data.filters import crack_rrdr, pixels_per_cm, removal_reason, rrdr, view_rrdr
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import ray_cast
 from glsynth.render.scene import build_scene

@@ -10,8 +10,8 @@ from PIL import Image
 
 from glsynth.cli import main
 from glsynth.core.config import Config
+from glsynth.core.filters import removal_reason
 from glsynth.core.labels import COMPONENT_IDS, DAMAGE_IDS, Damage
-from glsynth.data.filters import removal_reason
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import mask_lookup
 from glsynth.render.raycast import ray_cast as glsynth_ray_cast

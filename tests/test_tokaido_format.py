@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from glsynth.core.config import RenderConfig
+from glsynth.core.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
 from glsynth.core.labels import Damage
-from glsynth.data.filters import mask_damage, pixels_per_cm, removal_reason, rrdr
 from glsynth.data.tokaido import (
     IMAGE_SIZE,
     LABEL_STRIDE,

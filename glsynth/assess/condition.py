@@ -33,10 +33,10 @@ from glsynth.assess.cracks import (
 )
 from glsynth.core.config import MAX_CRACK_WIDTH_MM
 from glsynth.core.errors import UserError, named
+from glsynth.core.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
 from glsynth.core.images import nearest_resize, read_photo
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, overlay
-from glsynth.data.filters import RRDR_DEPTH_RANGE_M, RRDR_PX_PER_CM, rrdr
 
 BRIDGE = tuple(c for c in Component if c not in (Component.UNLABELLED, Component.NONBRIDGE))
 DAMAGE_CLASSES = (Damage.CONCRETE, Damage.REBAR)

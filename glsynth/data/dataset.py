@@ -32,9 +32,9 @@ from glsynth.core.fileio import (
     png_bytes,
     write_files,
 )
+from glsynth.core.filters import mask_damage, removal_reason, view_rrdr
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
-from glsynth.data.filters import mask_damage, removal_reason, view_rrdr
 from glsynth.data.readers import is_marker, read_json
 from glsynth.data.statistics import (
     CrackLength,

@@ -183,9 +183,9 @@ def read_float_map(path: Path, what: str, size: tuple[int, int],
                         f"it must be float32 of shape {(size[1], size[0])}, the image's: {fix}")
     bad = ~(np.isfinite(data) & (data >= 0) & (data <= high))
     if bad.any():
+        allowed = "finite and >= 0" if high == math.inf else f"finite and in [0, {high:g}]"
         raise UserError(f"{what} {named(path)} holds {int(bad.sum()):,} values that are not "
-                        f"finite and in [0, {high:g}] (NaN, infinite, negative or too large); "
-                        f"{fix}")
+                        f"{allowed} (NaN, infinite, negative or too large); {fix}")
     return data
 
 

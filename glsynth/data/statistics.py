@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.core.errors import UserError, named, shown
+from glsynth.core.filters import rrdr
 from glsynth.core.labels import Component, Damage
 from glsynth.core.surfaces import MAX_AREA_FACTOR
-from glsynth.data.filters import rrdr
 from glsynth.data.readers import (
     map_size,
     read_crack_width_map,

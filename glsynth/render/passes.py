@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from glsynth.core.filters import rrdr
 from glsynth.core.labels import Component, Damage
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
-from glsynth.data.filters import rrdr
 
 if TYPE_CHECKING:
     from glsynth.render.gl.renderer import RenderOutput

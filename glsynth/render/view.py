@@ -13,6 +13,7 @@ import numpy as np
 from glsynth.appearance.damage_bank import DamageBank
 from glsynth.appearance.dressing import Dressing, crack_segments, dress, open_repository
 from glsynth.appearance.materials import surface_albedo
+from glsynth.appearance.metering import face_albedo, metered
 from glsynth.core.config import Config
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
 from glsynth.core.labels import Component
@@ -25,7 +26,6 @@ from glsynth.world.cameras import Camera, CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
 from glsynth.world.face_cameras import place_cameras
 from glsynth.world.lighting import Lighting, environment_lighting
-from glsynth.world.metering import face_albedo, metered
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
 
 
@@ -43,7 +43,7 @@ class EnvironmentView:
     """The environment's sampled cameras, placed once when it was opened; None where it was
     opened for cameras given instead (a flight's)."""
     _albedo: dict[str, float] = field(default_factory=dict)
-    """Metered members' albedo (glsynth.world.metering.face_albedo), found once each."""
+    """Metered members' albedo (glsynth.appearance.metering.face_albedo), found once each."""
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
@@ -129,7 +129,7 @@ class EnvironmentView:
     def exposure(self, placement: CameraPlacement) -> Lighting:
         """The lighting ``placement`` is rendered under: the environment's, or under
         [lighting] metering = "face" for a camera aimed at a face, metered on that face
-        (glsynth.world.metering)."""
+        (glsynth.appearance.metering)."""
         aim = placement.face
         if self.config.lighting.metering == "scene" or aim is None:
             return self.lighting

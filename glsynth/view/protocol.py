@@ -136,7 +136,10 @@ def rigid_pose(value: object) -> np.ndarray:
             or any(json_type(row) != ARRAY or len(row) != 4
                    or any(json_type(v) not in (NUMBER, INTEGER) for v in row) for row in value)):
         raise UserError("pose: must be 4 rows of 4 numbers")
-    pose = np.array(value, dtype=np.float64)
+    try:
+        pose = np.array(value, dtype=np.float64)
+    except OverflowError:  # an integer too large for a float
+        raise UserError("pose: must be 4 rows of 4 finite numbers") from None
     if not np.isfinite(pose).all():
         raise UserError("pose: must be 4 rows of 4 finite numbers")
     rotation = pose[:3, :3]

@@ -14,7 +14,7 @@ import numpy as np
 from glsynth.appearance.caches import disk_caches
 from glsynth.core.config import Config, config_from_dict, load_config, parse_toml
 from glsynth.core.errors import UserError, shown
-from glsynth.data.filters import removal_reason
+from glsynth.core.filters import removal_reason
 from glsynth.data.quality import apply_quality
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.view import EnvironmentView

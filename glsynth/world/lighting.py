@@ -120,7 +120,7 @@ class Lighting:
     exposure: float
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     """Per-channel gains on top of the exposure (a camera's white balance:
-    glsynth.world.metering); the GL renderer applies them, Cycles and the export do not."""
+    glsynth.appearance.metering); the GL renderer applies them, Cycles and the export do not."""
 
     @property
     def sun_direction(self) -> np.ndarray:
