@@ -165,7 +165,7 @@ def test_augmented_cached_training_is_reproducible(tiny_dataset, tmp_path):
 
 
 def test_a_bad_augment_option_is_refused_before_any_work(tiny_dataset, tmp_path, capsys):
-    with pytest.raises(SystemExit) as stop:  # argparse: the usage, then one error line
+    with pytest.raises(SystemExit) as stop:  # argparse: one error line
         main(["train", "--task", "component", "--data", str(tiny_dataset), "--out",
               str(tmp_path / "r"), "--augment", "vignette"])
     assert stop.value.code == 2 and not (tmp_path / "r").exists()

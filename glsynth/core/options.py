@@ -62,8 +62,10 @@ def parse_size(text: str, minimum: int) -> tuple[int, int]:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"{text!r}: write WIDTHxHEIGHT, e.g. 480x270") from None
-    if min(width, height) < minimum or max(width, height) > MAX_SIDE_PX:
-        raise UserError(f"{text!r}: each side must be {minimum} to {MAX_SIDE_PX} px")
+    if min(width, height) < minimum:
+        raise UserError(f"{text!r}: each side must be at least {minimum} px")
+    if max(width, height) > MAX_SIDE_PX:
+        raise UserError(f"{text!r}: each side must be at most {MAX_SIDE_PX} px")
     return width, height
 
 

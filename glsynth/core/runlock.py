@@ -254,6 +254,10 @@ def refuse_held(path: Path) -> None:
     """Refuse, before anything is written, an output at or inside a folder another glsynth run
     holds (every command's --out passes here, with or without a run lock of its own)."""
     held = held_by_another(path)
-    if held is not None:
-        raise UserError(f"--out {named(path)} is inside {named(held)}, which another glsynth "
-                        "run is writing; wait for it to end, or choose a folder outside it")
+    if held is None:
+        return
+    if held == resolved(path):  # the folder itself: the run lock's own words, with the pid
+        recorded = (held / DRIVER_LOCK).read_text(errors="replace").strip()[:32] or "unknown"
+        raise UserError(RunLock(held)._in_use(recorded))
+    raise UserError(f"--out {named(path)} is inside {named(held)}, which another glsynth "
+                    "run is writing; wait for it to end, or choose a folder outside it")
