@@ -90,7 +90,8 @@ def page(tmp_path_factory):
             seq = int(driver.find_element("id", "frame").get_attribute("data-seq"))
             driver.find_element("id", "frame").send_keys("n")
             wait_still(driver, "component", seq)
-        rendered = render_camera_json(copied_camera(driver), tmp / "render")
+        # The live frames are the render before the camera model (docs/design.md).
+        rendered = render_camera_json(copied_camera(driver), tmp / "render", photo=False)
         yield driver, server, rendered
     finally:
         driver.quit()

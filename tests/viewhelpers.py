@@ -54,12 +54,17 @@ def receive(ws, want: str, timeout: float = 120.0) -> dict | tuple[dict, bytes]:
             return json.loads(message)
 
 
-def render_camera_json(camera: dict, folder: Path) -> Path:
+def render_camera_json(camera: dict, folder: Path, photo: bool = True) -> Path:
     """`glsynth render --camera-json` of ``camera`` into ``folder``, with the viewer tests'
-    scene."""
+    scene; ``photo`` False: the render before the camera model ([sensor] off), which is what
+    the viewer's live frames show."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "camera_in.json").write_text(json.dumps(camera))
-    subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *VIEW_ARGS,
+    config = []
+    if not photo:
+        (folder / "pinhole.toml").write_text("[sensor]\nenabled = false\n")
+        config = ["--config", str(folder / "pinhole.toml")]
+    subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *VIEW_ARGS, *config,
                     "--camera-json", str(folder / "camera_in.json"), "--out", str(folder)],
                    check=True, capture_output=True, timeout=300)
     return folder
