@@ -6,6 +6,7 @@ the memory is refused before it is allocated; a mirrored camera is refused; ``--
 
 import dataclasses
 import json
+import re
 import socket
 import tempfile
 from pathlib import Path
@@ -256,9 +257,14 @@ def test_a_frame_larger_than_free_memory_or_the_gl_is_refused_before_allocation(
             renderer.resize(8192, 8192)
         assert renderer.size == (320, 180) and _rss_mb() - before < 64
         renderer.resize(640, 360)  # within the 256 MiB: allowed
-        with pytest.raises(UserError, match="render targets take"):
+        # A new renderer makes its context and compiles its programs (llvmpipe's JIT: 100-300
+        # MB, more in a process that has rendered much) before it can measure its targets; the
+        # promise is that the 8192x8192 targets themselves are never allocated.
+        before = _rss_mb()
+        with pytest.raises(UserError, match="render targets take") as refused:
             gl_renderer.Renderer(dataclasses.replace(small, width=8192, height=8192))
-        assert _rss_mb() - before < 128
+        need_mb = float(re.search(r"take ([\d.]+) GiB", str(refused.value))[1]) * 1024
+        assert _rss_mb() - before < need_mb / 4
 
 
 def _rotation(quaternion: list[float]) -> np.ndarray:
