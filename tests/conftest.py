@@ -106,9 +106,15 @@ DATASET_FIXTURES = {"tiny_dataset", "quick_dataset"}
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Dataset tests are slow. Under scripts/test.sh's workers (pytest-xdist, --dist
+    loadgroup) a file runs on one worker, its module fixtures made once, and every test of one
+    dataset fixture on one worker, so the dataset is generated once, not once per worker."""
     for item in items:
-        if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
+        datasets = sorted(DATASET_FIXTURES & set(getattr(item, "fixturenames", ())))
+        if datasets:
             item.add_marker(pytest.mark.slow)
+        item.add_marker(pytest.mark.xdist_group(datasets[0] if datasets
+                                                 else item.nodeid.split("::")[0]))
 
 
 def generate_into(out, config) -> int:
