@@ -12,17 +12,10 @@ uniform float u_crack_cell_m;        // its cells' edge
 uniform ivec3 u_crack_dims;          // its cells along x, y, z
 uniform bool u_crack_rough;          // carry each segment's path on below its ends (below)
 
-// A crack's path is self-affine (glsynth.appearance.crack_paths, which reads these): the
-// lateral offset between points x apart has variance (A xi)^2 (x / xi)^(2H), H fine below the
-// coarse aggregate's size xi, coarse above it.
-const float CRACK_AGGREGATE_M = 0.016;
-const float CRACK_ROUGHNESS = 0.25;
-const float CRACK_HURST_FINE = 0.8;
-const float CRACK_HURST_COARSE = 0.5;
-const float CRACK_REACH_M = 0.03;   // the most a path strays from its segment
-const int CRACK_LEVELS = 12;        // halvings at most: 7 cm segments to 17 um
-const float CRACK_LIP_M = 3e-4;     // a rough crack's lips: at most this wide each side,
-const float CRACK_LIP_SHARE = 0.35; // darkened by this share of the interior's darkening
+// A crack's path is self-affine: the lateral offset between points x apart has variance
+// (A xi)^2 (x / xi)^(2H), H fine below the coarse aggregate's size xi, coarse above it. The
+// CRACK_* constants (xi, A, the H's, the reach, levels and lips) are macros, defined in
+// glsynth.appearance.crack_paths, which generates the same paths down to a few centimetres.
 
 // Texel of entry i of a texture filled row by row.
 ivec2 crack_texel(int i, int row) {

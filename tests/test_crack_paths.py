@@ -38,7 +38,7 @@ def fit_hurst(traces: list[np.ndarray], lags: np.ndarray) -> float:
 def test_the_generators_paths_have_the_coarse_exponent_above_the_aggregate():
     """Offsets of 2 m cracks at 5 cm steps, 400 of them: S(x) ~ x^(2 H_coarse) from 5 cm to
     50 cm, and scaled as (A xi)^2 (x / xi)^(2H)."""
-    c = crack_paths.shader_constants()
+    c = crack_paths.SHADER_CONSTANTS
     rng = make_rng(39, 0, Stream.CRACKS)
     traces = [crack_paths.lateral_offsets(2.56, 9, rng) for _ in range(400)]  # 5 mm steps
     step = 2.56 / 2 ** 9
@@ -103,7 +103,7 @@ def test_rendered_paths_have_the_fine_exponent_below_the_aggregate(rough_renders
     _, outs = rough_renders
     traces = [t for out in outs for t in centrelines(out.damage)]
     hurst = fit_hurst(traces, np.array([4, 8, 16, 32]))
-    assert hurst == pytest.approx(crack_paths.shader_constants()["CRACK_HURST_FINE"], abs=0.1)
+    assert hurst == pytest.approx(crack_paths.SHADER_CONSTANTS["CRACK_HURST_FINE"], abs=0.1)
     spread = np.std(np.concatenate([t - t.mean() for t in traces])) * MM_PER_PX
     assert 0.5 < spread < 10.0
 

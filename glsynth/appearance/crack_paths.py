@@ -10,15 +10,10 @@ midpoint displacement builds it: the middle of an interval of length x moves by 
 variance S(x / 2) - S(x) / 4, the variance of an fBm's midpoint about its chord. The
 generators place the vertices this way down to a few centimetres; shaders/cracks.glsl carries
 the same refinement on inside each segment down to the pixel, with the same constants, which
-are written there once and read here.
+are written here once and compiled into the shaders as macros (glsynth.render.gl.programs).
 """
 
-import re
-from functools import cache
-
 import numpy as np
-
-from glsynth.core.paths import shader_dir
 
 WIDTH_COV = 0.4
 """Coefficient of variation of a crack's width along its length (log-normal)."""
@@ -28,17 +23,22 @@ TIP_MAX_M = 0.1
 """... but at most this far from the tip."""
 
 
-@cache
-def shader_constants() -> dict[str, float]:
-    """The ``const float CRACK_...`` values of shaders/cracks.glsl."""
-    text = (shader_dir() / "cracks.glsl").read_text(encoding="utf-8")
-    pattern = r"^const float (CRACK_\w+) = ([0-9.eE+-]+);"
-    return {name: float(value) for name, value in re.findall(pattern, text, re.MULTILINE)}
+SHADER_CONSTANTS: dict[str, float | int] = {
+    "CRACK_AGGREGATE_M": 0.016,  # xi: the coarse aggregate's size, where H changes
+    "CRACK_ROUGHNESS": 0.25,  # A: the offset's standard deviation over xi, a share of xi
+    "CRACK_HURST_FINE": 0.8,
+    "CRACK_HURST_COARSE": 0.5,
+    "CRACK_REACH_M": 0.03,  # the most a path strays from its segment (the shader's margin)
+    "CRACK_LEVELS": 12,  # halvings at most in the shader: 7 cm segments to 17 um
+    "CRACK_LIP_M": 3e-4,  # a rough crack's lips: at most this wide each side,
+    "CRACK_LIP_SHARE": 0.35,  # darkened by this share of the interior's darkening
+}
+"""The crack paths' constants, shared with shaders/cracks.glsl (each a #define there)."""
 
 
 def structure(x: np.ndarray | float) -> np.ndarray:
     """S(x): the variance (m^2) of the lateral offset between two points x metres apart."""
-    c = shader_constants()
+    c = SHADER_CONSTANTS
     xi, amplitude = c["CRACK_AGGREGATE_M"], c["CRACK_ROUGHNESS"]
     x = np.asarray(x, np.float64)
     hurst = np.where(x < xi, c["CRACK_HURST_FINE"], c["CRACK_HURST_COARSE"])
