@@ -223,6 +223,37 @@ def test_chromatic_aberration_parts_red_and_blue_radially(rendered):
         assert dy == pytest.approx(cy * scale, abs=0.1)
 
 
+def _surface_means(color: np.ndarray, depth: np.ndarray, zfar: float) -> np.ndarray:
+    linear = srgb_decode(color)
+    usable = (depth < zfar * 0.999) & (linear.max(axis=2) < camera_model.AWB_CLIP)
+    return linear[usable].mean(axis=0)
+
+
+def test_white_balance_makes_the_surfaces_grey_then_errs_by_its_draw(rendered):
+    placement, render, _ = rendered
+    camera = placement.camera
+    before = _surface_means(render.color, render.depth, camera.zfar)
+    # The render carries the daylight's colour (skylight, the grass's bounce): not grey.
+    assert np.ptp(before / before[1]) > 0.05
+    for gains in ((1.0, 1.0), (1.08, 1.08), (0.92, 0.92)):
+        sensor = quiet(white_balance=gains)
+        photo = camera_model.photograph(render.color, render.depth, camera, sensor,
+                                        make_rng(0, 0, Stream.SENSOR, 0))
+        after = _surface_means(photo, render.depth, camera.zfar)
+        # Red and blue over green: the drawn error, within the 8-bit round trip's 1 %.
+        assert after / after[1] == pytest.approx([gains[0], 1.0, gains[1]], abs=0.01)
+
+
+def test_grey_world_gains_leave_out_the_sky_and_clipped_pixels():
+    linear = np.full((4, 4, 3), (0.2, 0.4, 0.1), np.float32)
+    linear[0] = (0.1, 0.3, 0.9)  # sky (outside the mask)
+    linear[1, :2] = (1.0, 1.0, 0.5)  # clipped
+    mask = np.ones((4, 4), bool)
+    mask[0] = False
+    assert camera_model.grey_world_gains(linear, mask) == pytest.approx([2.0, 1.0, 4.0])
+    assert camera_model.grey_world_gains(linear, np.zeros((4, 4), bool)) == pytest.approx(1.0)
+
+
 def test_disabled_sensor_is_the_render(view, rendered):
     placement, render, _ = rendered
     off = dataclasses.replace(view.config.sensor, enabled=False)

@@ -579,7 +579,8 @@ class SensorConfig:
     chromatic_px: tuple[float, float] = bounded((0.0, 1.5), Interval(0.0, 10.0))
     """Lateral chromatic aberration: red and blue shifted apart by this much at the corners."""
     white_balance: tuple[float, float] = bounded((0.92, 1.08), Interval(0.5, 2.0))
-    """Gains of red and blue over green (each drawn on its own)."""
+    """The automatic white balance's error: gains of red and blue over green (each drawn on
+    its own), after the grey-world gains (glsynth.render.camera_model)."""
     exposure_ev: tuple[float, float] = bounded((-0.5, 0.5), Interval(-4.0, 4.0))
     """Exposure error in stops."""
     jpeg_quality: tuple[int, int] = bounded((70, 95), Interval(1, 100))

@@ -11,7 +11,8 @@ model"), in this order:
 3. the sensor: Poisson-Gaussian noise, variance gain x / full_well + (gain read / full_well)^2
    for linear signal x, gain = ISO / 100, drawn as a Gaussian of that variance (the normal
    approximation of the Poisson counts: a pixel holds hundreds of electrons or more);
-4. the camera's processing: white balance gains, the tone curve, 8 bits, a JPEG round trip.
+4. the camera's processing: automatic white balance (grey world over the surfaces) with an
+   error, the tone curve, 8 bits, a JPEG round trip.
 
 Labels and depth are the scene's and are not touched. Pure numpy and OpenCV; every draw comes
 from the generator the caller makes for the view (Stream.SENSOR), so an image is reproduced
@@ -37,6 +38,11 @@ own diameter; 1 px is sharp. Diameters past the last are cut to it."""
 DIRECT_BLUR_PX = 6.0
 """A disc is blurred at the smallest power-of-two fraction of the image size that leaves it
 at least this wide (px), then scaled back up: a disc of 12 px or more loses no detail there."""
+AWB_CLIP = 0.98
+"""Pixels at or over this linear value in a channel are clipped: the white balance's grey
+world leaves them out (their colour is the clip's, not the light's)."""
+AWB_MAX_GAIN = 4.0
+"""The most a white-balance gain corrects (a camera's presets span about 2,500-10,000 K)."""
 FOCUS_WINDOW = 0.1
 """The aimed point: the middle FOCUS_WINDOW x FOCUS_WINDOW of the frame."""
 _DECODE = srgb_decode(np.arange(256)).astype(np.float32).reshape(256, 1)
@@ -109,8 +115,24 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     linear = chromatic_aberration(linear, shot.chromatic_px)
     a, b = noise_parameters(config, shot.iso)
     linear = add_sensor_noise(linear, a, b, rng)
-    linear *= np.asarray(shot.white_balance, np.float32)
+    surfaces = depth < np.float32(camera.zfar) * np.float32(0.999)
+    linear *= grey_world_gains(linear, surfaces) * np.asarray(shot.white_balance, np.float32)
     return jpeg_round_trip(encode(linear), shot.jpeg_quality)
+
+
+def grey_world_gains(linear: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(3,) float32 gains, green 1, that make the mean of ``linear`` (H, W, 3) over ``mask``'s
+    unclipped pixels grey: a camera's automatic white balance by the grey-world assumption,
+    which real cameras' AWB approximates. Over the surfaces only, as a camera's AWB leaves the
+    sky out (its blue is not the light on the scene). Renders carry the daylight's colour
+    (blue skylight in shade, the grass's green bounce), which a photograph does not."""
+    usable = mask & (linear.max(axis=2) < AWB_CLIP)
+    if not usable.any():
+        return np.ones(3, np.float32)
+    mean = linear[usable].mean(axis=0, dtype=np.float64)
+    if mean.min() <= 0.0:
+        return np.ones(3, np.float32)
+    return np.clip(mean[1] / mean, 1.0 / AWB_MAX_GAIN, AWB_MAX_GAIN).astype(np.float32)
 
 
 def focus_distance(depth: np.ndarray, zfar: float) -> float:
