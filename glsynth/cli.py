@@ -277,7 +277,9 @@ def _render_cameras(args: argparse.Namespace, config: Config) -> None:
     """render --camera: the cameras of one environment, while this process holds --out."""
     from glsynth.render.view import EnvironmentView, describe_output, write_render
 
-    view = EnvironmentView.open(config, args.seed, args.env, renderer=None)
+    # Only the parts the asked cameras see (or that shadow them) are dressed and uploaded.
+    view = EnvironmentView.open(config, args.seed, args.env, renderer=None,
+                                rendering=args.camera)
     print(f"GL platform: {view.renderer.platform}")
     rendered = []
     for index in args.camera:

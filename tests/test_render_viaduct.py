@@ -126,6 +126,10 @@ def test_preview_command(tmp_path):
     assert Image.open(out).size == (4 * 96, 2 * 54)
 
 
+CLOSEUPS = (3, 4, 5)
+"""The close-ups of the culling tests' six cameras (three regular ones first)."""
+
+
 def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
     import dataclasses
 
@@ -136,17 +140,50 @@ def test_parts_no_camera_sees_are_not_uploaded_and_change_nothing():
     config = dataclasses.replace(config, cameras=dataclasses.replace(
         config.cameras, n_regular=3, n_closeup=3))
     with Renderer(config.render) as renderer:
-        culled = EnvironmentView.open(config, 0, 1, renderer)
+        # The close-ups (3-5): a regular camera sees the ground to the horizon, and every
+        # part may hide the sky from some of it.
+        culled = EnvironmentView.open(config, 0, 1, renderer, rendering=CLOSEUPS)
         full = EnvironmentView.open(config, 0, 1, renderer=renderer, cull=False)
         assert len(culled.scene.parts) < len(full.scene.parts) == len(full.environment.parts)
         outputs = {}
         for view in (culled, full):
             view.renderer.load(view.scene, view.lighting,
                                occlusion_extent(view.environment.parts))
-            outputs[view is culled] = [view.render(i)[1] for i in range(6)]
+            outputs[view is culled] = [view.render(i)[1] for i in CLOSEUPS]
         for a, b in zip(outputs[True], outputs[False]):
             for name in ("color", "component", "damage", "depth"):
                 assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+
+
+def _damage_textures(view) -> int:
+    """How many columns of an opened view got their damage textures built (the seen ones)."""
+    return sum(bool(a.damage and a.damage.get("built"))
+               for a in view.dressing.assignments.values())
+
+
+def test_an_opening_for_some_cameras_uploads_less_and_renders_them_the_same():
+    """glsynth render --camera: culled by the asked cameras alone (their far sky occlusion
+    included), the same bytes as an opening for all of the environment's cameras."""
+    import dataclasses
+
+    from glsynth.render.view import EnvironmentView, preview_config
+
+    config = preview_config(Config(), 320)
+    config = dataclasses.replace(config, cameras=dataclasses.replace(
+        config.cameras, n_regular=3, n_closeup=3))
+    with Renderer(config.render) as renderer:
+        every = EnvironmentView.open(config, 0, 1, renderer)
+        expected = [every.render(i)[1] for i in range(6)]
+        uploaded, damaged = len(every.scene.parts), _damage_textures(every)
+        for i in range(6):
+            alone = EnvironmentView.open(config, 0, 1, renderer, rendering=[i])
+            assert len(alone.scene.parts) <= uploaded and _damage_textures(alone) <= damaged
+            fewer = len(alone.scene.parts) < uploaded or _damage_textures(alone) < damaged
+            assert fewer, i
+            out = alone.render(i)[1]
+            for name in ("color", "component", "damage", "depth"):
+                assert getattr(out, name).tobytes() == getattr(expected[i], name).tobytes(), \
+                    (i, name)
 
 
 def test_parts_that_only_shadow_a_view_or_hide_its_sky_are_kept():
@@ -160,13 +197,13 @@ def test_parts_that_only_shadow_a_view_or_hide_its_sky_are_kept():
     config = dataclasses.replace(config, cameras=dataclasses.replace(
         config.cameras, n_regular=3, n_closeup=3))
     with Renderer(config.render) as renderer:
-        view = EnvironmentView.open(config, 0, 1, renderer)
-        seen = visible_parts(view.environment.parts, [view.camera(i).camera for i in range(6)])
+        view = EnvironmentView.open(config, 0, 1, renderer, rendering=CLOSEUPS)
+        seen = visible_parts(view.environment.parts, [view.camera(i).camera for i in CLOSEUPS])
         assert seen < set(view.scene.parts) < {p.name for p in view.environment.parts}
-        kept = [view.render(i)[1].color for i in range(6)]
+        kept = [view.render(i)[1].color for i in CLOSEUPS]
         view.renderer.load(build_scene([p for p in view.environment.parts if p.name in seen],
                                        view.dressing.materials), view.lighting)
-        seen_only = [view.render(i)[1].color for i in range(6)]
+        seen_only = [view.render(i)[1].color for i in CLOSEUPS]
         # Dropping the unseen casters would lose shadows or sky occlusion in some view.
         assert any(not np.array_equal(a, b) for a, b in zip(kept, seen_only))
 

@@ -60,7 +60,8 @@ def test_casters_are_the_parts_above_and_not_those_aside_or_below():
     above = box + [0, 0, 300]         # far towards the sun, over the view
     aside = box + [500, 0, 300]       # towards the sun, but not over the view
     below = box + [0, 0, -100]        # farther from the sun than every receiver
-    casts = shadow_casters(np.stack([above, aside, below]), [cam], render, sun_at(90.0))
+    casts = shadow_casters(np.stack([above, aside, below]), [cam], sun_at(90.0),
+                           [render.shadow_distance_m])
     assert casts.tolist() == [True, False, False]
 
 

@@ -50,7 +50,8 @@ class EnvironmentView:
              renderer: Renderer | None = None, cull: bool = True, anywhere: bool = False,
              progress: Callable[[str, float], None] | None = None,
              cameras: Sequence[Camera] | None = None,
-             bank_dir: Path | None = None) -> "EnvironmentView":
+             bank_dir: Path | None = None,
+             rendering: Sequence[int] | None = None) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
@@ -58,6 +59,8 @@ class EnvironmentView:
         (everything uploaded; for measuring). ``anywhere`` uploads every part and damages
         every column, for cameras placed anywhere (glsynth view, render --camera-json).
         ``cameras`` (a flight's) are culled by in place of the environment's sampled ones.
+        ``rendering``: the indices of the only sampled cameras this view will render (glsynth
+        render --camera): culled by those alone, the same bytes for a fraction of the upload.
         ``progress(stage, fraction)`` hears of each stage. ``bank_dir``: where the damage
         bank caches its textures (default: the cache, glsynth.core.paths.cache_root)."""
         report = progress or (lambda stage, fraction: None)
@@ -72,7 +75,8 @@ class EnvironmentView:
             cracks = crack_segments(env, config) if config.cameras.face_crack_share else None
             placements = place_cameras(env, config.cameras, config.render,
                                        range(config.cameras.total), cracks)
-            cameras = [p.camera for p in placements]
+            chosen = placements if rendering is None else [placements[i] for i in rendering]
+            cameras = [p.camera for p in chosen]
         cameras = list(cameras)
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)

@@ -40,10 +40,10 @@ def frustum_corners(camera: Camera, distance: float) -> np.ndarray:
     return transform_points(camera.pose, cam)
 
 
-def _shadowed_box(camera: Camera, render: RenderConfig,
+def _shadowed_box(camera: Camera, reach_m: float,
                   frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Light-space bounds (lo, hi) of the camera's shadowed range."""
-    local = frustum_corners(camera, render.shadow_distance_m) @ frame.T
+    """Light-space bounds (lo, hi) of the camera's view frustum up to ``reach_m``."""
+    local = frustum_corners(camera, reach_m) @ frame.T
     return local.min(0), local.max(0)
 
 
@@ -52,7 +52,7 @@ def shadow_matrix(camera: Camera, render: RenderConfig, sun: np.ndarray) -> np.n
     direction ``sun`` for this camera. Depth -1 is the sun side of the shadowed range, +1 its
     far side."""
     frame = light_frame(sun)
-    lo, hi = _shadowed_box(camera, render, frame)
+    lo, hi = _shadowed_box(camera, render.shadow_distance_m, frame)
     z_sun, z_far = hi[2] + 1.0, lo[2] - 1.0
     # Square texels: the shorter side of the footprint is widened to the longer one.
     half = max(hi[0] - lo[0], hi[1] - lo[1]) / 2 * 1.01 + 1e-3
@@ -71,17 +71,18 @@ def shadow_texel_m(matrix: np.ndarray, size_px: int) -> float:
     return 2.0 / float(np.linalg.norm(matrix[0, :3])) / size_px
 
 
-def shadow_casters(corners: np.ndarray, cameras: list[Camera], render: RenderConfig,
-                   sun: np.ndarray) -> np.ndarray:
-    """For part boxes (P, 8, 3), whether each may cast a shadow into some camera's shadowed
-    range: its light-space footprint overlaps the camera's, and it is not wholly on the far
-    side of the camera's receivers (P,). Conservative, like the view test."""
+def shadow_casters(corners: np.ndarray, cameras: list[Camera], sun: np.ndarray,
+                   reach_m: list[float]) -> np.ndarray:
+    """For part boxes (P, 8, 3), whether each may cast a shadow along ``sun`` into some
+    camera's view up to that camera's ``reach_m``: its light-space footprint overlaps the
+    camera's, and it is not wholly on the far side of the camera's receivers (P,).
+    Conservative, like the view test."""
     frame = light_frame(sun)
     local = corners @ frame.T
     p_lo, p_hi = local.min(1), local.max(1)
     casts = np.zeros(len(corners), bool)
-    for camera in cameras:
-        lo, hi = _shadowed_box(camera, render, frame)
+    for camera, reach in zip(cameras, reach_m):
+        lo, hi = _shadowed_box(camera, reach, frame)
         casts |= (np.all(p_hi[:, :2] >= lo[:2], axis=1) & np.all(p_lo[:, :2] <= hi[:2], axis=1)
                   & (p_hi[:, 2] >= lo[2]))
     return casts

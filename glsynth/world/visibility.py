@@ -52,6 +52,16 @@ def seen_by(corners: np.ndarray, camera: Camera, margin_px: float = 0.5) -> np.n
     return ~outside
 
 
+def farthest_seen(corners: np.ndarray, camera: Camera) -> float:
+    """The depth (along the axis, at most the far plane) of the farthest box corner among the
+    boxes (P, 8, 3) that may be in this camera's view (seen_by); the near plane if none is."""
+    seen = seen_by(corners, camera)
+    if not seen.any():
+        return camera.znear
+    depth = -transform_points(camera.view(), corners[seen])[..., 2]
+    return float(min(depth.max(), camera.zfar))
+
+
 def in_clip_xy(corners: np.ndarray, clip_from_world: np.ndarray) -> np.ndarray:
     """For boxes (P, 8, 3), whether each is not wholly beyond one side of the clip volume of
     ``clip_from_world`` in x or y (P,); depth is not tested (the shadow pass clamps it)."""
@@ -76,17 +86,19 @@ def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
     """Parts that may cast the sun's shadow into some camera's view (with shadows and the sun
     above the horizon), or hide the sky from it along one of the sky-visibility directions
     (with those maps)."""
-    directions = []
-    if render.shadow_map_px and lighting.sun_irradiance:
-        directions.append(lighting.sun_direction)
-    if render.sky_visibility_maps:
-        directions.extend(sky_directions(render.sky_visibility_maps))
-    if not directions:
-        return set()
     corners = np.stack([part_corners(p) for p in parts])
+    # The sun's shadow map reaches shadow_distance_m; the sky-visibility maps cover the
+    # whole scene, so a part hiding the sky from any surface in view counts, as far as the
+    # farthest part the camera may see.
+    directions: list[tuple[np.ndarray, list[float]]] = []
+    if render.shadow_map_px and lighting.sun_irradiance:
+        directions.append((lighting.sun_direction, [render.shadow_distance_m] * len(cameras)))
+    if render.sky_visibility_maps:
+        farthest = [farthest_seen(corners, camera) for camera in cameras]
+        directions.extend((d, farthest) for d in sky_directions(render.sky_visibility_maps))
     casts = np.zeros(len(parts), bool)
-    for direction in directions:
-        casts |= shadow_casters(corners, cameras, render, direction)
+    for direction, reach in directions:
+        casts |= shadow_casters(corners, cameras, direction, reach)
     return {p.name for p, c in zip(parts, casts) if c}
 
 
