@@ -8,8 +8,8 @@ automatic white balance makes that irradiance white (the ground's green bounce u
 the sky's blue on a face in shade). The irradiance is the sun's where the aimed point sees
 the sun, plus the sky's and the lit ground's (the renderer's spherical harmonics) through the
 share of the sky that no part hides.
-Parts hide light by their boxes in their own mesh frames (columns, beams, slabs and the deck's
-girders are boxes, or nearly, at the metres that matter here): no GL, no ray-cast library.
+Parts hide light by their triangles, found through their boxes (numpy ray casts,
+glsynth.world.visibility): no GL, no ray-cast library.
 """
 
 import math
@@ -22,6 +22,7 @@ from glsynth.appearance.materials import Material, surface_albedo
 from glsynth.world.cameras import FaceAim
 from glsynth.world.environment import Part
 from glsynth.world.lighting import LUMINANCE, Lighting, sh_basis
+from glsynth.world.visibility import rays_meet_triangles
 
 MID_GREY = 0.18
 """The linear luminance a metered view's aimed face gets (18 % grey, as light meters aim)."""
@@ -51,8 +52,12 @@ def hemisphere(normal: np.ndarray, count: int = SKY_RAYS) -> np.ndarray:
 
 
 def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part]) -> np.ndarray:
-    """(N,) bool: whether each ray from ``origin`` along ``dirs`` (N, 3) meets a part's box
-    (slab test in the part's mesh frame)."""
+    """(N,) bool: whether each ray from ``origin`` along ``dirs`` (N, 3) meets a part: its
+    box in its mesh frame first (slab test), then, for the rays that meet the box, its
+    triangles. Boxes alone are no proxy for the parts swept along the track (slab, girders,
+    rails, ground): their mesh frame is the world's, so on a track running diagonally to the
+    world axes a 40 m slab's box covers a 28 m square and hid the sun from every column
+    under it (views metered for shade came out white)."""
     hit = np.zeros(len(dirs), bool)
     for part in parts:
         lo, hi = part.mesh.bounds
@@ -63,7 +68,10 @@ def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part]) -> np.n
             t0, t1 = (lo - o) / d, (hi - o) / d
         near = np.nanmax(np.minimum(t0, t1), axis=1)
         far = np.nanmin(np.maximum(t0, t1), axis=1)
-        hit |= (far >= np.maximum(near, 0.0))
+        candidates = ~hit & (far >= np.maximum(near, 0.0))
+        if candidates.any():
+            tri = part.world_vertices()[part.mesh.faces]
+            hit[candidates] = rays_meet_triangles(origin, dirs[candidates], tri)
     return hit
 
 

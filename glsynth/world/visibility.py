@@ -143,6 +143,27 @@ def ray_hits(part: Part, origin: np.ndarray, direction: np.ndarray) -> np.ndarra
     return np.sort(t[hit])
 
 
+def rays_meet_triangles(origin: np.ndarray, dirs: np.ndarray, tri: np.ndarray,
+                        chunk: int = 2048) -> np.ndarray:
+    """(N,) bool: whether each ray origin + t dirs[i], t > 0, crosses one of the triangles
+    (T, 3, 3) (Moller-Trumbore, both sides; the triangles taken ``chunk`` at a time)."""
+    met = np.zeros(len(dirs), bool)
+    for start in range(0, len(tri), chunk):
+        part = tri[start:start + chunk]
+        v0, e1, e2 = part[:, 0], part[:, 1] - part[:, 0], part[:, 2] - part[:, 0]
+        p = np.cross(dirs[:, None], e2[None])                        # (N, T, 3)
+        det = np.einsum("tk,ntk->nt", e1, p)
+        ok = np.abs(det) > 1e-15
+        inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+        s = origin - v0                                               # (T, 3)
+        u = np.einsum("tk,ntk->nt", s, p) * inv
+        q = np.cross(s, e1)                                           # (T, 3)
+        v = (dirs @ q.T) * inv
+        t = np.einsum("tk,tk->t", e2, q)[None] * inv
+        met |= np.any(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0), axis=1)
+    return met
+
+
 def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera) -> np.ndarray:
     """(N,) False for the segments a-b (world, (N, 3) each) that lie wholly beyond one plane of
     the view's frustum (the near plane, or a side grown by 2 pixels): none of their points can
