@@ -22,6 +22,7 @@ from glsynth.render.view import EnvironmentView
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import PartKind, build_environment
 from glsynth.world.surroundings import COLUMN_CLEARANCE_M, DECK_CLEARANCE_M, TOWN_KINDS
+from glsynth.world.visibility import occlusion_extent
 
 RC = render_config(160, 90)
 
@@ -275,3 +276,25 @@ def test_demo_views_show_the_town_and_sky_and_no_panel():
                             & (out.depth < zfar * 0.999))
         sky += np.mean(out.depth >= zfar * 0.999)
     assert far_land > 0.05 and sky > 0.05
+
+
+def test_the_far_terrain_is_open_to_the_sky_outside_the_visibility_maps(town):
+    """The sky-visibility maps are fitted to all but the terrain (occlusion_extent); the land
+    beyond them reads as open sky, as with no maps at all, not a neighbouring map's depths."""
+    extent = occlusion_extent(town.parts)
+    terrain = next(p for p in town.parts if p.kind is PartKind.TERRAIN)
+    assert np.ptp(extent[:, 0]) < 0.5 * np.ptp(terrain.world_vertices()[:, 0])
+    drone = _town_cameras(town)[1]
+    colours = []
+    for maps in (16, 0):
+        config = dataclasses.replace(RC, sky_visibility_maps=maps)
+        with Renderer(config) as r:
+            r.load(build_scene(town.parts, plain_materials(town)), LIGHT, extent)
+            out = r.render(drone)
+        colours.append(out.color.astype(int))
+    # Terrain pixels well beyond the town (depth from the last render: the same geometry).
+    far = (out.depth > 400.0) & (out.depth < RC.zfar_m * 0.999)
+    far[1:-1, 1:-1] &= far[:-2, 1:-1] & far[2:, 1:-1] & far[1:-1, :-2] & far[1:-1, 2:]
+    assert far.sum() > 200
+    diff = np.abs(colours[0] - colours[1]).max(axis=-1)[far]
+    assert np.mean(diff <= 1) > 0.99
