@@ -381,7 +381,8 @@ def _tree(st: _Strip, side: str, s: float, u: float) -> None:
 
 def _terrain(b: "_Builder", rng: np.random.Generator) -> trimesh.Trimesh:
     """A polar grid round the trajectory's middle: TERRAIN_DROP_M under the ground of the
-    nearest centre-line point (so the ground strips hide it), rising from HILLS_M[0] beyond the
+    nearest centre-line point (so the ground strips hide its edge; none lies wholly under
+    them), rising from HILLS_M[0] beyond the
     town's farthest point to a crest at HILLS_M[1] whose height varies smoothly round the
     ring, flat out to HILLS_M[2]; past that edge the renderer's sky shows."""
     traj, margin = b.traj, b.cfg.end_margin_m
@@ -403,8 +404,11 @@ def _terrain(b: "_Builder", rng: np.random.Generator) -> trimesh.Trimesh:
     rise = 0.5 - 0.5 * np.cos(np.pi * rise)  # smooth at both ends
     xy = centre + np.stack([np.outer(radii, np.cos(angles)), np.outer(radii, np.sin(angles))],
                            axis=-1)  # (rings, angles, 2)
-    nearest = np.argmin(np.linalg.norm(xy[:, :, None] - line[None, None, :, :2], axis=-1),
-                        axis=-1)
+    distance = np.linalg.norm(xy[:, :, None] - line[None, None, :, :2], axis=-1)
+    nearest = np.argmin(distance, axis=-1)
+    # Under a ground strip: nearer the centre line than its edge, less 2 m, between its ends.
+    covered = ((distance.min(axis=-1) < TOWN_HALF_WIDTH_M - 2.0) & (nearest > 0)
+               & (nearest < len(s) - 1)).reshape(-1)
     z = ground[nearest] - TERRAIN_DROP_M + rise[:, None] * crest[None, :]
     vertices = np.concatenate([xy, z[..., None]], axis=-1).reshape(-1, 3)
     rings, m = len(radii), len(angles)
@@ -415,6 +419,8 @@ def _terrain(b: "_Builder", rng: np.random.Generator) -> trimesh.Trimesh:
     # The hole at the centre (r < 10 m) lies under the ground strips; fill it with a fan.
     hole = np.stack([np.full(m - 2, 0), np.arange(1, m - 1), np.arange(2, m)], -1)
     faces = np.concatenate([hole, faces])
+    # Triangles wholly under the strips are never seen, yet llvmpipe would rasterise them.
+    faces = faces[~covered[faces].all(axis=1)]
     return meshes._mesh(vertices, faces, vertices[:, :2].copy())
 
 
