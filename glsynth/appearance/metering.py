@@ -22,6 +22,7 @@ from glsynth.appearance.materials import Material, surface_albedo
 from glsynth.world.cameras import FaceAim
 from glsynth.world.environment import Part
 from glsynth.world.lighting import LUMINANCE, Lighting, sh_basis
+from glsynth.world.surroundings import TOWN_KINDS
 
 MID_GREY = 0.18
 """The linear luminance a metered view's aimed face gets (18 % grey, as light meters aim)."""
@@ -73,7 +74,10 @@ def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> 
     member = next(p for p in parts if p.name == aim.member)
     normal = member.pose[:3, :3] @ np.array(FACE_NORMALS[aim.face])
     origin = np.asarray(aim.point, float) + LIFT_M * normal
-    others = [p for p in parts if p.name != aim.member]
+    # The town's parts are a strip's pieces merged: their boxes hold mostly air (the
+    # terrain's, the whole world), so they would hide sky the face sees. They are left out
+    # (the panels' thin boxes stay in): the town stands 8 m and more from the members.
+    others = [p for p in parts if p.name != aim.member and p.kind not in TOWN_KINDS]
     sun = lighting.sun_direction
     sun_share = lighting.sun_irradiance * max(float(sun @ normal), 0.0)
     if sun_share > 0.0 and blocked(origin, sun[None], others)[0]:
