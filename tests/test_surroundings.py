@@ -14,6 +14,7 @@ from glhelpers import LIGHT, plain_materials, render_config
 from glsynth.appearance import town_textures
 from glsynth.core.config import EnvironmentConfig, load_config
 from glsynth.core.labels import Component
+from glsynth.data.flight_export import depth_tolerance
 from glsynth.render.export import export_environment
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.raycast import ray_cast
@@ -298,3 +299,17 @@ def test_the_far_terrain_is_open_to_the_sky_outside_the_visibility_maps(town):
     assert far.sum() > 200
     diff = np.abs(colours[0] - colours[1]).max(axis=-1)[far]
     assert np.mean(diff <= 1) > 0.99
+
+
+def test_a_wire_or_a_sliver_between_silhouettes_is_no_slope_for_flight_points():
+    """flight_export.depth_tolerance: a slope's change per pixel is its tolerance; a one-pixel
+    wire across the view, or a one-pixel far wall between a column and the sky, has none (a
+    point behind the wire, or on the column, would otherwise be seen there)."""
+    slope = np.tile(10.0 + 0.1 * np.arange(9.0), (5, 1))  # depth rising 0.1 m a column
+    assert np.allclose(depth_tolerance(slope)[:, 1:-1], 0.1)
+    wire = np.full((5, 9), 40.0)
+    wire[2] = 12.0
+    assert depth_tolerance(wire)[2].max() == 0.0
+    sliver = np.full((5, 9), 2000.0)
+    sliver[:, :4], sliver[:, 4] = 2.7, 27.6  # column | far wall | sky
+    assert depth_tolerance(sliver)[:, 4].max() == 0.0
