@@ -12,6 +12,7 @@ from scratch (registered share, pose errors after a similarity alignment).
                                            [--concrete-scale 0.1,1.0] [--label L]
                                            [--concrete-detail flights|off]
                                            [--exposure metered|scene] [--refine-intrinsics]
+                                           [--world panels|town]
                                            [--out /tmp/glsynth-bench-flight]
 
 It also draws bench/results/flight/flight.png: three frames with their labels, and the point
@@ -58,7 +59,8 @@ def fly(args: argparse.Namespace, out: Path) -> Path:
                     f"column = {args.column}\nstandoff_m = {args.standoff}\n"
                     f"heights_m = [{args.heights}]\nfocal_mm = {args.focal}\n"
                     "forward_overlap_pct = 80.0\n"
-                    f"exposure = \"{args.exposure}\"\n")
+                    f"exposure = \"{args.exposure}\"\n"
+                    f"[environment]\nworld = \"{args.world}\"\n")
     code = glsynth(["fly", "--preset", "paper", "--seed", str(args.seed), "--env",
                     str(args.env), "--config", str(toml), "--out", str(out)])
     if code:
@@ -130,6 +132,9 @@ def main() -> int:
                         "repository's textures alone)")
     p.add_argument("--exposure", default="metered", choices=("metered", "scene"),
                    help="[flight] exposure (default: metered)")
+    p.add_argument("--world", default="panels", choices=("panels", "town"),
+                   help="[environment] world (default: panels, the paper preset's; the "
+                        "README's picture: town)")
     p.add_argument("--refine-intrinsics", action="store_true",
                    help="let the mapper refine the focal lengths (default: hold the flight's "
                         "exact intrinsics fixed)")
@@ -157,7 +162,7 @@ def main() -> int:
         "setting": {k: getattr(args, k) for k in ("seed", "env", "column", "size", "standoff",
                                                    "focal", "heights", "overlap", "margin",
                                                    "texture_size", "concrete_scale",
-                                                   "concrete_detail", "exposure",
+                                                   "concrete_detail", "exposure", "world",
                                                    "refine_intrinsics")},
         "frames": summary["frames"], "spacing_m": summary["spacing_m"],
         "fly_s": flown, "colmap_s": checked_s, "exposure": summary["exposure"], **checked})

@@ -34,9 +34,15 @@ vec2 sky_visibility(vec3 n, out vec3 hidden) {
     hidden = vec3(0.0);
     if (u_vis_count == 0) return vec2(1.0);
     float weighted = 0.0, total = 0.0, mean = 0.0;
+    int tiles = int(round(sqrt(float(u_vis_count))));  // the atlas is square
     for (int k = 0; k < u_vis_count; ++k) {
         vec4 p = u_vis_from_view[k] * vec4(v_view_pos + n * u_vis_offset_m, 1.0);
-        float v = texture(u_vis_map, p.xyz);
+        // A point outside its map (the far terrain, to which the maps are not fitted) would
+        // read a neighbouring map: it counts as open to the sky.
+        vec2 lo = vec2(k % tiles, k / tiles) / float(tiles);
+        bool inside = all(greaterThanEqual(p.xy, lo)) && all(lessThan(p.xy, lo + 1.0 / float(tiles)))
+                      && p.z < 1.0;
+        float v = inside ? texture(u_vis_map, p.xyz) : 1.0;
         float c = max(dot(n, u_vis_dir[k]), 0.0);
         float w = u_vis_weight[k] * c;
         weighted += w * v;

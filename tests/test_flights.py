@@ -347,7 +347,10 @@ def test_pycolmap_reprojects_points_onto_their_labels(flight, colmap_model):
     _, out = flight
     shares = _reprojection(out, colmap_model)
     assert len(shares) == FRAMES
-    assert all(share >= 0.999 for share, _ in shares), shares
+    # Every interior point lands on its ids (_reprojection); the rest lie on edges. In the
+    # demo preset's town (192x108 px) the columns' silhouettes against far walls and the sky
+    # put up to 0.14 % of a frame's points there (0.04 % with the panels).
+    assert all(share >= 0.998 for share, _ in shares), shares
     assert sum(n for _, n in shares) > 1000 * FRAMES
 
 

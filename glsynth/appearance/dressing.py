@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glsynth.appearance import town_textures
 from glsynth.appearance.cracks import (
     CrackNetwork,
     beam_cracks,
@@ -276,6 +277,21 @@ def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray) -
     return detail
 
 
+TOWN_TEXTURE_PX = 512
+"""Largest size of the town's own textures: a 3 m facade bay at 6 mm a pixel, where the
+town is seen from 8 m and more."""
+
+
+def _image(repository: TextureRepository, config: Config, a: Assignment) -> np.ndarray:
+    """The assignment's image: from the town's own textures for their categories, else from
+    the repository."""
+    if a.category in town_textures.CATEGORIES:
+        return town_textures.image(a.category, a.image,
+                                   min(repository.size, TOWN_TEXTURE_PX),
+                                   config.materials.repository_seed)
+    return repository.image(a.category, a.image)
+
+
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
           visible: set[str]) -> Dressing:
     cfg = config.materials
@@ -292,7 +308,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             rng = make_rng(root, index, Stream.MATERIALS, ordinal)
             category = ""
         a = sample_assignment(kind, cfg, rng, category, repository.count)
-        image = repository.image(a.category, a.image)
+        image = _image(repository, config, a)
         if kind is PartKind.SCENE:
             material = Material(base_color=(0.0, 0.0, 0.0, 1.0), roughness=1.0,
                                 emissive=(cfg.panel_emission,) * 3, emissive_map=image)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from glsynth.appearance.cracks import CrackNetwork
+from glsynth.appearance.town_textures import FACADE_BAY_M, IMAGES_PER_CATEGORY
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.world.environment import Part, PartKind
@@ -234,6 +235,13 @@ CONCRETE_KINDS = frozenset({PartKind.SLAB, PartKind.GIRDER, PartKind.CROSS_BEAM,
                             PartKind.TIE_BEAM, PartKind.COLUMN})
 STEEL_KINDS = frozenset({PartKind.RAIL, PartKind.WIRE})
 PAINTED_KINDS = frozenset({PartKind.FENCE, PartKind.POLE, PartKind.PORTAL})
+TOWN_PAINTED_KINDS = frozenset({PartKind.ROOF, PartKind.VEHICLE, PartKind.BARRIER,
+                                PartKind.UTILITY})
+"""The town's parts painted as the fences are (repository category "painted")."""
+TOWN_TEXTURED_KINDS = {PartKind.BUILDING: ("facade", 1.0 / FACADE_BAY_M),
+                       PartKind.ROAD: ("asphalt", 0.25), PartKind.TREE: ("foliage", 0.5)}
+"""The town's parts with their own procedural images (glsynth.appearance.town_textures):
+category and uv_scale (a facade image is one bay of one storey)."""
 
 
 def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Generator,
@@ -255,7 +263,14 @@ def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Gener
         return Assignment("painted", int(rng.integers(count("painted"))),
                           u(*cfg.painted_metallic), u(*cfg.painted_roughness),
                           u(*cfg.concrete_scale))
-    if kind is PartKind.GROUND:
+    if kind in TOWN_PAINTED_KINDS:
+        return Assignment("painted", int(rng.integers(count("painted"))),
+                          u(*cfg.painted_metallic), u(*cfg.painted_roughness),
+                          u(*cfg.concrete_scale))
+    if kind in TOWN_TEXTURED_KINDS:
+        category, scale = TOWN_TEXTURED_KINDS[kind]
+        return Assignment(category, int(rng.integers(IMAGES_PER_CATEGORY)), 0.0, 1.0, scale)
+    if kind in (PartKind.GROUND, PartKind.TERRAIN):
         return Assignment("ground", int(rng.integers(count("ground"))), 0.0, 1.0,
                           u(*cfg.ground_scale))
     if kind is PartKind.SCENE:

@@ -20,7 +20,7 @@ import numpy as np
 
 from glsynth.appearance.materials import Material, surface_albedo
 from glsynth.world.cameras import FaceAim
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.lighting import LUMINANCE, Lighting, sh_basis
 from glsynth.world.visibility import rays_meet_triangles
 
@@ -81,7 +81,10 @@ def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> 
     member = next(p for p in parts if p.name == aim.member)
     normal = member.pose[:3, :3] @ np.array(FACE_NORMALS[aim.face])
     origin = np.asarray(aim.point, float) + LIFT_M * normal
-    others = [p for p in parts if p.name != aim.member]
+    # The far terrain is left out, as the sky-visibility maps leave it out (its hills lie
+    # under a few degrees of the horizon); the town's merged strips hide light by their
+    # triangles like every other part.
+    others = [p for p in parts if p.name != aim.member and p.kind is not PartKind.TERRAIN]
     sun = lighting.sun_direction
     sun_share = lighting.sun_irradiance * max(float(sun @ normal), 0.0)
     if sun_share > 0.0 and blocked(origin, sun[None], others)[0]:

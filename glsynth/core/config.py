@@ -63,6 +63,11 @@ class EnvironmentConfig:
     """Arc-length step of curved sweeps (slab, rails, ground...); chord error step^2 / 8R."""
     cylinder_segments: int = bounded(12, Number(3, 256, integer=True))
     """Facets around poles and wires."""
+    world: Literal["panels", "town"] = "panels"
+    """What surrounds the viaducts (docs/design.md, "A town around the viaduct"): "panels",
+    the paper's photo panels at panel_distance_m; "town", 3-D houses, blocks, warehouses,
+    roads with vehicles, trees, utility poles and a ring of far hills under the sky
+    (glsynth.world.surroundings)."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -621,6 +626,10 @@ _WEATHERED = {"concrete_detail": "on", "weathering": True}
 """Concrete as a camera at 0.3-3 m sees it (issue 39): every preset but the paper's, whose
 bytes stay those of Section 3.2's repository images."""
 
+_TOWN = {"world": "town"}
+"""A 3-D town around the viaducts (issue 40) for every preset but the paper's, whose views
+keep Section 3.1's photo panels."""
+
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
     "paper": {"damage": {"resolution": 2048}},
@@ -629,7 +638,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # Section 3.3's noise damage.
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
-             "cameras": {"n_regular": 6, "n_closeup": 6},
+             "environment": _TOWN, "cameras": {"n_regular": 6, "n_closeup": 6},
              "damage": {"resolution": 512, "model": "mechanics"},
              "materials": _WEATHERED, "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
@@ -639,6 +648,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # cracks of 0.2 mm and more. No plates: they show Section 3.3's noise damage of every
     # severity, not cracks.
     "inspection": {
+        "environment": _TOWN,
         "dataset": {"n_environments": 4, "n_test_environments": 1, "n_plates": 0,
                     "n_test_plates": 0},
         "cameras": {"placement": "faces", "n_regular": 0, "n_closeup": 24,

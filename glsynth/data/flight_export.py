@@ -11,8 +11,10 @@ Conventions (docs/design.md "Flights"):
 - A frame *sees* a point when the point projects inside the image in front of the camera and
   the frame's depth at that pixel is within tau of the point's depth z, tau = g + 0.005 z +
   1 mm, where g is the depth's change per pixel there (in each direction the smaller of the
-  two one-sided differences, summed over both directions: a slanted surface's change, not a
-  silhouette's jump). The point lies within half a pixel of the pixel's centre, so on the
+  two one-sided differences where both rise or both fall by amounts within SLOPE_RATIO of
+  each other, else 0, summed over both directions: a slanted surface's change, not a
+  silhouette's jump, a one-pixel wire's nor a one-pixel sliver's between two silhouettes).
+  The point lies within half a pixel of the pixel's centre, so on the
   surface the pixel sees its depth differs by at most about g.
 """
 
@@ -71,16 +73,25 @@ def project(camera: Camera, lens: Lens, points: np.ndarray) -> tuple[np.ndarray,
     return normalized_to_pixel(camera, lens, xy), depth
 
 
+SLOPE_RATIO = 4.0
+"""Two one-sided depth differences of a slope differ by at most this factor (a plane seen
+at a grazing angle, its depth doubling in a pixel, comes near it)."""
+
+
 def depth_tolerance(depth: np.ndarray) -> np.ndarray:
     """g of the module docstring, per pixel (H, W)."""
     padded = np.pad(depth.astype(np.float64), 1, mode="edge")
     g = np.zeros(depth.shape)
     for axis in (0, 1):
-        lo = np.abs(np.diff(padded, axis=axis))
-        if axis == 0:
-            g += np.minimum(lo[:-1, 1:-1], lo[1:, 1:-1])
-        else:
-            g += np.minimum(lo[1:-1, :-1], lo[1:-1, 1:])
+        step = np.diff(padded, axis=axis)
+        before, after = ((step[:-1, 1:-1], step[1:, 1:-1]) if axis == 0
+                         else (step[1:-1, :-1], step[1:-1, 1:]))
+        # A slope changes depth alike on both sides. A one-pixel feature (a wire across the
+        # view) jumps both ways, a one-pixel sliver between two silhouettes (a far wall
+        # between a column and the sky) by amounts far apart: neither is a slope.
+        lo, hi = np.minimum(np.abs(before), np.abs(after)), np.maximum(np.abs(before),
+                                                                       np.abs(after))
+        g += np.where((before * after > 0) & (hi <= SLOPE_RATIO * lo), lo, 0.0)
     return g
 
 

@@ -42,6 +42,20 @@ class PartKind(Enum):
     GROUND = "ground"
     SCENE = "scene"
     """A photo panel beside or across the track."""
+    BUILDING = "building"
+    """The town's walls: houses, blocks and warehouses (glsynth.world.surroundings)."""
+    ROOF = "roof"
+    ROAD = "road"
+    """Roads and parking, just above the ground."""
+    VEHICLE = "vehicle"
+    TREE = "tree"
+    """Crowns, trunks and hedges."""
+    BARRIER = "barrier"
+    """Sound barriers beside the roads."""
+    UTILITY = "utility"
+    """Utility poles and their wires."""
+    TERRAIN = "terrain"
+    """The land around the town, rising to a ring of far hills."""
 
     @property
     def component(self) -> Component:
@@ -55,11 +69,15 @@ _COMPONENT = {
     PartKind.RAIL: Component.RAIL, PartKind.WIRE: Component.NONSTRUCTURAL,
     PartKind.FENCE: Component.NONSTRUCTURAL, PartKind.POLE: Component.NONSTRUCTURAL,
     PartKind.PORTAL: Component.NONSTRUCTURAL, PartKind.GROUND: Component.NONBRIDGE,
-    PartKind.SCENE: Component.NONBRIDGE}
+    PartKind.SCENE: Component.NONBRIDGE, PartKind.BUILDING: Component.NONBRIDGE,
+    PartKind.ROOF: Component.NONBRIDGE, PartKind.ROAD: Component.NONBRIDGE,
+    PartKind.VEHICLE: Component.NONBRIDGE, PartKind.TREE: Component.NONBRIDGE,
+    PartKind.BARRIER: Component.NONBRIDGE, PartKind.UTILITY: Component.NONSTRUCTURAL,
+    PartKind.TERRAIN: Component.NONBRIDGE}
 
 BOX_BEAMS = frozenset({PartKind.CROSS_BEAM, PartKind.TIE_BEAM})
 """The beams built as boxes between columns (the girders are swept along the track)."""
-OPEN_KINDS = frozenset({PartKind.GROUND, PartKind.SCENE})
+OPEN_KINDS = frozenset({PartKind.GROUND, PartKind.SCENE, PartKind.ROAD, PartKind.TERRAIN})
 """The kinds swept as open surfaces; every other part is a closed solid."""
 
 
@@ -141,19 +159,6 @@ def girder_profile(d: design.StandardDesign, side: str) -> np.ndarray:
     u = (1 if side == "l" else -1) * d.column_spacing_m / 2
     return meshes.rectangle(u - d.girder_width_m / 2, u + d.girder_width_m / 2,
                             -d.slab_thickness_m - d.girder_depth_m, -d.slab_thickness_m)
-
-
-def _photo_uv(mesh: trimesh.Trimesh, mirror: bool) -> trimesh.Trimesh:
-    """A scene panel shows one photo: UVs normalised to [0, 1] over the panel (an exception to
-    UVs in metres), v = 1 at the top, u left to right as seen from the track (``mirror`` when
-    the sweep runs right to left for that viewer)."""
-    uv = mesh.visual.uv / mesh.visual.uv.max(axis=0)
-    if np.corrcoef(uv[:, 1], mesh.vertices[:, 2])[0, 1] < 0:
-        uv[:, 1] = 1.0 - uv[:, 1]
-    if mirror:
-        uv[:, 0] = 1.0 - uv[:, 0]
-    mesh.visual.uv = uv
-    return mesh
 
 
 class _Builder:
@@ -316,45 +321,6 @@ class _Builder:
                  meshes.box((d.portal_beam_size_m, 2 * u_pole, d.portal_beam_size_m)),
                  meshes.pose(heading, top))
 
-    # --- surroundings -----------------------------------------------------------------------
-    def surroundings(self) -> None:
-        cfg, traj = self.cfg, self.traj
-        L, n = self.d.length_m, traj.n
-        D, margin = cfg.panel_distance_m, cfg.end_margin_m
-        # Ground and panels in pieces: the two lead-in/out margins and one per viaduct.
-        bounds = [(-margin, 0.0, "start")] if margin > 0 else []
-        bounds += [(i * L, (i + 1) * L, f"v{i:02d}") for i in range(n)]
-        bounds += [(n * L, n * L + margin, "end")] if margin > 0 else []
-        for s0, s1, tag in bounds:
-            viaduct = int(tag[1:]) if tag.startswith("v") else None
-            s = _samples(s0, s1, cfg.sweep_step_m, traj.centres_s)
-            path, across, up = self.along(s, base="ground")
-            self.add(f"ground_{tag}", PartKind.GROUND, viaduct, meshes.sweep(
-                np.array([[D + 1.0, 0.0], [-D - 1.0, 0.0]]), path, across, up, closed=False))
-            for side, u in (("l", D), ("r", -D)):
-                # Open profile facing the centre line (its left side when walking it).
-                top_bottom = [[u, cfg.panel_height_m], [u, -1.0]]
-                profile = np.array(top_bottom if u > 0 else top_bottom[::-1])
-                self.add(f"scene_{tag}_{side}", PartKind.SCENE, viaduct,
-                         _photo_uv(meshes.sweep(profile, path, across, up, closed=False),
-                                   mirror=u < 0), side=side)
-        # End panels close the view along the track.
-        for tag, s_end, facing in (("start", -margin, 1.0), ("end", n * L + margin, -1.0)):
-            point, tangent, normal = traj.frame(np.array([s_end]))
-            base = point[0].copy()
-            base[2] = traj.ground_at(np.array([s_end]))[0]
-            ends = np.array([base - D * normal[0], base + D * normal[0]])
-            if facing < 0:
-                ends = ends[::-1]
-            # A path across the track, swept with the panel as an open vertical profile.
-            direction = (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
-            across = np.tile(np.cross(direction, self.up), (2, 1))
-            up = np.tile(self.up, (2, 1))
-            profile = np.array([[0.0, cfg.panel_height_m], [0.0, -1.0]])
-            self.add(f"scene_{tag}_across", PartKind.SCENE, None,
-                     _photo_uv(meshes.sweep(profile, ends, -across, up, closed=False),
-                               mirror=False))
-
 
 def build_environment(config: Config, root_seed: int, env_index: int) -> Environment:
     """Environment ``env_index`` of run ``root_seed``: same inputs, identical meshes."""
@@ -362,7 +328,9 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
     trajectory = generate_trajectory(config.environment, config.design.length_m, rng)
     builder = _Builder(config, trajectory)
     viaducts = tuple(builder.viaduct(i) for i in range(trajectory.n))
-    builder.surroundings()
+    # Imported here: surroundings builds on this module's parts and sweeps.
+    from glsynth.world.surroundings import build_surroundings
+    build_surroundings(builder, root_seed, env_index)
     return Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from glsynth.core.config import RenderConfig
 from glsynth.core.geometry import transform_points
 from glsynth.world.cameras import Camera
-from glsynth.world.environment import Part
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.lighting import Lighting, sky_directions
 from glsynth.world.sunlight import shadow_casters
 
@@ -103,9 +103,11 @@ def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
 
 
 def occlusion_extent(parts: tuple[Part, ...] | list[Part]) -> np.ndarray:
-    """Corners (8 P, 3) of every part's box: what the sky-visibility maps are fitted to, so
-    that they are the same whichever parts are uploaded."""
-    return np.concatenate([part_corners(p) for p in parts])
+    """Corners (8 P, 3) of every part's box but the terrain's: what the sky-visibility maps
+    are fitted to, so that they are the same whichever parts are uploaded. The terrain reaches
+    hills 0.5 km and more away: fitted to it, a map's texel would grow fivefold over the
+    viaduct, where the occlusion matters; the far land outside the maps counts as open."""
+    return np.concatenate([part_corners(p) for p in parts if p.kind is not PartKind.TERRAIN])
 
 
 def part_boxes(parts: tuple[Part, ...] | list[Part]) -> tuple[np.ndarray, np.ndarray]:
