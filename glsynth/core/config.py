@@ -63,6 +63,9 @@ class EnvironmentConfig:
     """Arc-length step of curved sweeps (slab, rails, ground...); chord error step^2 / 8R."""
     cylinder_segments: int = bounded(12, Number(3, 256, integer=True))
     """Facets around poles and wires."""
+    fences: Literal["solid", "open"] = "solid"
+    """Deck-edge fences: "solid" swept rectangles (the paper's), or "open" railings of posts,
+    rails and vertical bars that the background shows through (glsynth.world.fences)."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -321,6 +324,10 @@ class DamageConfig:
     """The severities whose columns also spall in their hinge zones (the bank's texture of the
     severity, confined to the zones): medium and severe, past cover spalling's onset; the
     inspection preset adds "slight" for the early spalling of long-term monitoring."""
+    geometry: bool = bounded(False, Flag())
+    """Severe columns lose cover and core concrete in their hinge zones as geometry, with
+    buckled longitudinal bars and broken hoops (glsynth.world.severe); false: severe damage is
+    only the texture on an intact prism (the paper's)."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -629,7 +636,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
-             "damage": {"resolution": 512, "model": "mechanics"},
+             "damage": {"resolution": 512, "model": "mechanics", "geometry": True},
+             "environment": {"fences": "open"},
              "materials": _WEATHERED, "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
@@ -646,7 +654,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                     "face_crack_px": 3.0},
         "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
                    "spalling_severities": ("slight",), "undamaged_probability": 0.2,
-                   "crack_width_mm": (0.05, 1.0)},
+                   "crack_width_mm": (0.05, 1.0), "geometry": True},
+        "environment": {"fences": "open"},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0},
         "materials": _WEATHERED, "lighting": {"metering": "face"},

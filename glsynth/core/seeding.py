@@ -36,6 +36,9 @@ class Stream(IntEnum):
     SENSOR = 12
     """The photograph's draws of one view (glsynth.render.camera_model; item = the camera
     index, a flight's frame index, 0 for a camera given by hand)."""
+    SEVERE = 15
+    """A severe column's damage as geometry: its crushed bands, buckled bars and broken hoops
+    (glsynth.world.severe; item = the column's index in the environment's part list)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]
