@@ -139,12 +139,16 @@ def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
     return record, replace(material, cracks=cracks)
 
 
-def _constant_mask(kind: PartKind) -> np.ndarray | None:
+def _constant_mask(kind: PartKind) -> np.ndarray:
     """The one-texel damage mask of a part whose every point has one damage id (severe damage
-    as geometry: crushed concrete, exposed rebar); None for the others."""
-    if kind not in DAMAGE_OF_KIND:
-        return None
-    return np.full((1, 1), int(DAMAGE_OF_KIND[kind]), np.uint8)
+    as geometry: crushed concrete, exposed rebar)."""
+    mask = np.full((1, 1), int(DAMAGE_OF_KIND[kind]), np.uint8)
+    mask.flags.writeable = False
+    return mask
+
+
+CONSTANT_MASKS = {kind: _constant_mask(kind) for kind in DAMAGE_OF_KIND}
+"""One array per kind, shared by its parts: the renderer and the glTF store it once."""
 
 
 def _with_cracks(record: dict, part: Part, cracks: CrackNetwork, **demand: object) -> dict:
@@ -285,7 +289,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
         else:
             material = Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=a.metallic,
                                 roughness=a.roughness, uv_scale=a.scale, base_color_map=image,
-                                damage_mask=_constant_mask(kind))
+                                damage_mask=CONSTANT_MASKS.get(kind))
         if kind is PartKind.COLUMN:
             damage = _column_damage(config, root, index, ordinal)
             if damage["damaged"]:

@@ -47,8 +47,10 @@ HOOP_BREAK = (0.15, 0.4)
 """The share of its perimeter a broken hoop has lost."""
 HOOP_END_M = (0.03, 0.08)
 """How far a broken hoop's ends spring outward."""
-TUBE_SEGMENTS = 6
-"""Facets around a bar or hoop."""
+BAR_SAMPLES = 5
+"""Sections along a buckled bar."""
+TUBE_SEGMENTS = 5
+"""Facets around a bar or hoop (a few pixels wide in any view)."""
 
 
 def column_damage_rng(root_seed: int, env_index: int, ordinal: int) -> np.random.Generator:
@@ -178,15 +180,44 @@ def crushed_surface(section: tuple[float, float], band: Band, rng: np.random.Gen
     return _mesh(vertices.reshape(-1, 3), faces, uv.reshape(-1, 2))
 
 
-def _tube(path: np.ndarray, hint: np.ndarray, radius: float) -> trimesh.Trimesh:
-    """A capped tube of ``radius`` along ``path`` (K, 3), its profile turned by ``hint``."""
-    direction = np.gradient(path, axis=0)
-    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    up = hint - np.sum(hint * direction, axis=1, keepdims=True) * direction
-    up /= np.linalg.norm(up, axis=1, keepdims=True)
+def tubes(paths: list[np.ndarray], hints: list[np.ndarray], radius: float) -> trimesh.Trimesh:
+    """Capped tubes of ``radius`` along ``paths`` (each (K, 3)), each ring's profile turned by
+    its ``hints`` row, as meshes.sweep makes them (smooth, UVs in metres), merged into one
+    mesh; the paths of one length are swept together (vectorised)."""
+    pieces = []
+    for k in sorted({len(p) for p in paths}):
+        chosen = [i for i, p in enumerate(paths) if len(p) == k]
+        pieces.append(_tubes_of_length(np.stack([paths[i] for i in chosen]),
+                                       np.stack([hints[i] for i in chosen]), radius))
+    return trimesh.util.concatenate(pieces)
+
+
+def _tubes_of_length(path: np.ndarray, hint: np.ndarray, radius: float) -> trimesh.Trimesh:
+    """N tubes along paths (N, K, 3) of one length: meshes.sweep's layout for one, its
+    vertices and UVs computed for all at once."""
+    n, k = path.shape[:2]
+    profile = meshes.circle(radius, TUBE_SEGMENTS)
+    direction = np.gradient(path, axis=1)
+    direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
+    up = hint - np.sum(hint * direction, axis=-1, keepdims=True) * direction
+    up /= np.linalg.norm(up, axis=-1, keepdims=True)
     across = np.cross(up, direction)  # across x up = direction, as meshes.sweep wants
-    return meshes.sweep(meshes.circle(radius, TUBE_SEGMENTS), path, across, up, closed=True,
-                        smooth=True, caps=True)
+    template = meshes.sweep(profile, path[0], across[0], up[0], closed=True, smooth=True,
+                            caps=True)
+    ring = np.vstack([profile, profile[:1]])
+    points = (path[:, :, None] + ring[None, None, :, :1] * across[:, :, None]
+              + ring[None, None, :, 1:] * up[:, :, None])  # (N, K, S + 1, 3)
+    vertices = np.concatenate([points.reshape(n, -1, 3), points[:, 0, :-1],
+                               points[:, -1, :-1]], axis=1)
+    arc = np.concatenate([np.zeros((n, 1)), np.cumsum(
+        np.linalg.norm(np.diff(path, axis=1), axis=-1), axis=1)], axis=1)
+    side_uv = np.stack(np.broadcast_arrays(arc[:, :, None], template.visual.uv[None, None,
+                       :ring.shape[0], 1]), -1).reshape(n, -1, 2)
+    uv = np.concatenate([side_uv, np.broadcast_to(template.visual.uv[k * len(ring):],
+                                                  (n, 2 * len(profile), 2))], axis=1)
+    per = len(template.vertices)
+    faces = (template.faces[None] + per * np.arange(n)[:, None, None]).reshape(-1, 3)
+    return _mesh(vertices.reshape(-1, 3), faces, uv.reshape(-1, 2))
 
 
 def _bar_seats(section: tuple[float, float], inset: float) -> tuple[np.ndarray, np.ndarray]:
@@ -206,19 +237,19 @@ def _bar_seats(section: tuple[float, float], inset: float) -> tuple[np.ndarray, 
 
 
 def buckled_bars(cfg: DamageConfig, section: tuple[float, float], band: Band,
-                 rng: np.random.Generator) -> list[trimesh.Trimesh]:
+                 rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray]]:
     """Every longitudinal bar through the band, bowed outward by its own drawn amount at
-    mid-band; its ends stay in the intact concrete."""
-    radius = cfg.bar_diameter_mm / 2000.0
+    mid-band, as (path, profile hint) for ``tubes``; its ends stay in the intact concrete."""
     seats, outward = _bar_seats(section, band.cover_m)
-    t = np.linspace(0.0, 1.0, RINGS)
+    radius = cfg.bar_diameter_mm / 2000.0
+    t = np.linspace(0.0, 1.0, BAR_SAMPLES)
     z = band.z0 + t * (band.z1 - band.z0)
     bars = []
     for seat, out in zip(seats, outward):
         bulge = rng.uniform(*BULGE_DIAMETERS) * 2 * radius * np.sin(np.pi * t)
         xy = seat[None] + bulge[:, None] * out[None]
         path = np.column_stack([xy, z])
-        bars.append(_tube(path, np.tile([out[0], out[1], 0.0], (RINGS, 1)), radius))
+        bars.append((path, np.tile([out[0], out[1], 0.0], (BAR_SAMPLES, 1))))
     return bars
 
 
@@ -236,10 +267,11 @@ def _rectangle_point(half: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def broken_hoops(cfg: DamageConfig, section: tuple[float, float], band: Band,
-                 bulge_m: float, rng: np.random.Generator) -> list[trimesh.Trimesh]:
+                 bulge_m: float, rng: np.random.Generator
+                 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The hoops in the band at a drawn spacing, outside the bars, pushed out with them by up
     to ``bulge_m`` at mid-band, each with a drawn share of its perimeter gone and its two
-    broken ends sprung outward."""
+    broken ends sprung outward, as (path, profile hint) for ``tubes``."""
     bar_r = cfg.bar_diameter_mm / 2000.0
     radius = HOOP_RATIO * bar_r
     spacing = rng.uniform(*cfg.stirrup_spacing_m)
@@ -259,7 +291,7 @@ def broken_hoops(cfg: DamageConfig, section: tuple[float, float], band: Band,
         spring = rng.uniform(*HOOP_END_M, 2)
         xy = np.vstack([xy[:1] + spring[0] * normal[:1], xy, xy[-1:] + spring[1] * normal[-1:]])
         path = np.column_stack([xy, np.full(len(xy), z)])
-        hoops.append(_tube(path, np.tile([0.0, 0.0, 1.0], (len(path), 1)), radius))
+        hoops.append((path, np.tile([0.0, 0.0, 1.0], (len(path), 1))))
     return hoops
 
 
@@ -275,12 +307,15 @@ def severe_column(config: Config, part: Part, spans: list[tuple[float, float]],
     cfg = config.damage
     section = (float(part.mesh.extents[0]), float(part.mesh.extents[1]))
     bands = crushed_bands(cfg, section, spans, rng)
-    crushed, steel = [], []
+    crushed, bars, hoops = [], [], []
+    bulge = float(np.mean(BULGE_DIAMETERS)) * cfg.bar_diameter_mm / 1000.0
     for band in bands:
         crushed.append(crushed_surface(section, band, rng))
-        bars = buckled_bars(cfg, section, band, rng)
-        bulge = float(np.mean(BULGE_DIAMETERS)) * cfg.bar_diameter_mm / 1000.0
-        steel += bars + broken_hoops(cfg, section, band, bulge, rng)
+        bars += buckled_bars(cfg, section, band, rng)
+        hoops += broken_hoops(cfg, section, band, bulge, rng)
+    bar_r = cfg.bar_diameter_mm / 2000.0
+    steel = [tubes([path for path, _ in group], [hint for _, hint in group], radius)
+             for group, radius in ((bars, bar_r), (hoops, HOOP_RATIO * bar_r)) if group]
     return (cut_column(part.mesh, bands),
             _placed(trimesh.util.concatenate(crushed), part.pose),
             _placed(trimesh.util.concatenate(steel), part.pose))
