@@ -25,8 +25,10 @@ from glsynth.world import meshes
 from glsynth.world.environment import PartKind, build_environment
 from glsynth.world.severe import (
     TUBE_SEGMENTS,
+    Band,
     column_damage_rng,
     crushed_bands,
+    crushed_surface,
     draw_severity,
     severe_column,
     tubes,
@@ -81,6 +83,36 @@ def test_parts_are_appended_and_only_severe_columns_change(envs):
         local = np.linalg.solve(column.pose, np.c_[pair[1].world_vertices(),
                                                    np.ones(len(pair[1].mesh.vertices))].T).T
         assert np.all(np.abs(local[:, :2]) <= column.mesh.extents[:2] / 2 + 0.2)
+
+
+def test_new_parts_are_named_by_the_convention_and_face_outwards(envs):
+    on, off = envs
+    assert {PartKind.CRUSHED, PartKind.REBAR} <= {p.kind for p in on.parts}
+    names = [p.name for p in on.parts]
+    assert len(names) == len(set(names))
+    for part in on.parts[len(off.parts):]:
+        words = part.name.split("_")
+        assert words[0] == "column" and part.kind.value in words
+
+
+def test_the_crushed_surface_faces_outward_around_a_reduced_section():
+    section, band = (0.8, 0.7), Band(0.0, 1.0, 0.05, 0.15)
+    mesh = crushed_surface(section, band, make_rng(0, 0, Stream.SEVERE))
+    v = mesh.vertices[mesh.faces]
+    # Closed by the intact rectangles at both ends (the top one, at z = 1, facing +z): by
+    # the divergence theorem its volume, positive only if the faces face outward.
+    volume = np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6 \
+        + section[0] * section[1] / 3
+    intact = section[0] * section[1]
+    deepest = (section[0] - 2 * band.loss_m) * (section[1] - 2 * band.loss_m)
+    assert deepest < volume < 0.9 * intact
+    # The ends meet the intact box's edges.
+    for z in (band.z0, band.z1):
+        ring = mesh.vertices[np.isclose(mesh.vertices[:, 2], z)]
+        assert np.allclose(np.abs(ring[:, :2]).max(axis=0), np.array(section) / 2)
+        on_edge = np.isclose(np.abs(ring[:, 0]), section[0] / 2) | np.isclose(
+            np.abs(ring[:, 1]), section[1] / 2)
+        assert on_edge.all()
 
 
 def test_the_dressing_calls_the_same_columns_severe(envs):

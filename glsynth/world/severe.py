@@ -335,7 +335,8 @@ def with_severe_damage(env: Environment) -> Environment:
         column, crushed, steel = severe_column(env.config, part, clear_spans(env, part), rng)
         parts[ordinal] = replace(part, mesh=column)
         k = count[part.viaduct] = count.get(part.viaduct, -1) + 1
-        tag = f"v{part.viaduct:02d}_{k}"
-        added += [Part(f"crushed_{tag}", PartKind.CRUSHED, part.viaduct, crushed, np.eye(4)),
-                  Part(f"rebar_{tag}", PartKind.REBAR, part.viaduct, steel, np.eye(4))]
+        tag = f"column_v{part.viaduct:02d}"  # named as the component's parts are
+        added += [Part(f"{tag}_crushed_{k}", PartKind.CRUSHED, part.viaduct, crushed,
+                       np.eye(4)),
+                  Part(f"{tag}_rebar_{k}", PartKind.REBAR, part.viaduct, steel, np.eye(4))]
     return replace(env, parts=tuple(parts + added))
