@@ -147,6 +147,9 @@ def test_bands_sit_in_the_hinge_zones_and_the_box_is_cut_there(envs):
         z = cut.vertices[:, 2]
         for band in bands:  # no surface of the box is left inside a band
             assert not np.any((z > band.z0 + 1e-9) & (z < band.z1 - 1e-9))
+        # The sides keep the whole box's UVs: v runs up from the column's foot.
+        side = np.abs(cut.vertex_normals[:, 2]) < 0.5
+        assert np.allclose(cut.visual.uv[side, 1], z[side] + part.mesh.extents[2] / 2)
 
 
 def test_tubes_are_the_sweeps_they_vectorise():

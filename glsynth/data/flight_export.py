@@ -11,9 +11,10 @@ Conventions (docs/design.md "Flights"):
 - A frame *sees* a point when the point projects inside the image in front of the camera and
   the frame's depth at that pixel is within tau of the point's depth z, tau = g + 0.005 z +
   1 mm, where g is the depth's change per pixel there (in each direction the smaller of the
-  two one-sided differences, summed over both directions: a slanted surface's change, not a
-  silhouette's jump). The point lies within half a pixel of the pixel's centre, so on the
-  surface the pixel sees its depth differs by at most about g.
+  two one-sided differences where both run the same way, summed over both directions: a
+  slanted surface's change, not a silhouette's jump, nor the two jumps of a thing one pixel
+  wide). The point lies within half a pixel of the pixel's centre, so on the surface the
+  pixel sees its depth differs by at most about g.
 """
 
 import math
@@ -76,11 +77,12 @@ def depth_tolerance(depth: np.ndarray) -> np.ndarray:
     padded = np.pad(depth.astype(np.float64), 1, mode="edge")
     g = np.zeros(depth.shape)
     for axis in (0, 1):
-        lo = np.abs(np.diff(padded, axis=axis))
-        if axis == 0:
-            g += np.minimum(lo[:-1, 1:-1], lo[1:, 1:-1])
-        else:
-            g += np.minimum(lo[1:-1, :-1], lo[1:-1, 1:])
+        step = np.diff(padded, axis=axis)
+        before, after = (step[:-1, 1:-1], step[1:, 1:-1]) if axis == 0 else \
+            (step[1:-1, :-1], step[1:-1, 1:])
+        # A slope runs one way through the pixel; a thing one pixel wide (a bar, a wire)
+        # jumps both ways, and its jumps are silhouettes, not a change along a surface.
+        g += np.where(before * after > 0, np.minimum(np.abs(before), np.abs(after)), 0.0)
     return g
 
 
