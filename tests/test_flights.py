@@ -576,7 +576,11 @@ def test_distortion_maps_a_straight_edge_to_colmaps_curve():
 def test_a_distorted_flight_reprojects_through_colmaps_model(tmp_path, model_name, k1, k2):
     pycolmap = pytest.importorskip("pycolmap", reason="pycolmap is not installed")
     cfg = tmp_path / "lens.toml"
-    cfg.write_text(SMALL + f'max_frames = 10\ncamera_model = "{model_name}"\nk1 = {k1}\n'
+    # The lens alone: a severe column's bars and hoops, 1-2 pixels wide in these 192 x 108
+    # frames, add label edges that nearest resampling misses (docs/design.md, "Open fences
+    # and severe damage as geometry": 97.95 % in the worst frame with them, 98.5 % without).
+    cfg.write_text(SMALL.replace("[damage]\n", "[damage]\ngeometry = false\n")
+                   + f'max_frames = 10\ncamera_model = "{model_name}"\nk1 = {k1}\n'
                    f"k2 = {k2}\n")
     out = tmp_path / "lens"
     assert main(_fly_args(cfg, out)) == 0

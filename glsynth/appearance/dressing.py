@@ -57,6 +57,7 @@ from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng, make_seed
 from glsynth.world.environment import BOX_BEAMS, Environment, Part, PartKind
 from glsynth.world.lighting import LUMINANCE
+from glsynth.world.severe import DAMAGE_OF_KIND, clear_spans, column_damage_rng, draw_severity
 
 SLEEPER_CATEGORIES = ("concrete", "steel", "wood")
 _SLEEPER_ITEM = 10**6  # + viaduct index: one sleeper material per viaduct
@@ -83,37 +84,14 @@ def _repository(root: str, size: int) -> TextureRepository:
     return TextureRepository(root, size)
 
 
-def _severity(cfg: DamageConfig, rng: np.random.Generator) -> str | None:
-    """Section 3.3's draw: undamaged with [damage] undamaged_probability, else one of
-    [damage] severities (all three under "paper")."""
-    if rng.random() < cfg.undamaged_probability:
-        return None
-    return cfg.severities[int(rng.integers(len(cfg.severities)))]
-
-
 def _column_damage(config: Config, root_seed: int, env: int, ordinal: int) -> dict:
     d = config.damage
-    rng = make_rng(root_seed, env, Stream.DAMAGE, ordinal)
-    severity = _severity(d, rng)
+    rng = column_damage_rng(root_seed, env, ordinal)
+    severity = draw_severity(d, rng)
     if severity is None:
         return {"damaged": False}
     return {"damaged": True, "severity": severity,
             "bank_index": int(rng.integers(d.bank_size)), "scale": float(rng.uniform(*d.scale))}
-
-
-def clear_spans(env: Environment, part: Part) -> list[tuple[float, float]]:
-    """A column's clear spans, (z0, z1) in its mesh frame: from the ground to the underside of
-    the cross beam, split by the tie beams where Table 3 has them."""
-    viaduct = next(v for v in env.viaducts if v.index == part.viaduct)
-    info = next(c for c in viaduct.columns if c.name == part.name)
-    centre = (info.top_z + info.bottom_z) / 2
-    z0, z1 = info.bottom_z - centre, info.top_z - env.config.design.embed_m - centre
-    tie = next((p for p in env.parts if p.viaduct == part.viaduct
-                and p.kind is PartKind.TIE_BEAM), None)
-    if tie is None:
-        return [(z0, z1)]
-    middle, half = float(tie.pose[2, 3]) - centre, float(tie.mesh.extents[2]) / 2
-    return [(z0, middle - half), (middle + half, z1)]
 
 
 def beam_span(env: Environment, part: Part) -> tuple[int, tuple[float, float]] | None:
@@ -150,7 +128,7 @@ def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
     if part.kind is not PartKind.GIRDER and beam_span(env, part) is None:
         return None, material
     rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
-    severity = _severity(cfg, rng)
+    severity = draw_severity(cfg, rng)
     if severity is None:
         return {"damaged": False}, material
     record = {"damaged": True, "severity": severity, "built": seen}
@@ -160,6 +138,18 @@ def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
     cracks = _beam_network(env, cfg, part, demand.drift, rng)
     record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4))
     return record, replace(material, cracks=cracks)
+
+
+def _constant_mask(kind: PartKind) -> np.ndarray:
+    """The one-texel damage mask of a part whose every point has one damage id (severe damage
+    as geometry: crushed concrete, exposed rebar)."""
+    mask = np.full((1, 1), int(DAMAGE_OF_KIND[kind]), np.uint8)
+    mask.flags.writeable = False
+    return mask
+
+
+CONSTANT_MASKS = {kind: _constant_mask(kind) for kind in DAMAGE_OF_KIND}
+"""One array per kind, shared by its parts: the renderer and the glTF store it once."""
 
 
 def _with_cracks(record: dict, part: Part, cracks: CrackNetwork, **demand: object) -> dict:
@@ -314,7 +304,8 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                                 emissive=(cfg.panel_emission,) * 3, emissive_map=image)
         else:
             material = Material(base_color=(1.0, 1.0, 1.0, 1.0), metallic=a.metallic,
-                                roughness=a.roughness, uv_scale=a.scale, base_color_map=image)
+                                roughness=a.roughness, uv_scale=a.scale, base_color_map=image,
+                                damage_mask=CONSTANT_MASKS.get(kind))
         if kind is PartKind.COLUMN:
             damage = _column_damage(config, root, index, ordinal)
             if damage["damaged"]:

@@ -232,8 +232,8 @@ class Assignment:
 
 
 CONCRETE_KINDS = frozenset({PartKind.SLAB, PartKind.GIRDER, PartKind.CROSS_BEAM,
-                            PartKind.TIE_BEAM, PartKind.COLUMN})
-STEEL_KINDS = frozenset({PartKind.RAIL, PartKind.WIRE})
+                            PartKind.TIE_BEAM, PartKind.COLUMN, PartKind.CRUSHED})
+STEEL_KINDS = frozenset({PartKind.RAIL, PartKind.WIRE, PartKind.REBAR})
 PAINTED_KINDS = frozenset({PartKind.FENCE, PartKind.POLE, PartKind.PORTAL})
 TOWN_PAINTED_KINDS = frozenset({PartKind.ROOF, PartKind.VEHICLE, PartKind.BARRIER,
                                 PartKind.UTILITY})

@@ -68,6 +68,9 @@ class EnvironmentConfig:
     the paper's photo panels at panel_distance_m; "town", 3-D houses, blocks, warehouses,
     roads with vehicles, trees, utility poles and a ring of far hills under the sky
     (glsynth.world.surroundings)."""
+    fences: Literal["solid", "open"] = "solid"
+    """Deck-edge fences: "solid" swept rectangles (the paper's), or "open" railings of posts,
+    rails and vertical bars that the background shows through (glsynth.world.fences)."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -326,6 +329,10 @@ class DamageConfig:
     """The severities whose columns also spall in their hinge zones (the bank's texture of the
     severity, confined to the zones): medium and severe, past cover spalling's onset; the
     inspection preset adds "slight" for the early spalling of long-term monitoring."""
+    geometry: bool = bounded(False, Flag())
+    """Severe columns lose cover and core concrete in their hinge zones as geometry, with
+    buckled longitudinal bars and broken hoops (glsynth.world.severe); false: severe damage is
+    only the texture on an intact prism (the paper's)."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -626,9 +633,9 @@ _WEATHERED = {"concrete_detail": "on", "weathering": True}
 """Concrete as a camera at 0.3-3 m sees it (issue 39): every preset but the paper's, whose
 bytes stay those of Section 3.2's repository images."""
 
-_TOWN = {"world": "town"}
-"""A 3-D town around the viaducts (issue 40) for every preset but the paper's, whose views
-keep Section 3.1's photo panels."""
+_SURROUNDINGS = {"world": "town", "fences": "open"}
+"""A 3-D town around the viaducts and see-through railings (issue 40) for every preset but
+the paper's, whose views keep Section 3.1's photo panels and solid fences."""
 
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
@@ -638,8 +645,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # Section 3.3's noise damage.
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
-             "environment": _TOWN, "cameras": {"n_regular": 6, "n_closeup": 6},
-             "damage": {"resolution": 512, "model": "mechanics"},
+             "environment": _SURROUNDINGS, "cameras": {"n_regular": 6, "n_closeup": 6},
+             "damage": {"resolution": 512, "model": "mechanics", "geometry": True},
              "materials": _WEATHERED, "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
@@ -648,7 +655,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # cracks of 0.2 mm and more. No plates: they show Section 3.3's noise damage of every
     # severity, not cracks.
     "inspection": {
-        "environment": _TOWN,
+        "environment": _SURROUNDINGS,
         "dataset": {"n_environments": 4, "n_test_environments": 1, "n_plates": 0,
                     "n_test_plates": 0},
         "cameras": {"placement": "faces", "n_regular": 0, "n_closeup": 24,
@@ -657,7 +664,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                     "face_crack_px": 3.0},
         "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
                    "spalling_severities": ("slight",), "undamaged_probability": 0.2,
-                   "crack_width_mm": (0.05, 1.0)},
+                   "crack_width_mm": (0.05, 1.0), "geometry": True},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0},
         "materials": _WEATHERED, "lighting": {"metering": "face"},

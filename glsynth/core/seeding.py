@@ -40,6 +40,9 @@ class Stream(IntEnum):
     """The town around the viaducts (glsynth.world.surroundings; item = the strip's index:
     viaduct i is i, the lead-in and lead-out n and n + 1, the far hills n + 2), and the town's
     own textures (env = 0; glsynth.appearance.town_textures)."""
+    SEVERE = 15
+    """A severe column's damage as geometry: its crushed bands, buckled bars and broken hoops
+    (glsynth.world.severe; item = the column's index in the environment's part list)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

@@ -19,6 +19,7 @@ from glsynth.core.geometry import transform_points
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.world import meshes
+from glsynth.world.fences import open_fence
 from glsynth.world.trajectory import Trajectory, generate_trajectory
 
 
@@ -56,6 +57,11 @@ class PartKind(Enum):
     """Utility poles and their wires."""
     TERRAIN = "terrain"
     """The land around the town, rising to a ring of far hills."""
+    CRUSHED = "crushed"
+    """A viaduct's crushed column concrete: the reduced sections of its severe columns' hinge
+    bands (glsynth.world.severe)."""
+    REBAR = "rebar"
+    """A viaduct's exposed reinforcement in those bands: buckled bars and broken hoops."""
 
     @property
     def component(self) -> Component:
@@ -73,7 +79,8 @@ _COMPONENT = {
     PartKind.ROOF: Component.NONBRIDGE, PartKind.ROAD: Component.NONBRIDGE,
     PartKind.VEHICLE: Component.NONBRIDGE, PartKind.TREE: Component.NONBRIDGE,
     PartKind.BARRIER: Component.NONBRIDGE, PartKind.UTILITY: Component.NONSTRUCTURAL,
-    PartKind.TERRAIN: Component.NONBRIDGE}
+    PartKind.TERRAIN: Component.NONBRIDGE,
+    PartKind.CRUSHED: Component.COLUMN, PartKind.REBAR: Component.COLUMN}
 
 BOX_BEAMS = frozenset({PartKind.CROSS_BEAM, PartKind.TIE_BEAM})
 """The beams built as boxes between columns (the girders are swept along the track)."""
@@ -300,9 +307,10 @@ class _Builder:
         half_w, t_f = d.deck_width_m / 2, d.fence_thickness_m
         for side, sign in (("l", 1), ("r", -1)):
             lo, hi = sorted((sign * half_w, sign * (half_w - t_f)))
-            self.add(f"nonstructural_{tag}_fence_{side}", PartKind.FENCE, i,
-                     self.deck_sweep(s, meshes.rectangle(lo, hi, 0.0, d.fence_height_m)),
-                     side=side)
+            fence = (open_fence(traj, d, s, lo, hi, self.deck_sweep)
+                     if self.cfg.fences == "open" else
+                     self.deck_sweep(s, meshes.rectangle(lo, hi, 0.0, d.fence_height_m)))
+            self.add(f"nonstructural_{tag}_fence_{side}", PartKind.FENCE, i, fence, side=side)
         s_mid = np.array([i * d.length_m + d.length_m / 2])
         points, _, normal = traj.frame(s_mid)
         heading = float(traj.heading(s_mid)[0])
@@ -331,7 +339,12 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
     # Imported here: surroundings builds on this module's parts and sweeps.
     from glsynth.world.surroundings import build_surroundings
     build_surroundings(builder, root_seed, env_index)
-    return Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))
+    env = Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))
+    if config.damage.geometry:
+        from glsynth.world.severe import with_severe_damage  # it builds on this module's Part
+
+        env = with_severe_damage(env)
+    return env
 
 
 def ground_parts(parts: Sequence[Part]) -> list[Part]:
