@@ -204,6 +204,7 @@ _PLAIN = {
     Component.NONSTRUCTURAL: ((0.20, 0.30, 0.45, 1.0), 0.5, 0.5),
     Component.RAIL: ((0.45, 0.43, 0.42, 1.0), 1.0, 0.35),
     Component.SLEEPER: ((0.35, 0.30, 0.25, 1.0), 0.0, 1.0),
+    Component.OTHER: ((0.40, 0.42, 0.45, 1.0), 0.6, 0.5),
 }
 
 
@@ -234,6 +235,10 @@ CONCRETE_KINDS = frozenset({PartKind.SLAB, PartKind.GIRDER, PartKind.CROSS_BEAM,
                             PartKind.TIE_BEAM, PartKind.COLUMN})
 STEEL_KINDS = frozenset({PartKind.RAIL, PartKind.WIRE})
 PAINTED_KINDS = frozenset({PartKind.FENCE, PartKind.POLE, PartKind.PORTAL})
+OTHER_STEEL_KINDS = frozenset({PartKind.JACKET, PartKind.BRACE, PartKind.TROUGH})
+"""Class 8 (glsynth.world.others) of plate steel: the steel category."""
+OTHER_PAINTED_KINDS = frozenset({PartKind.DOWNPIPE, PartKind.SIGN})
+"""Class 8 of painted pipe and plate: the painted category."""
 
 
 def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Generator,
@@ -248,10 +253,10 @@ def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Gener
         return Assignment(sleeper_category, int(rng.integers(count(sleeper_category))),
                           1.0 if steel else 0.0, u(*cfg.steel_roughness) if steel else 1.0,
                           u(*cfg.concrete_scale))
-    if kind in STEEL_KINDS:
+    if kind in STEEL_KINDS or kind in OTHER_STEEL_KINDS:
         return Assignment("steel", int(rng.integers(count("steel"))), 1.0,
                           u(*cfg.steel_roughness), u(*cfg.concrete_scale))
-    if kind in PAINTED_KINDS:
+    if kind in PAINTED_KINDS or kind in OTHER_PAINTED_KINDS:
         return Assignment("painted", int(rng.integers(count("painted"))),
                           u(*cfg.painted_metallic), u(*cfg.painted_roughness),
                           u(*cfg.concrete_scale))

@@ -63,6 +63,17 @@ class EnvironmentConfig:
     """Arc-length step of curved sweeps (slab, rails, ground...); chord error step^2 / 8R."""
     cylinder_segments: int = bounded(12, Number(3, 256, integer=True))
     """Facets around poles and wires."""
+    jacket_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """Others (docs/design.md, "Others"): the chance that a viaduct was retrofitted by steel
+    jacketing, all of its columns. 0 (the paper): no others of any kind."""
+    brace_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance that a viaduct not jacketed has steel X braces between its rows' columns."""
+    downpipe_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance, per side of a viaduct, of a drainage downpipe down one of its columns."""
+    trough_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance, per side of a viaduct, of a cable trough under the slab overhang."""
+    sign_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance that a viaduct has a numbered plate on one of its columns."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -620,6 +631,10 @@ _WEATHERED = {"concrete_detail": "on", "weathering": True}
 """Concrete as a camera at 0.3-3 m sees it (issue 39): every preset but the paper's, whose
 bytes stay those of Section 3.2's repository images."""
 
+_OTHERS = {"jacket_probability": 0.3, "brace_probability": 0.2, "downpipe_probability": 0.5,
+           "trough_probability": 0.5, "sign_probability": 0.5}
+"""Class 8, others (docs/design.md, "Others"): every preset but the paper's, which has none."""
+
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).
     "paper": {"damage": {"resolution": 2048}},
@@ -630,7 +645,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                          "n_test_plates": 2, "plates_per_task": 6},
              "cameras": {"n_regular": 6, "n_closeup": 6},
              "damage": {"resolution": 512, "model": "mechanics"},
-             "materials": _WEATHERED, "sensor": {"enabled": True}},
+             "materials": _WEATHERED, "sensor": {"enabled": True},
+             "environment": _OTHERS},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
     # three in four aimed at a crack from where its width spans 3 pixels or more; slight
@@ -650,7 +666,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0},
         "materials": _WEATHERED, "lighting": {"metering": "face"},
-        "sensor": {"enabled": True}},
+        "sensor": {"enabled": True}, "environment": _OTHERS},
 }
 
 _SECTIONS: dict[str, type] = typing.get_type_hints(Config)

@@ -36,6 +36,9 @@ class Stream(IntEnum):
     SENSOR = 12
     """The photograph's draws of one view (glsynth.render.camera_model; item = the camera
     index, a flight's frame index, 0 for a camera given by hand)."""
+    OTHERS = 13
+    """The "others" of one viaduct (glsynth.world.others: steel jackets, braces, downpipes,
+    cable troughs, signs; item = the viaduct's index)."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

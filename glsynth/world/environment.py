@@ -42,6 +42,16 @@ class PartKind(Enum):
     GROUND = "ground"
     SCENE = "scene"
     """A photo panel beside or across the track."""
+    JACKET = "jacket"
+    """Steel jackets of a viaduct's retrofitted columns (glsynth.world.others)."""
+    BRACE = "brace"
+    """Steel X braces between the columns of a viaduct's rows."""
+    DOWNPIPE = "downpipe"
+    """Drainage pipes from the slab down a column."""
+    TROUGH = "trough"
+    """Cable troughs under the slab overhang."""
+    SIGN = "sign"
+    """Numbered plates on columns."""
 
     @property
     def component(self) -> Component:
@@ -55,7 +65,9 @@ _COMPONENT = {
     PartKind.RAIL: Component.RAIL, PartKind.WIRE: Component.NONSTRUCTURAL,
     PartKind.FENCE: Component.NONSTRUCTURAL, PartKind.POLE: Component.NONSTRUCTURAL,
     PartKind.PORTAL: Component.NONSTRUCTURAL, PartKind.GROUND: Component.NONBRIDGE,
-    PartKind.SCENE: Component.NONBRIDGE}
+    PartKind.SCENE: Component.NONBRIDGE, PartKind.JACKET: Component.OTHER,
+    PartKind.BRACE: Component.OTHER, PartKind.DOWNPIPE: Component.OTHER,
+    PartKind.TROUGH: Component.OTHER, PartKind.SIGN: Component.OTHER}
 
 BOX_BEAMS = frozenset({PartKind.CROSS_BEAM, PartKind.TIE_BEAM})
 """The beams built as boxes between columns (the girders are swept along the track)."""
@@ -363,6 +375,10 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
     builder = _Builder(config, trajectory)
     viaducts = tuple(builder.viaduct(i) for i in range(trajectory.n))
     builder.surroundings()
+    from glsynth.world.others import build_others  # it builds this module's Parts
+
+    builder.parts += build_others(config, trajectory, viaducts, builder.parts, root_seed,
+                                  env_index)
     return Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))
 
 
