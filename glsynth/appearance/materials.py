@@ -20,6 +20,7 @@ from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.world.environment import Part, PartKind
+from glsynth.world.others import SIGN_SIZE_M
 
 MAX_ZONES = 4
 """Damage zones a material may have: the hinge zones at both ends of a column's two clear
@@ -237,8 +238,8 @@ STEEL_KINDS = frozenset({PartKind.RAIL, PartKind.WIRE})
 PAINTED_KINDS = frozenset({PartKind.FENCE, PartKind.POLE, PartKind.PORTAL})
 OTHER_STEEL_KINDS = frozenset({PartKind.JACKET, PartKind.BRACE, PartKind.TROUGH})
 """Class 8 (glsynth.world.others) of plate steel: the steel category."""
-OTHER_PAINTED_KINDS = frozenset({PartKind.DOWNPIPE, PartKind.SIGN})
-"""Class 8 of painted pipe and plate: the painted category."""
+OTHER_PAINTED_KINDS = frozenset({PartKind.DOWNPIPE})
+"""Class 8 of painted pipe: the painted category."""
 
 
 def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Generator,
@@ -260,6 +261,9 @@ def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Gener
         return Assignment("painted", int(rng.integers(count("painted"))),
                           u(*cfg.painted_metallic), u(*cfg.painted_roughness),
                           u(*cfg.concrete_scale))
+    if kind is PartKind.SIGN:  # an enamel plate: its image is its number (dressing)
+        return Assignment("painted", int(rng.integers(count("painted"))), 0.0,
+                          u(*cfg.painted_roughness), 1.0 / SIGN_SIZE_M[0])
     if kind is PartKind.GROUND:
         return Assignment("ground", int(rng.integers(count("ground"))), 0.0, 1.0,
                           u(*cfg.ground_scale))

@@ -42,8 +42,9 @@ PIPE_CLEAR_M = 0.03
 """Between a downpipe and the face it runs down."""
 TROUGH_SECTION_M = (0.4, 0.25)
 """A cable trough's width and height, hung from the slab's soffit at the deck's edge."""
-SIGN_SIZE_M = (0.3, 0.02, 0.4)
-"""A plate's width along the track, thickness and height."""
+SIGN_SIZE_M = (0.35, 0.02, 0.35)
+"""A plate's width along the track, thickness and height: square, its face showing its image
+once (glsynth.appearance.signs)."""
 SIGN_HEIGHT_M = 1.8
 """The plate's centre above the ground."""
 
@@ -76,7 +77,7 @@ class _Site:
 def build_others(config: Config, trajectory: Trajectory, viaducts: Sequence[ViaductInfo],
                  parts: Sequence[Part], root_seed: int, env_index: int) -> list[Part]:
     """The others of every viaduct, to be appended after ``parts`` (the rest of the
-    environment, whose tie beams the jackets and braces stop at)."""
+    environment, whose tie beams the braces stop at)."""
     out: list[Part] = []
     for v in viaducts:
         ties = [p.world_vertices()[:, 2] for p in parts
@@ -132,17 +133,13 @@ def _placed(extents: tuple[float, float, float], pose: np.ndarray) -> trimesh.Tr
 
 
 def _jackets(site: _Site, column: ColumnInfo) -> trimesh.Trimesh:
-    """A column's steel jacket from below the ground to the beams, in two shells where tie
-    beams cross it."""
+    """A column's steel jacket from below the ground to the beams over it. Tie beams pass
+    through it, which draws the cut-outs a real jacket has where they frame in."""
     a, b = column.section_m
-    top = site.soffit(column) - JACKET_GAP_M
-    spans = [(column.bottom_z - 0.1, top)]
-    if site.tie_z is not None:
-        spans = [(spans[0][0], site.tie_z[0] - JACKET_GAP_M), (site.tie_z[1] + JACKET_GAP_M, top)]
+    z0, z1 = column.bottom_z - 0.1, site.soffit(column) - JACKET_GAP_M
     x, y = column.center_xy
-    return trimesh.util.concatenate([
-        _placed((a + 2 * JACKET_OFFSET_M, b + 2 * JACKET_OFFSET_M, z1 - z0),
-                meshes.pose(column.heading, [x, y, (z0 + z1) / 2])) for z0, z1 in spans])
+    return _placed((a + 2 * JACKET_OFFSET_M, b + 2 * JACKET_OFFSET_M, z1 - z0),
+                   meshes.pose(column.heading, [x, y, (z0 + z1) / 2]))
 
 
 def _rotation_x(angle: float) -> np.ndarray:
