@@ -256,3 +256,34 @@ def test_the_cycles_twin_draws_the_others(jacketed, tmp_path):
     red = {name: colour[mask, 0].mean() / colour[mask, 1].mean()
            for name, mask in (("jacket", inner), ("rest", outer))}
     assert red["jacket"] > 3.0 and red["rest"] < 1.5, red
+
+
+def test_a_plate_shows_a_number_once_on_its_face(jacketed):
+    """A plate's material is its number's image (glsynth.appearance.signs), scaled so that
+    the outer face shows it once, upright and left to right as seen from outside."""
+    cfg = _small(jacketed.config)
+    dressing = dress(jacketed, cfg, open_repository(cfg), DamageBank(cfg.damage, 0), set())
+    signs = [p for p in jacketed.parts if p.kind is PartKind.SIGN]
+    numbers = set()
+    for part in signs:
+        material = dressing.materials[part.name]
+        number = next(n for n in range(1, 1000)
+                      if np.array_equal(plate_image(n), material.base_color_map))
+        numbers.add(number)
+        mesh = part.mesh
+        column = min((c for v in jacketed.viaducts for c in v.columns),
+                     key=lambda c: np.hypot(*(np.array(c.center_xy) - mesh.centroid[:2])))
+        across = np.array([-np.sin(column.heading), np.cos(column.heading), 0.0])
+        outward = np.sign((mesh.centroid[:2] - column.center_xy) @ across[:2]) * across
+        # The outer face: its UVs times uv_scale span [0, 1], u growing to the viewer's right
+        # (looking at the face from outside, up is +z), v growing up.
+        face = mesh.faces[mesh.face_normals @ outward > 0.99].ravel()
+        uv = mesh.visual.uv[face] * material.uv_scale
+        assert np.allclose(uv.min(0), 0.0) and np.allclose(uv.max(0), 1.0)
+        right = np.cross(-outward, [0.0, 0.0, 1.0])
+        xyz = mesh.vertices[face]
+        assert np.corrcoef(uv[:, 0], xyz @ right)[0, 1] > 0.99
+        assert np.corrcoef(uv[:, 1], xyz[:, 2])[0, 1] > 0.99
+    assert len(signs) == len(jacketed.viaducts) and len(numbers) > 1
+    ink = plate_image(407) != plate_image(0)
+    assert ink.any() and not np.array_equal(plate_image(407), plate_image(408))
