@@ -37,10 +37,11 @@ def test_every_part_is_named_tagged_and_finite(env0):
             assert part.side in ("l", "r") and part.side in words[-1]
         assert np.all(np.isfinite(part.world_vertices()))
         assert part.mesh.visual.uv.shape == (len(part.mesh.vertices), 2)
-    # The paper's panels: no town; crushed concrete and rebar only under [damage] geometry
-    # (tests/test_severe_geometry.py).
-    assert {p.kind for p in env0.parts} == \
-        set(PartKind) - TOWN_KINDS - {PartKind.CRUSHED, PartKind.REBAR}
+    # The paper's panels: no town and no others (class 8); crushed concrete and rebar only
+    # under [damage] geometry (tests/test_severe_geometry.py).
+    assert {p.kind for p in env0.parts} == {
+        k for k in PartKind if k.component is not Component.OTHER} - TOWN_KINDS - {
+        PartKind.CRUSHED, PartKind.REBAR}
     assert {p.name for p in env0.parts if p.kind is PartKind.GIRDER and p.side == "l"} \
         == {f"beam_v{v.index:02d}_girder_l" for v in env0.viaducts}
 

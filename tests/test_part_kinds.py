@@ -23,8 +23,7 @@ def test_no_module_reads_a_part_kind_from_its_name():
 
 
 def test_every_kind_has_one_component_and_the_groups_hold_what_they_say():
-    assert {k.component for k in PartKind} == set(Component) - {
-        Component.UNLABELLED, Component.OTHER}
+    assert {k.component for k in PartKind} == set(Component) - {Component.UNLABELLED}
     assert {k.component for k in BOX_BEAMS} == {Component.BEAM} and PartKind.GIRDER \
         not in BOX_BEAMS
     assert {k.component for k in OPEN_KINDS} == {Component.NONBRIDGE}

@@ -52,6 +52,7 @@ from glsynth.appearance.materials import (
     srgb_decode,
 )
 from glsynth.appearance.repository import TextureRepository, builtin_repository
+from glsynth.appearance.signs import plate_image
 from glsynth.core.config import Config, DamageConfig
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng, make_seed
@@ -299,6 +300,8 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             category = ""
         a = sample_assignment(kind, cfg, rng, category, repository.count)
         image = _image(repository, config, a)
+        if kind is PartKind.SIGN:
+            image = plate_image(int(rng.integers(1, 1000)))
         if kind is PartKind.SCENE:
             material = Material(base_color=(0.0, 0.0, 0.0, 1.0), roughness=1.0,
                                 emissive=(cfg.panel_emission,) * 3, emissive_map=image)

@@ -21,6 +21,7 @@ from glsynth.appearance.town_textures import FACADE_BAY_M, IMAGES_PER_CATEGORY
 from glsynth.core.config import MaterialsConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.world.environment import Part, PartKind
+from glsynth.world.others import SIGN_SIZE_M
 
 MAX_ZONES = 4
 """Damage zones a material may have: the hinge zones at both ends of a column's two clear
@@ -205,6 +206,7 @@ _PLAIN = {
     Component.NONSTRUCTURAL: ((0.20, 0.30, 0.45, 1.0), 0.5, 0.5),
     Component.RAIL: ((0.45, 0.43, 0.42, 1.0), 1.0, 0.35),
     Component.SLEEPER: ((0.35, 0.30, 0.25, 1.0), 0.0, 1.0),
+    Component.OTHER: ((0.40, 0.42, 0.45, 1.0), 0.6, 0.5),
 }
 
 
@@ -242,6 +244,10 @@ TOWN_TEXTURED_KINDS = {PartKind.BUILDING: ("facade", 1.0 / FACADE_BAY_M),
                        PartKind.ROAD: ("asphalt", 0.25), PartKind.TREE: ("foliage", 0.5)}
 """The town's parts with their own procedural images (glsynth.appearance.town_textures):
 category and uv_scale (a facade image is one bay of one storey)."""
+OTHER_STEEL_KINDS = frozenset({PartKind.JACKET, PartKind.BRACE, PartKind.TROUGH})
+"""Class 8 (glsynth.world.others) of plate steel: the steel category."""
+OTHER_PAINTED_KINDS = frozenset({PartKind.DOWNPIPE})
+"""Class 8 of painted pipe: the painted category."""
 
 
 def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Generator,
@@ -256,10 +262,10 @@ def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Gener
         return Assignment(sleeper_category, int(rng.integers(count(sleeper_category))),
                           1.0 if steel else 0.0, u(*cfg.steel_roughness) if steel else 1.0,
                           u(*cfg.concrete_scale))
-    if kind in STEEL_KINDS:
+    if kind in STEEL_KINDS or kind in OTHER_STEEL_KINDS:
         return Assignment("steel", int(rng.integers(count("steel"))), 1.0,
                           u(*cfg.steel_roughness), u(*cfg.concrete_scale))
-    if kind in PAINTED_KINDS:
+    if kind in PAINTED_KINDS or kind in OTHER_PAINTED_KINDS:
         return Assignment("painted", int(rng.integers(count("painted"))),
                           u(*cfg.painted_metallic), u(*cfg.painted_roughness),
                           u(*cfg.concrete_scale))
@@ -270,6 +276,9 @@ def sample_assignment(kind: PartKind, cfg: MaterialsConfig, rng: np.random.Gener
     if kind in TOWN_TEXTURED_KINDS:
         category, scale = TOWN_TEXTURED_KINDS[kind]
         return Assignment(category, int(rng.integers(IMAGES_PER_CATEGORY)), 0.0, 1.0, scale)
+    if kind is PartKind.SIGN:  # an enamel plate: its image is its number (dressing)
+        return Assignment("painted", int(rng.integers(count("painted"))), 0.0,
+                          u(*cfg.painted_roughness), 1.0 / SIGN_SIZE_M[0])
     if kind in (PartKind.GROUND, PartKind.TERRAIN):
         return Assignment("ground", int(rng.integers(count("ground"))), 0.0, 1.0,
                           u(*cfg.ground_scale))

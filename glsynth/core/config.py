@@ -71,6 +71,17 @@ class EnvironmentConfig:
     fences: Literal["solid", "open"] = "solid"
     """Deck-edge fences: "solid" swept rectangles (the paper's), or "open" railings of posts,
     rails and vertical bars that the background shows through (glsynth.world.fences)."""
+    jacket_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """Others (docs/design.md, "Others"): the chance that a viaduct was retrofitted by steel
+    jacketing, all of its columns. 0 (the paper): no others of any kind."""
+    brace_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance that a viaduct not jacketed has steel X braces between its rows' columns."""
+    downpipe_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance, per side of a viaduct, of a drainage downpipe down one of its columns."""
+    trough_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance, per side of a viaduct, of a cable trough under the slab overhang."""
+    sign_probability: float = bounded(0.0, Number(0.0, 1.0))
+    """The chance that a viaduct has a numbered plate on one of its columns."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -633,9 +644,12 @@ _WEATHERED = {"concrete_detail": "on", "weathering": True}
 """Concrete as a camera at 0.3-3 m sees it (issue 39): every preset but the paper's, whose
 bytes stay those of Section 3.2's repository images."""
 
-_SURROUNDINGS = {"world": "town", "fences": "open"}
-"""A 3-D town around the viaducts and see-through railings (issue 40) for every preset but
-the paper's, whose views keep Section 3.1's photo panels and solid fences."""
+_SURROUNDINGS = {"world": "town", "fences": "open", "jacket_probability": 0.3,
+                 "brace_probability": 0.2, "downpipe_probability": 0.5,
+                 "trough_probability": 0.5, "sign_probability": 0.5}
+"""Issue 40 for every preset but the paper's, whose views keep Section 3.1's photo panels,
+solid fences and no class 8: a 3-D town around the viaducts, see-through railings, and
+class 8's others (docs/design.md, "Others")."""
 
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     # The paper's full configuration (200 environments, 25 of them test).

@@ -36,6 +36,9 @@ class Stream(IntEnum):
     SENSOR = 12
     """The photograph's draws of one view (glsynth.render.camera_model; item = the camera
     index, a flight's frame index, 0 for a camera given by hand)."""
+    OTHERS = 13
+    """The "others" of one viaduct (glsynth.world.others: steel jackets, braces, downpipes,
+    cable troughs, signs; item = the viaduct's index)."""
     WORLD = 14
     """The town around the viaducts (glsynth.world.surroundings; item = the strip's index:
     viaduct i is i, the lead-in and lead-out n and n + 1, the far hills n + 2), and the town's

@@ -33,6 +33,7 @@ _PREVIEW_RGBA = {
     Component.NONSTRUCTURAL: (0.30, 0.45, 0.70, 1.0),
     Component.RAIL: (0.35, 0.33, 0.32, 1.0),
     Component.SLEEPER: (0.55, 0.42, 0.30, 1.0),
+    Component.OTHER: (0.85, 0.45, 0.20, 1.0),
 }
 
 

@@ -62,6 +62,16 @@ class PartKind(Enum):
     bands (glsynth.world.severe)."""
     REBAR = "rebar"
     """A viaduct's exposed reinforcement in those bands: buckled bars and broken hoops."""
+    JACKET = "jacket"
+    """Steel jackets of a viaduct's retrofitted columns (glsynth.world.others)."""
+    BRACE = "brace"
+    """Steel X braces between the columns of a viaduct's rows."""
+    DOWNPIPE = "downpipe"
+    """Drainage pipes from the slab down a column."""
+    TROUGH = "trough"
+    """Cable troughs under the slab overhang."""
+    SIGN = "sign"
+    """Numbered plates on columns."""
 
     @property
     def component(self) -> Component:
@@ -80,7 +90,10 @@ _COMPONENT = {
     PartKind.VEHICLE: Component.NONBRIDGE, PartKind.TREE: Component.NONBRIDGE,
     PartKind.BARRIER: Component.NONBRIDGE, PartKind.UTILITY: Component.NONSTRUCTURAL,
     PartKind.TERRAIN: Component.NONBRIDGE,
-    PartKind.CRUSHED: Component.COLUMN, PartKind.REBAR: Component.COLUMN}
+    PartKind.CRUSHED: Component.COLUMN, PartKind.REBAR: Component.COLUMN,
+    PartKind.JACKET: Component.OTHER, PartKind.BRACE: Component.OTHER,
+    PartKind.DOWNPIPE: Component.OTHER, PartKind.TROUGH: Component.OTHER,
+    PartKind.SIGN: Component.OTHER}
 
 BOX_BEAMS = frozenset({PartKind.CROSS_BEAM, PartKind.TIE_BEAM})
 """The beams built as boxes between columns (the girders are swept along the track)."""
@@ -336,9 +349,13 @@ def build_environment(config: Config, root_seed: int, env_index: int) -> Environ
     trajectory = generate_trajectory(config.environment, config.design.length_m, rng)
     builder = _Builder(config, trajectory)
     viaducts = tuple(builder.viaduct(i) for i in range(trajectory.n))
-    # Imported here: surroundings builds on this module's parts and sweeps.
+    # Imported here: surroundings and others build on this module's parts and sweeps.
+    from glsynth.world.others import build_others
     from glsynth.world.surroundings import build_surroundings
+
     build_surroundings(builder, root_seed, env_index)
+    builder.parts += build_others(config, trajectory, viaducts, builder.parts, root_seed,
+                                  env_index)
     env = Environment(root_seed, env_index, config, trajectory, viaducts, tuple(builder.parts))
     if config.damage.geometry:
         from glsynth.world.severe import with_severe_damage  # it builds on this module's Part
