@@ -60,7 +60,8 @@ def test_khronos_validator_reports_no_errors_or_warnings(exported):
     out = subprocess.run(["node", "-e", script, str(VALIDATOR), str(glb)], check=True,
                          capture_output=True, text=True).stdout
     issues = json.loads(out)
-    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:5]
+    serious = [m for m in issues["messages"] if m["severity"] < 2]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, serious[:5]
 
 
 def test_scene_json_describes_every_viaduct(exported):
@@ -240,7 +241,8 @@ def test_khronos_validator_passes_the_dressed_export(dressed):
     out = subprocess.run(["node", "-e", script, str(VALIDATOR), str(dressed[3])], check=True,
                          capture_output=True, text=True).stdout
     issues = json.loads(out)
-    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:5]
+    serious = [m for m in issues["messages"] if m["severity"] < 2]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, serious[:5]
     # Information only: the damage masks are referenced from extras, which glTF does not read.
     assert {m["code"] for m in issues["messages"]} <= {"UNUSED_OBJECT"}
 

@@ -133,7 +133,9 @@ def test_crack_aimed_cameras_look_at_a_crack_from_where_they_resolve_it(env0):
         span_px = width_mm / 1e3 * p.camera.fx / p.face.distance_m
         near = cameras.face_distance_m[0]
         assert span_px >= cameras.face_crack_px - 1e-9 or p.face.distance_m == near
-    assert any(p.face.distance_m > cameras.face_distance_m[0] for p in aimed)
+    # At 9 px (3 in the labels) most slight cracks need the near end; the widest may stand
+    # farther: the rule's span is met, or the camera could come no nearer.
+    assert any(p.face.distance_m == cameras.face_distance_m[0] for p in aimed)
 
 
 def test_a_crack_aimed_camera_labels_its_centre_pixel_with_the_crack(tmp_path):

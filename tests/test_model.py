@@ -181,7 +181,7 @@ def test_training_run_writes_its_files(component_run):
     assert [h["epoch"] for h in history] == [1, 2]
     assert all(math.isfinite(h["train_loss"]) for h in history)
     weights = json.loads((component_run / "class_weights.json").read_text())["weights"]
-    assert weights[7] == 0.0  # "other" never occurs in synthetic data
+    assert weights[7] > 0.0  # "other" (class 8) occurs: the demo preset draws the others
     checkpoint = torch.load(component_run / "checkpoint.pt", weights_only=True)
     assert checkpoint["epoch"] == 2
 

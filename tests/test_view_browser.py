@@ -60,7 +60,12 @@ def wait_still(driver, pass_name: str, after: int = 0) -> int:
 
 
 def show_pass(driver, name: str) -> None:
-    seq = int(driver.find_element("id", "frame").get_attribute("data-seq") or 0)
+    """Shows pass ``name`` and waits for its still frame (at once where it is shown: choosing
+    the chosen pass again draws nothing new)."""
+    frame = driver.find_element("id", "frame")
+    if frame.get_attribute("data-pass") == name and frame.get_attribute("data-still") == "true":
+        return
+    seq = int(frame.get_attribute("data-seq") or 0)
     driver.find_element("css selector", f"input[name=pass][value={name}]").click()
     wait_still(driver, name, seq)
 

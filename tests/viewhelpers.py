@@ -10,6 +10,16 @@ from pathlib import Path
 
 VIEW_ARGS = ["--preset", "demo", "--quality", "fast", "--seed", "0", "--env", "0"]
 """The scene of every viewer test: `glsynth render` with the same arguments draws it too."""
+SCENE_TOML = "[environment]\njacket_probability = 0.0\n"
+"""... with bare columns: the demo preset jackets 8 of environment 0's 10 viaducts, and the
+browser tests click a column."""
+
+
+def scene_args(folder: Path, extra_toml: str = "") -> list[str]:
+    """VIEW_ARGS and a --config of SCENE_TOML (and ``extra_toml``) written into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "scene.toml").write_text(SCENE_TOML + extra_toml)
+    return [*VIEW_ARGS, "--config", str(folder / "scene.toml")]
 
 
 class ViewServer:
@@ -17,8 +27,9 @@ class ViewServer:
 
     def __init__(self, out: Path, *extra: str) -> None:
         self.out = out
+        scene = scene_args(out.with_name(out.name + "_scene"))
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "glsynth.cli", "view", *VIEW_ARGS, "--port", "0", "--out",
+            [sys.executable, "-m", "glsynth.cli", "view", *scene, "--port", "0", "--out",
              str(out), *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         line = self.proc.stdout.readline()
         found = re.search(r"(http://\S+/)", line)
@@ -60,11 +71,8 @@ def render_camera_json(camera: dict, folder: Path, photo: bool = True) -> Path:
     the viewer's live frames show."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "camera_in.json").write_text(json.dumps(camera))
-    config = []
-    if not photo:
-        (folder / "pinhole.toml").write_text("[sensor]\nenabled = false\n")
-        config = ["--config", str(folder / "pinhole.toml")]
-    subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *VIEW_ARGS, *config,
+    args = scene_args(folder, "" if photo else "[sensor]\nenabled = false\n")
+    subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *args,
                     "--camera-json", str(folder / "camera_in.json"), "--out", str(folder)],
                    check=True, capture_output=True, timeout=300)
     return folder

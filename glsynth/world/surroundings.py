@@ -421,7 +421,12 @@ def _terrain(b: "_Builder", rng: np.random.Generator) -> trimesh.Trimesh:
     faces = np.concatenate([hole, faces])
     # Triangles wholly under the strips are never seen, yet llvmpipe would rasterise them.
     faces = faces[~covered[faces].all(axis=1)]
-    return meshes._mesh(vertices, faces, vertices[:, :2].copy())
+    # ... and their vertices go with them: a vertex of no triangle has no normal (the glTF
+    # validator refuses a zero one).
+    used = np.unique(faces)
+    renumber = np.full(len(vertices), -1)
+    renumber[used] = np.arange(len(used))
+    return meshes._mesh(vertices[used], renumber[faces], vertices[used, :2].copy())
 
 
 def town(b: "_Builder", root_seed: int, env_index: int) -> None:

@@ -94,7 +94,9 @@ def shadowing_parts(parts: tuple[Part, ...] | list[Part], cameras: list[Camera],
     if render.shadow_map_px and lighting.sun_irradiance:
         directions.append((lighting.sun_direction, [render.shadow_distance_m] * len(cameras)))
     if render.sky_visibility_maps:
-        farthest = [farthest_seen(corners, camera) for camera in cameras]
+        # Beyond the maps' extent (the far terrain) a point reads open sky: no caster counts.
+        mapped = corners[[p.kind is not PartKind.TERRAIN for p in parts]]
+        farthest = [farthest_seen(mapped, camera) for camera in cameras]
         directions.extend((d, farthest) for d in sky_directions(render.sky_visibility_maps))
     casts = np.zeros(len(parts), bool)
     for direction, reach in directions:
