@@ -122,23 +122,39 @@ def surface_area_m2(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
     edge). That is (z / f)^2 / cos(tilt) on a plane; at most MAX_AREA_FACTOR times (z / f)^2
     (glsynth.core.surfaces)."""
     h, w = depth_m.shape
-    rows, cols = np.mgrid[0:h, 0:w]
     z = depth_m.astype(np.float64)
-    points = np.stack([(cols - (w - 1) / 2) * z / focal_px, (rows - (h - 1) / 2) * z / focal_px,
-                       z], axis=-1)
-
-    def step(axis: int) -> np.ndarray:
-        d = np.diff(points, axis=axis)
-        before, after = [(0, 0)] * 3, [(0, 0)] * 3
-        before[axis], after[axis] = (1, 0), (0, 1)
-        back, ahead = np.pad(d, before, mode="edge"), np.pad(d, after, mode="edge")
-        near = np.where((np.abs(ahead[..., 2]) <= np.abs(back[..., 2]))[..., None], ahead, back)
-        size = (np.linalg.norm(ahead, axis=-1) + np.linalg.norm(back, axis=-1)) / 2
-        smooth = np.linalg.norm(ahead - back, axis=-1) <= 0.5 * size
-        return np.where(smooth[..., None], (ahead + back) / 2, near)
-
-    area = np.linalg.norm(np.cross(step(1), step(0)), axis=-1)
+    # x, y and z of the back-projected points as planes of their own: the same arithmetic,
+    # element by element, as on (h, w, 3) vectors, at a quarter of the time (no padded or
+    # stacked copies).
+    points = ((np.arange(w) - (w - 1) / 2)[None, :] * z / focal_px,
+              (np.arange(h) - (h - 1) / 2)[:, None] * z / focal_px, z)
+    ax, ay, az = _step(points, 1)
+    bx, by, bz = _step(points, 0)
+    # np.cross's terms, in its order.
+    area = _length(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
     return np.minimum(area, MAX_AREA_FACTOR * (z / focal_px) ** 2)
+
+
+def _length(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The length of vectors given by their coordinates' planes, summed in the order that
+    np.linalg.norm(axis=-1) sums three coordinates, so to the same bits."""
+    return np.sqrt((x * x + y * y) + z * z)
+
+
+def _step(points: tuple[np.ndarray, ...], axis: int) -> tuple[np.ndarray, ...]:
+    """surface_area_m2's step to the neighbours along ``axis``, as (x, y, z) planes: the
+    differences to the next point (``ahead``) and from the previous one (``back``), each
+    repeated at the border."""
+    diffs = [np.diff(p, axis=axis) for p in points]
+    first, last = [slice(None)] * 2, [slice(None)] * 2
+    first[axis], last[axis] = slice(0, 1), slice(-1, None)
+    back = [np.concatenate([d[tuple(first)], d], axis=axis) for d in diffs]
+    ahead = [np.concatenate([d, d[tuple(last)]], axis=axis) for d in diffs]
+    near = np.abs(ahead[2]) <= np.abs(back[2])
+    size = (_length(*ahead) + _length(*back)) / 2
+    smooth = _length(*(a - b for a, b in zip(ahead, back, strict=True))) <= 0.5 * size
+    return tuple(np.where(smooth, (a + b) / 2, np.where(near, a, b))
+                 for a, b in zip(ahead, back, strict=True))
 
 
 def crack_width_counts(code: np.ndarray) -> tuple[int, ...]:
@@ -175,7 +191,7 @@ def image_counts(kind: str, split: str, component: np.ndarray | None, damage: np
         members = np.isin(component, CRACKED_MEMBERS) & rrdr(depth_m, cracks.focal_px)
         length = float(cracks.labelled_m)
         focal = cracks.focal_px * component.shape[1] / cracks.photo_width
-        area = float(surface_area_m2(depth_m, focal)[members].sum())
+        area = float(surface_area_m2(depth_m, focal)[members].sum()) if members.any() else 0.0
     return ImageCounts(kind, split, comp, dmg, bool(damage_in_rrdr), focal_mm, depth, widths,
                        length, area)
 

@@ -5,7 +5,8 @@ from 16 sky directions, when [render] sky_visibility_maps > 0). ``render`` then 
 per method, in this order; each writes its own targets:
 1. sky visibility (for colour, when the scene has sky-visibility maps): the 16 sky-map
    lookups at every second pixel in each direction, into half-size targets the colour pass
-   upsamples within each surface (shaders/sky_visibility.frag);
+   upsamples within each surface (shaders/sky_visibility.frag), after a depth-only draw so
+   that each pixel's nearest surface alone is shaded;
 2. shadow (for colour, when [render] shadow_map_px > 0 and the sun is up): depth from the sun
    into a depth texture fitted to this camera's view (glsynth.world.sunlight);
 3. labels: one draw per part into one RGBA32F texture holding (component id, damage id, linear
@@ -85,6 +86,11 @@ _ATTRIBUTES = {"color": ("3f 3f 2f", "in_position", "in_normal", "in_uv"),
                "msaa": ("3f 3f 8x", "in_position", "in_normal"),
                "sky_visibility": ("3f 3f 8x", "in_position", "in_normal")}
 """The vertex layout and attributes each mesh program reads of (position, normal, uv)."""
+_REVERSED = ("color", "sky_visibility")
+"""The mesh programs that draw parts and triangles in reverse order, against a depth drawn
+before them (_color_pass)."""
+_NO_COLOUR, _ALL_COLOUR = ((False,) * 4,), ((True,) * 4,)
+"""One colour attachment's write mask, off and on (Framebuffer.color_mask takes one each)."""
 _CRACK_SAMPLERS = ("u_crack_segments", "u_crack_cells", "u_crack_entries")
 _MATERIAL_SAMPLERS = {"base": "u_base_color_map", "emissive": "u_emissive_map",
                       "normal": "u_normal_map", "intact": "u_intact_map", "spall": "u_spall_map"}
@@ -672,9 +678,10 @@ class Renderer:
     def _vertex_arrays(self, vbo: moderngl.Buffer, ibo: moderngl.Buffer,
                        reversed_ibo: moderngl.Buffer) -> dict[ProgramKey, moderngl.VertexArray]:
         """One primitive's vertex array for each program that draws meshes, in its plain form
-        (the colour pass's with the triangles reversed)."""
+        (those of the passes that shade against a depth pre-pass with the triangles
+        reversed)."""
         return {(name, Variant.NONE): self._vertex_array(
-                    (name, Variant.NONE), vbo, reversed_ibo if name == "color" else ibo)
+                    (name, Variant.NONE), vbo, reversed_ibo if name in _REVERSED else ibo)
                 for name in _ATTRIBUTES}
 
     def make_current(self) -> None:
@@ -890,13 +897,36 @@ class Renderer:
 
     # --- the passes, in render's order ------------------------------------------------------
     def _sky_visibility_pass(self, camera: Camera, placed: list[_Placed]) -> None:
-        """The sky visibility of the surfaces seen at every second pixel (sky_targets)."""
-        maps = self._sky_maps
-        if maps is None:
+        """The sky visibility of the surfaces seen at every second pixel (sky_targets): their
+        depth first, then the shading of only the nearest surface at each pixel."""
+        if self._sky_maps is None:
             return
-        prog = self.programs.get("sky_visibility")
         self.sky_fbo.use()
-        self.sky_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self.sky_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self._sky_depth(camera, placed)
+        self._set_sky_uniforms(camera)
+        # Against the depth just drawn, unchanged, as in the colour pass: each pixel is shaded
+        # once, and drawn in reverse order the surface kept where depths tie is the first
+        # drawn, the one a single front-to-back pass with "<" keeps: the same bytes as that
+        # pass, for less work (docs/results.md, "Dataset generation").
+        with _depth_state(self.ctx, depth_func="<="):
+            self._draw_surfaces("sky_visibility", camera, placed[::-1])
+
+    def _sky_depth(self, camera: Camera, placed: list[_Placed]) -> None:
+        """The depth of ``placed`` into the bound sky framebuffer, nothing else: llvmpipe's
+        early depth test then skips every hidden block of the costly sky shader. mesh.vert's
+        invariant position gives the sky program the same depths to the bit."""
+        self.sky_fbo.color_mask = _NO_COLOUR * len(self.sky_targets)
+        try:
+            with _depth_state(self.ctx):
+                self._draw_surfaces("msaa", camera, placed)  # the cheapest mesh.vert program
+        finally:
+            self.sky_fbo.color_mask = _ALL_COLOUR * len(self.sky_targets)
+
+    def _set_sky_uniforms(self, camera: Camera) -> None:
+        """The sky-visibility program's maps and uniforms for ``camera``."""
+        maps = self._sky_maps
+        prog = self.programs.get("sky_visibility")
         self.units.bind("u_vis_map", self.vis_map)
         self.units.bind("u_vis_radiance", self.vis_radiance)
         count = len(maps.directions)
@@ -912,8 +942,6 @@ class Renderer:
         # 1.5 texels along the normal, as for the sun's map.
         prog["u_vis_offset_m"].value = 1.5 * maps.texel_m
         prog["u_vis_solid_angle"].value = sky_solid_angle(count) * self._radiance_scale
-        with _depth_state(self.ctx):
-            self._draw_surfaces("sky_visibility", camera, placed)
 
     def _shadow_pass(self, camera: Camera, draws: list[_Draw]) -> np.ndarray | None:
         """Draw the sun's depth; return the shadow map's clip-from-world matrix (None: no
