@@ -41,6 +41,17 @@ STEP_M = 0.05
 shaders/cracks.glsl (crack_paths)."""
 MIN_FORK_M = 0.02
 """A fork with less room than this on its face is not made."""
+ECHELON_PIECES = (2, 4)
+"""An en-echelon crack runs as this many parallel pieces at most (fewer on a short crack)."""
+ECHELON_PIECE_M = 0.12
+"""... none shorter than this along the crack."""
+ECHELON_OFFSET_M = (0.003, 0.03)
+"""The step across the crack between two pieces: log-uniform in this range (m), in one sense
+along a crack (docs/design.md, "Damage by mechanics", gives the sources)."""
+ECHELON_OVERLAP_M = (0.02, 0.06)
+"""How far two pieces overlap along the crack: uniform in this range (m)."""
+ECHELON_BRIDGE = 0.5
+"""Chance that a step is bridged by a short crack from one piece to the next."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +71,9 @@ class CrackNetwork:
     rough: bool = False
     """The renderer carries each segment's path on below its end points, self-affine down to
     the pixel (shaders/cracks.glsl; the generators' cracks); false: straight segments."""
+    leachate: np.ndarray | None = None
+    """(K, 4) float64 per crack, or None (none leaches): what runs out of it
+    (glsynth.appearance.crack_leachate: LEACHATE_FIELDS); colour only."""
 
     def __post_init__(self) -> None:
         n = len(self.points) if isinstance(self.points, np.ndarray) else -1
@@ -79,6 +93,12 @@ class CrackNetwork:
                              "positive at one end of every segment at least")
         if not isinstance(self.kinds, tuple) or any(k not in KINDS for k in self.kinds):
             raise ValueError(f"CrackNetwork.kinds = {self.kinds!r}: a tuple of {KINDS}")
+        if self.leachate is not None and not (
+                isinstance(self.leachate, np.ndarray) and self.leachate.dtype == np.float64
+                and self.leachate.shape == (len(self.kinds), 4)
+                and np.all(np.isfinite(self.leachate))):
+            raise ValueError(f"CrackNetwork.leachate: must be None or float64 of shape "
+                             f"({len(self.kinds)}, 4), finite")
         used = np.unique(self.crack)
         if not np.array_equal(used, np.arange(len(self.kinds))):
             raise ValueError(f"CrackNetwork.crack: ids {used.tolist()}; every crack "
@@ -94,7 +114,8 @@ class CrackNetwork:
         cracks left keep their order, numbered from 0."""
         ids, crack = np.unique(self.crack[keep], return_inverse=True)
         return CrackNetwork(self.points[keep], self.widths_m[keep], crack.astype(np.int32),
-                            tuple(self.kinds[k] for k in ids), self.rough)
+                            tuple(self.kinds[k] for k in ids), self.rough,
+                            None if self.leachate is None else self.leachate[ids])
 
 
 def empty_network() -> CrackNetwork:
@@ -322,6 +343,69 @@ def _branch(line: _Polyline, face: tuple[float, float], rng: np.random.Generator
     return sb, zb - zb[0] + z[k], np.minimum(widths, w[k])  # no wider than its trunk
 
 
+def _piece(line: _Polyline, arc: np.ndarray, lo: float, hi: float, shift: np.ndarray,
+           taper: tuple[float, float], joints: list[float]) -> _Polyline:
+    """The part of ``line`` between arc lengths lo and hi (interpolated there, and at
+    ``joints``, where bridges meet it), moved by ``shift`` (s, z), its width closing as the
+    square root of the distance to an end over ``taper`` (m at the start and the end; 0: that
+    end keeps its width, a tip already)."""
+    inner = (arc > lo) & (arc < hi)
+    at = np.unique(np.concatenate([[lo], arc[inner], joints, [hi]]))
+    s, z, w = (np.interp(at, arc, values) for values in line)
+    for length, to_end in ((taper[0], at - lo), (taper[1], hi - at)):
+        if length > 0:
+            w = w * np.sqrt(np.clip(to_end / length, 0.0, 1.0))
+    return s + shift[0], z + shift[1], w
+
+
+def _echelon(line: _Polyline, rng: np.random.Generator) -> list[_Polyline]:
+    """``line`` as parallel pieces stepped across it, each overlapping the next (en echelon),
+    some steps bridged by a short crack; ``[line]`` where it is too short for two pieces. The
+    pieces keep the line's path and widths, close to a tip over the overlap at each step, and
+    step ECHELON_OFFSET_M across the chord, all in one sense, the middle piece staying where
+    the mechanics put the crack."""
+    s, z, w = line
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(s), np.diff(z)))])
+    n = min(int(rng.integers(ECHELON_PIECES[0], ECHELON_PIECES[1] + 1)),
+            int(arc[-1] / ECHELON_PIECE_M))
+    if n < 2:
+        return [line]
+    chord = np.array([s[-1] - s[0], z[-1] - z[0]]) / max(float(np.hypot(s[-1] - s[0],
+                                                                        z[-1] - z[0])), 1e-9)
+    normal = np.array([-chord[1], chord[0]])
+    cuts = arc[-1] * (np.arange(1, n) + rng.uniform(-0.2, 0.2, n - 1)) / n
+    overlap = rng.uniform(*ECHELON_OVERLAP_M, n - 1)
+    steps = np.exp(rng.uniform(*np.log(ECHELON_OFFSET_M), n - 1)) * rng.choice([-1.0, 1.0])
+    offsets = np.concatenate([[0.0], np.cumsum(steps)])
+    offsets -= offsets[n // 2]
+    starts = np.concatenate([[0.0], cuts - overlap / 2])
+    ends = np.concatenate([cuts + overlap / 2, [arc[-1]]])
+    lengths = np.concatenate([[0.0], overlap, [0.0]])
+    # A bridge runs from the piece before a step, a quarter overlap past the cut, to the piece
+    # after it, a quarter overlap before the cut: vertices of both pieces, so no bridge end is
+    # free (every free end of a crack is a tip).
+    bridged = np.flatnonzero(rng.random(n - 1) < ECHELON_BRIDGE)
+    ends_at = {k: (cuts[k] + overlap[k] / 4, cuts[k] - overlap[k] / 4) for k in bridged}
+    pieces = [_piece(line, arc, starts[i], ends[i], offsets[i] * normal,
+                     (lengths[i], lengths[i + 1]),
+                     [ends_at[k][j] for k, j in ((i, 0), (i - 1, 1)) if k in ends_at])
+              for i in range(n)]
+    for k in bridged:
+        joints = [(pieces[k + j], np.interp(ends_at[k][j], arc, s) + offsets[k + j] * normal[0])
+                  for j in (0, 1)]
+        pieces.append(_bridge(joints, rng))
+    return pieces
+
+
+def _bridge(joints: list[tuple[_Polyline, float]], rng: np.random.Generator) -> _Polyline:
+    """A short straight crack across a step between two pieces, each end the vertex of its
+    piece nearest to the given s, 30-60 % as wide as the pieces there (before their taper)."""
+    k = [int(np.argmin(np.abs(piece[0] - at))) for piece, at in joints]
+    s, z = (np.array([piece[q][i] for (piece, _), i in zip(joints, k)]) for q in (0, 1))
+    w = np.array([piece[2][i] for (piece, _), i in zip(joints, k)])
+    return s, z, np.maximum(w, 1e-3 * w.max(initial=0.0)) * rng.uniform(0.3, 0.6)
+
+
 def _clip_z(line: _Polyline, z0: float, z1: float) -> _Polyline | None:
     """The run of vertices around the middle one that stays within [z0, z1]."""
     s, z, w = line
@@ -407,7 +491,8 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
 
 def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
             rng: np.random.Generator) -> list[tuple[str, list[_Polyline]]]:
-    """Keep each crack within its span and fork some: (kind, [trunk, fork?])."""
+    """Keep each crack within its span and run some en echelon (their pieces and bridges)
+    or fork some: (kind, [trunk, fork?]) or (kind, [pieces, bridges])."""
     out = []
     for kind, line in cracks:
         if kind == "flexural":  # one near an end runs along the joint with the beam or footing
@@ -417,7 +502,13 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
         if line is None:
             continue
         lines = [line]
-        if rng.random() < cfg.branch_probability:
+        if cfg.echelon_probability and rng.random() < cfg.echelon_probability:
+            # A diagonal crack's pieces stay on its face, as the crack does (_shear).
+            face = (sec.face_bounds(float(line[0][len(line[0]) // 2])) if kind == "shear"
+                    else (-np.inf, np.inf))
+            lines = [(np.clip(piece[0], *face), np.clip(piece[1], span.z0, span.z1), piece[2])
+                     for piece in _echelon(line, rng)]
+        elif rng.random() < cfg.branch_probability:
             middle = float(line[0][len(line[0]) // 2])
             fork = _branch(line, sec.face_bounds(middle), rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):

@@ -46,6 +46,10 @@ class Stream(IntEnum):
     SEVERE = 15
     """A severe column's damage as geometry: its crushed bands, buckled bars and broken hoops
     (glsynth.world.severe; item = the column's index in the environment's part list)."""
+    LEACHATE = 16
+    """Which of a member's cracks leach, and how (glsynth.appearance.crack_leachate; item =
+    the part's index in the environment's part list): drawn apart from the CRACKS stream, so
+    the cracks are the same with leachate or without."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]
