@@ -39,6 +39,8 @@ SHEAR_BAND_DEG = (30.0, 60.0)
 STEP_M = 0.05
 """About the length of a crack polyline's steps; its roughness at shorter scales is drawn in
 shaders/cracks.glsl (crack_paths)."""
+EDGE_SNAP_M = 2e-4
+"""A crack's vertex this close to a section's edge is moved onto it (_Section.snapped)."""
 MIN_FORK_M = 0.02
 """A fork with less room than this on its face is not made."""
 ECHELON_PIECES = (2, 4)
@@ -294,12 +296,22 @@ class _Section:
         y = np.choose(face % 4, [t - hb, np.full_like(t, hb), hb - t, np.full_like(t, -hb)])
         return np.stack([x, y, z], axis=1)
 
+    def snapped(self, s: np.ndarray) -> np.ndarray:
+        """``s`` with every vertex within EDGE_SNAP_M of an edge moved onto it: a vertex that
+        close would leave a sliver of a segment along the edge, where it is split (a tenth of
+        a millimetre along a crack is far below its path's roughness)."""
+        face = self.face(s)
+        start = self.face_start(face)
+        end = start + np.where(face % 2 == 0, self.b, self.a)
+        return np.where(s - start < EDGE_SNAP_M, start, np.where(end - s < EDGE_SNAP_M, end, s))
+
     def segments(self, s: np.ndarray, z: np.ndarray, w: np.ndarray, line: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Polylines' segments (M, 2, 3), end widths (M, 2) and polyline ids (M,), split
         where one crosses an edge so that every segment lies on one face. The polylines'
         vertices are concatenated, ``line`` naming each vertex's polyline; steps are shorter
         than a face."""
+        s = self.snapped(s)
         face = self.face(s)
         cross = np.flatnonzero((face[1:] != face[:-1]) & (line[1:] == line[:-1]))
         edge = self.face_start(np.maximum(face[cross], face[cross + 1]))
@@ -362,7 +374,7 @@ def _echelon(line: _Polyline, rng: np.random.Generator) -> list[_Polyline]:
     """``line`` as parallel pieces stepped across it, each overlapping the next (en echelon),
     some steps bridged by a short crack; ``[line]`` where it is too short for two pieces. The
     pieces keep the line's path and widths, close to a tip over the overlap at each step, and
-    step ECHELON_OFFSET_M across the chord, all in one sense, the middle piece staying where
+    step ECHELON_OFFSET_M across the crack, all in one sense, the middle piece staying where
     the mechanics put the crack."""
     s, z, w = line
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(s), np.diff(z)))])
@@ -370,9 +382,11 @@ def _echelon(line: _Polyline, rng: np.random.Generator) -> list[_Polyline]:
             int(arc[-1] / ECHELON_PIECE_M))
     if n < 2:
         return [line]
-    chord = np.array([s[-1] - s[0], z[-1] - z[0]]) / max(float(np.hypot(s[-1] - s[0],
-                                                                        z[-1] - z[0])), 1e-9)
-    normal = np.array([-chord[1], chord[0]])
+    # Pieces move along the member's axis (z), by the step over the chord's share across it,
+    # so that they are stepped ECHELON_OFFSET_M across the crack and keep its s: a diagonal
+    # crack's pieces stay on its face.
+    across = abs(s[-1] - s[0]) / max(float(np.hypot(s[-1] - s[0], z[-1] - z[0])), 1e-9)
+    axis_step = np.array([0.0, 1.0 / max(across, 0.1)])
     cuts = arc[-1] * (np.arange(1, n) + rng.uniform(-0.2, 0.2, n - 1)) / n
     overlap = rng.uniform(*ECHELON_OVERLAP_M, n - 1)
     steps = np.exp(rng.uniform(*np.log(ECHELON_OFFSET_M), n - 1)) * rng.choice([-1.0, 1.0])
@@ -386,12 +400,12 @@ def _echelon(line: _Polyline, rng: np.random.Generator) -> list[_Polyline]:
     # free (every free end of a crack is a tip).
     bridged = np.flatnonzero(rng.random(n - 1) < ECHELON_BRIDGE)
     ends_at = {k: (cuts[k] + overlap[k] / 4, cuts[k] - overlap[k] / 4) for k in bridged}
-    pieces = [_piece(line, arc, starts[i], ends[i], offsets[i] * normal,
+    pieces = [_piece(line, arc, starts[i], ends[i], offsets[i] * axis_step,
                      (lengths[i], lengths[i + 1]),
                      [ends_at[k][j] for k, j in ((i, 0), (i - 1, 1)) if k in ends_at])
               for i in range(n)]
     for k in bridged:
-        joints = [(pieces[k + j], np.interp(ends_at[k][j], arc, s) + offsets[k + j] * normal[0])
+        joints = [(pieces[k + j], np.interp(ends_at[k][j], arc, s) + offsets[k + j] * axis_step[0])
                   for j in (0, 1)]
         pieces.append(_bridge(joints, rng))
     return pieces
@@ -503,10 +517,7 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
             continue
         lines = [line]
         if cfg.echelon_probability and rng.random() < cfg.echelon_probability:
-            # A diagonal crack's pieces stay on its face, as the crack does (_shear).
-            face = (sec.face_bounds(float(line[0][len(line[0]) // 2])) if kind == "shear"
-                    else (-np.inf, np.inf))
-            lines = [(np.clip(piece[0], *face), np.clip(piece[1], span.z0, span.z1), piece[2])
+            lines = [(piece[0], np.clip(piece[1], span.z0, span.z1), piece[2])
                      for piece in _echelon(line, rng)]
         elif rng.random() < cfg.branch_probability:
             middle = float(line[0][len(line[0]) // 2])
