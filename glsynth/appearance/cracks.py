@@ -21,6 +21,7 @@ import numpy as np
 
 from glsynth.appearance import crack_paths
 from glsynth.core.config import MAX_CRACK_WIDTH_MM, DamageConfig
+from glsynth.core.seeding import child_rng
 
 KINDS = ("flexural", "shear")
 MAX_WIDTH_M = MAX_CRACK_WIDTH_MM / 1e3
@@ -49,7 +50,7 @@ ECHELON_PIECE_M = 0.12
 """... none shorter than this along the crack."""
 ECHELON_OFFSET_M = (0.003, 0.03)
 """The step across the crack between two pieces: log-uniform in this range (m), in one sense
-along a crack (docs/design.md, "Damage by mechanics", gives the sources)."""
+along a crack (docs/design.md, "Cracks", gives the sources)."""
 ECHELON_OVERLAP_M = (0.02, 0.06)
 """How far two pieces overlap along the crack: uniform in this range (m)."""
 ECHELON_BRIDGE = 0.5
@@ -504,9 +505,12 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
 
 
 def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
-            rng: np.random.Generator) -> list[tuple[str, list[_Polyline]]]:
-    """Keep each crack within its span and run some en echelon (their pieces and bridges)
-    or fork some: (kind, [trunk, fork?]) or (kind, [pieces, bridges])."""
+            rng: np.random.Generator, echelon_rng: np.random.Generator
+            ) -> list[tuple[str, list[_Polyline]]]:
+    """Keep each crack within its span, fork some and run some en echelon (their pieces and
+    bridges, without the fork): (kind, [trunk, fork?]) or (kind, [pieces, bridges]). The
+    steps draw from ``echelon_rng`` alone, so ``rng`` draws what it drew without them and
+    every crack that does not run en echelon is as it was."""
     out = []
     for kind, line in cracks:
         if kind == "flexural":  # one near an end runs along the joint with the beam or footing
@@ -516,14 +520,14 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
         if line is None:
             continue
         lines = [line]
-        if cfg.echelon_probability and rng.random() < cfg.echelon_probability:
-            lines = [(piece[0], np.clip(piece[1], span.z0, span.z1), piece[2])
-                     for piece in _echelon(line, rng)]
-        elif rng.random() < cfg.branch_probability:
+        if rng.random() < cfg.branch_probability:
             middle = float(line[0][len(line[0]) // 2])
             fork = _branch(line, sec.face_bounds(middle), rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
                 lines.append(fork)
+        if cfg.echelon_probability and echelon_rng.random() < cfg.echelon_probability:
+            lines = [(piece[0], np.clip(piece[1], span.z0, span.z1), piece[2])
+                     for piece in _echelon(line, echelon_rng)]
         out.append((kind, lines))
     return out
 
@@ -553,11 +557,12 @@ def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
     gives the source)."""
     sec = _Section(*section_m)
     spacing = float(rng.uniform(*cfg.stirrup_spacing_m))
+    echelon_rng = child_rng(rng)
     cracks = []
     for z0, z1 in spans:
         span = span_mechanics(cfg, z0, z1, section_m[demand.axis], demand.drift)
         cracks += _finish(cfg, sec, span, _span_cracks(cfg, sec, span, demand, spacing, rng),
-                          rng)
+                          rng, echelon_rng)
     return _network(sec, cracks)
 
 
@@ -585,4 +590,4 @@ def beam_cracks(cfg: DamageConfig, extents_m: tuple[float, float, float], axis: 
     span = span_mechanics(cfg, *span_m, extents_m[2], drift)
     raw = (_span_cracks(cfg, sec, span, DriftDemand(drift, 1), spacing, rng)
            + _soffit_cracks(cfg, sec, span, spacing, rng))
-    return _network(sec, _finish(cfg, sec, span, raw, rng), (other, 2, axis))
+    return _network(sec, _finish(cfg, sec, span, raw, rng, child_rng(rng)), (other, 2, axis))

@@ -333,7 +333,7 @@ class DamageConfig:
     echelon_probability: float = bounded(0.3, Number(0.0, 1.0))
     """Chance that a crack runs en echelon: as 2-4 parallel pieces, each stepped a few mm to a
     few cm across the crack from the last and overlapping it by a few cm, some joined by a
-    short bridge (docs/design.md, "Damage by mechanics"); such a crack does not fork."""
+    short bridge (docs/design.md, "Cracks"); such a crack does not fork."""
     leachate_share: float = bounded(0.0, Number(0.0, 1.0))
     """Share of cracks that leach: white efflorescence or, more often on wider cracks, rust
     running down the face below them, and a damp band beside them (colour only: no label,

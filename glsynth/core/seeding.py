@@ -68,6 +68,13 @@ def make_rng(root_seed: int, env: int, stream: Stream, item: int = 0) -> np.rand
     return np.random.Generator(np.random.PCG64(_sequence(root_seed, env, stream, (item,))))
 
 
+def child_rng(rng: np.random.Generator) -> np.random.Generator:
+    """A generator spawned from ``rng``'s seed sequence, independent of it: drawing from the
+    child leaves ``rng``'s own draws as they were, so a feature added on its own stream keeps
+    everything else ``rng`` makes (each call spawns the next child, in call order)."""
+    return np.random.Generator(np.random.PCG64(rng.bit_generator.seed_seq.spawn(1)[0]))
+
+
 def make_seed(root_seed: int, env: int, stream: Stream, *items: int) -> int:
     """A 63-bit integer seed from the same sequences, for libraries that take an integer
     (torch generators, DistributedSampler)."""

@@ -20,7 +20,8 @@ from glsynth.appearance.cracks import CrackNetwork
 from glsynth.render.cracks_index import _rows
 
 CELL_M = 0.05
-"""The grid's smallest cell edge: runs are decimetres long, so a cell lists a few segments."""
+"""The grid's smallest cell edge (as the crack grid's): a cell lists the few segments above it
+whose runs reach it."""
 MAX_CELLS = 1 << 20
 
 
