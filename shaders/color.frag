@@ -10,7 +10,8 @@
 // depth, so each visible pixel is shaded once; under MSAA the shading normal goes to a second
 // target, for msaa.frag. The crack variant (#define CRACKS) darkens the reflected light by the
 // share of the pixel that the part's cracks cover (from the label pass, which drew this very
-// surface at this pixel), times u_crack_contrast. The zone variant (#define SPALL) shows the
+// surface at this pixel), times u_crack_contrast, and draws what leaching cracks leave on the
+// concrete (crack_leachate.glsl: efflorescence, rust, damp). The zone variant (#define SPALL) shows the
 // damage material only inside the part's zones and there only where the damage mask is
 // spalled or rebar (the filtered share u_spall_map), the intact concrete u_intact_map
 // elsewhere: no metal, no relief outside the zones. The detail variant (#define DETAIL)
@@ -47,8 +48,16 @@ layout(location = 0) out vec4 f_color;
 layout(location = 1) out vec4 f_normal;  // the shading normal, for msaa.frag
 
 #ifdef CRACKS
+in vec3 v_crack_pos;  // mesh frame, relative to the crack grid's origin (mesh.vert)
 uniform sampler2D u_crack;       // the label pass's (crack width mm, coverage) per pixel
 uniform float u_crack_contrast;  // the share of the reflected light a crack's cavity takes away
+#include "cracks.glsl"
+#include "crack_leachate.glsl"
+// Leachate on the concrete's colour (docs/design.md, "Cracks"): calcite's linear albedo, the
+// factor that rust's iron oxides dye concrete by, and the share of its light damp takes.
+const vec3 EFFLORESCENCE_ALBEDO = vec3(0.70, 0.70, 0.67);
+const vec3 RUST_DYE = vec3(0.78, 0.36, 0.14);
+const float DAMP_DARKENING = 0.3;
 #endif
 
 #ifdef SPALL
@@ -157,6 +166,14 @@ Surface surface_at_fragment() {
         base.rgb *= mix(concrete_detail(v_detail_pos, v_detail_normal, u_detail_seed), 1.0,
                         metallic);
     }
+#endif
+#ifdef CRACKS
+    // Derivatives here, in uniform control flow; on the concrete, not on exposed bars.
+    vec3 dpdx = dFdx(v_crack_pos), dpdy = dFdy(v_crack_pos);
+    vec3 leach = leachate_at(v_crack_pos, crack_normal(dpdx, dpdy), length(dpdx) + length(dpdy))
+        * (1.0 - metallic);
+    base.rgb = mix(base.rgb, EFFLORESCENCE_ALBEDO, leach.x);
+    base.rgb *= mix(vec3(1.0), RUST_DYE, leach.y) * (1.0 - DAMP_DARKENING * leach.z);
 #endif
     return Surface(base.rgb, metallic, clamp(u_roughness, 0.04, 1.0),
                    mix(vec3(0.04), base.rgb, metallic));

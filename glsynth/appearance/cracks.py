@@ -21,6 +21,7 @@ import numpy as np
 
 from glsynth.appearance import crack_paths
 from glsynth.core.config import MAX_CRACK_WIDTH_MM, DamageConfig
+from glsynth.core.seeding import child_rng
 
 KINDS = ("flexural", "shear")
 MAX_WIDTH_M = MAX_CRACK_WIDTH_MM / 1e3
@@ -39,8 +40,21 @@ SHEAR_BAND_DEG = (30.0, 60.0)
 STEP_M = 0.05
 """About the length of a crack polyline's steps; its roughness at shorter scales is drawn in
 shaders/cracks.glsl (crack_paths)."""
+EDGE_SNAP_M = 2e-4
+"""A crack's vertex this close to a section's edge is moved onto it (_Section.snapped)."""
 MIN_FORK_M = 0.02
 """A fork with less room than this on its face is not made."""
+ECHELON_PIECES = (2, 4)
+"""An en-echelon crack runs as this many parallel pieces at most (fewer on a short crack)."""
+ECHELON_PIECE_M = 0.12
+"""... none shorter than this along the crack."""
+ECHELON_OFFSET_M = (0.003, 0.03)
+"""The step across the crack between two pieces: log-uniform in this range (m), in one sense
+along a crack (docs/design.md, "Cracks", gives the sources)."""
+ECHELON_OVERLAP_M = (0.02, 0.06)
+"""How far two pieces overlap along the crack: uniform in this range (m)."""
+ECHELON_BRIDGE = 0.5
+"""Chance that a step is bridged by a short crack from one piece to the next."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +74,9 @@ class CrackNetwork:
     rough: bool = False
     """The renderer carries each segment's path on below its end points, self-affine down to
     the pixel (shaders/cracks.glsl; the generators' cracks); false: straight segments."""
+    leachate: np.ndarray | None = None
+    """(K, 4) float64 per crack, or None (none leaches): what runs out of it
+    (glsynth.appearance.crack_leachate: LEACHATE_FIELDS); colour only."""
 
     def __post_init__(self) -> None:
         n = len(self.points) if isinstance(self.points, np.ndarray) else -1
@@ -79,6 +96,12 @@ class CrackNetwork:
                              "positive at one end of every segment at least")
         if not isinstance(self.kinds, tuple) or any(k not in KINDS for k in self.kinds):
             raise ValueError(f"CrackNetwork.kinds = {self.kinds!r}: a tuple of {KINDS}")
+        if self.leachate is not None and not (
+                isinstance(self.leachate, np.ndarray) and self.leachate.dtype == np.float64
+                and self.leachate.shape == (len(self.kinds), 4)
+                and np.all(np.isfinite(self.leachate))):
+            raise ValueError(f"CrackNetwork.leachate: must be None or float64 of shape "
+                             f"({len(self.kinds)}, 4), finite")
         used = np.unique(self.crack)
         if not np.array_equal(used, np.arange(len(self.kinds))):
             raise ValueError(f"CrackNetwork.crack: ids {used.tolist()}; every crack "
@@ -94,7 +117,8 @@ class CrackNetwork:
         cracks left keep their order, numbered from 0."""
         ids, crack = np.unique(self.crack[keep], return_inverse=True)
         return CrackNetwork(self.points[keep], self.widths_m[keep], crack.astype(np.int32),
-                            tuple(self.kinds[k] for k in ids), self.rough)
+                            tuple(self.kinds[k] for k in ids), self.rough,
+                            None if self.leachate is None else self.leachate[ids])
 
 
 def empty_network() -> CrackNetwork:
@@ -273,12 +297,22 @@ class _Section:
         y = np.choose(face % 4, [t - hb, np.full_like(t, hb), hb - t, np.full_like(t, -hb)])
         return np.stack([x, y, z], axis=1)
 
+    def snapped(self, s: np.ndarray) -> np.ndarray:
+        """``s`` with every vertex within EDGE_SNAP_M of an edge moved onto it: a vertex that
+        close would leave a sliver of a segment along the edge, where it is split (a tenth of
+        a millimetre along a crack is far below its path's roughness)."""
+        face = self.face(s)
+        start = self.face_start(face)
+        end = start + np.where(face % 2 == 0, self.b, self.a)
+        return np.where(s - start < EDGE_SNAP_M, start, np.where(end - s < EDGE_SNAP_M, end, s))
+
     def segments(self, s: np.ndarray, z: np.ndarray, w: np.ndarray, line: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Polylines' segments (M, 2, 3), end widths (M, 2) and polyline ids (M,), split
         where one crosses an edge so that every segment lies on one face. The polylines'
         vertices are concatenated, ``line`` naming each vertex's polyline; steps are shorter
         than a face."""
+        s = self.snapped(s)
         face = self.face(s)
         cross = np.flatnonzero((face[1:] != face[:-1]) & (line[1:] == line[:-1]))
         edge = self.face_start(np.maximum(face[cross], face[cross + 1]))
@@ -320,6 +354,71 @@ def _branch(line: _Polyline, face: tuple[float, float], rng: np.random.Generator
     sb, zb, arc = crack_paths.path(s[k], end, 0.0, angle, STEP_M, rng)
     widths = crack_paths.width_profile(arc, np.full(len(arc), w[k] / 2), rng, first_is_tip=False)
     return sb, zb - zb[0] + z[k], np.minimum(widths, w[k])  # no wider than its trunk
+
+
+def _piece(line: _Polyline, arc: np.ndarray, lo: float, hi: float, shift: np.ndarray,
+           taper: tuple[float, float], joints: list[float]) -> _Polyline:
+    """The part of ``line`` between arc lengths lo and hi (interpolated there, and at
+    ``joints``, where bridges meet it), moved by ``shift`` (s, z), its width closing as the
+    square root of the distance to an end over ``taper`` (m at the start and the end; 0: that
+    end keeps its width, a tip already)."""
+    inner = (arc > lo) & (arc < hi)
+    at = np.unique(np.concatenate([[lo], arc[inner], joints, [hi]]))
+    s, z, w = (np.interp(at, arc, values) for values in line)
+    for length, to_end in ((taper[0], at - lo), (taper[1], hi - at)):
+        if length > 0:
+            w = w * np.sqrt(np.clip(to_end / length, 0.0, 1.0))
+    return s + shift[0], z + shift[1], w
+
+
+def _echelon(line: _Polyline, rng: np.random.Generator) -> list[_Polyline]:
+    """``line`` as parallel pieces stepped across it, each overlapping the next (en echelon),
+    some steps bridged by a short crack; ``[line]`` where it is too short for two pieces. The
+    pieces keep the line's path and widths, close to a tip over the overlap at each step, and
+    step ECHELON_OFFSET_M across the crack, all in one sense, the middle piece staying where
+    the mechanics put the crack."""
+    s, z, w = line
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(s), np.diff(z)))])
+    n = min(int(rng.integers(ECHELON_PIECES[0], ECHELON_PIECES[1] + 1)),
+            int(arc[-1] / ECHELON_PIECE_M))
+    if n < 2:
+        return [line]
+    # Pieces move along the member's axis (z), by the step over the chord's share across it,
+    # so that they are stepped ECHELON_OFFSET_M across the crack and keep its s: a diagonal
+    # crack's pieces stay on its face.
+    across = abs(s[-1] - s[0]) / max(float(np.hypot(s[-1] - s[0], z[-1] - z[0])), 1e-9)
+    axis_step = np.array([0.0, 1.0 / max(across, 0.1)])
+    cuts = arc[-1] * (np.arange(1, n) + rng.uniform(-0.2, 0.2, n - 1)) / n
+    overlap = rng.uniform(*ECHELON_OVERLAP_M, n - 1)
+    steps = np.exp(rng.uniform(*np.log(ECHELON_OFFSET_M), n - 1)) * rng.choice([-1.0, 1.0])
+    offsets = np.concatenate([[0.0], np.cumsum(steps)])
+    offsets -= offsets[n // 2]
+    starts = np.concatenate([[0.0], cuts - overlap / 2])
+    ends = np.concatenate([cuts + overlap / 2, [arc[-1]]])
+    lengths = np.concatenate([[0.0], overlap, [0.0]])
+    # A bridge runs from the piece before a step, a quarter overlap past the cut, to the piece
+    # after it, a quarter overlap before the cut: vertices of both pieces, so no bridge end is
+    # free (every free end of a crack is a tip).
+    bridged = np.flatnonzero(rng.random(n - 1) < ECHELON_BRIDGE)
+    ends_at = {k: (cuts[k] + overlap[k] / 4, cuts[k] - overlap[k] / 4) for k in bridged}
+    pieces = [_piece(line, arc, starts[i], ends[i], offsets[i] * axis_step,
+                     (lengths[i], lengths[i + 1]),
+                     [ends_at[k][j] for k, j in ((i, 0), (i - 1, 1)) if k in ends_at])
+              for i in range(n)]
+    for k in bridged:
+        joints = [(pieces[k + j], np.interp(ends_at[k][j], arc, s) + offsets[k + j] * axis_step[0])
+                  for j in (0, 1)]
+        pieces.append(_bridge(joints, rng))
+    return pieces
+
+
+def _bridge(joints: list[tuple[_Polyline, float]], rng: np.random.Generator) -> _Polyline:
+    """A short straight crack across a step between two pieces, each end the vertex of its
+    piece nearest to the given s, 30-60 % as wide as the pieces there (before their taper)."""
+    k = [int(np.argmin(np.abs(piece[0] - at))) for piece, at in joints]
+    s, z = (np.array([piece[q][i] for (piece, _), i in zip(joints, k)]) for q in (0, 1))
+    w = np.array([piece[2][i] for (piece, _), i in zip(joints, k)])
+    return s, z, np.maximum(w, 1e-3 * w.max(initial=0.0)) * rng.uniform(0.3, 0.6)
 
 
 def _clip_z(line: _Polyline, z0: float, z1: float) -> _Polyline | None:
@@ -406,8 +505,12 @@ def _span_cracks(cfg: DamageConfig, sec: _Section, span: SpanMechanics, demand: 
 
 
 def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
-            rng: np.random.Generator) -> list[tuple[str, list[_Polyline]]]:
-    """Keep each crack within its span and fork some: (kind, [trunk, fork?])."""
+            rng: np.random.Generator, echelon_rng: np.random.Generator
+            ) -> list[tuple[str, list[_Polyline]]]:
+    """Keep each crack within its span, fork some and run some en echelon (their pieces and
+    bridges, without the fork): (kind, [trunk, fork?]) or (kind, [pieces, bridges]). The
+    steps draw from ``echelon_rng`` alone, so ``rng`` draws what it drew without them and
+    every crack that does not run en echelon is as it was."""
     out = []
     for kind, line in cracks:
         if kind == "flexural":  # one near an end runs along the joint with the beam or footing
@@ -422,6 +525,9 @@ def _finish(cfg: DamageConfig, sec: _Section, span: SpanMechanics, cracks: _Raw,
             fork = _branch(line, sec.face_bounds(middle), rng)
             if fork is not None and np.all((fork[1] >= span.z0) & (fork[1] <= span.z1)):
                 lines.append(fork)
+        if cfg.echelon_probability and echelon_rng.random() < cfg.echelon_probability:
+            lines = [(piece[0], np.clip(piece[1], span.z0, span.z1), piece[2])
+                     for piece in _echelon(line, echelon_rng)]
         out.append((kind, lines))
     return out
 
@@ -451,11 +557,12 @@ def column_cracks(cfg: DamageConfig, section_m: tuple[float, float],
     gives the source)."""
     sec = _Section(*section_m)
     spacing = float(rng.uniform(*cfg.stirrup_spacing_m))
+    echelon_rng = child_rng(rng)
     cracks = []
     for z0, z1 in spans:
         span = span_mechanics(cfg, z0, z1, section_m[demand.axis], demand.drift)
         cracks += _finish(cfg, sec, span, _span_cracks(cfg, sec, span, demand, spacing, rng),
-                          rng)
+                          rng, echelon_rng)
     return _network(sec, cracks)
 
 
@@ -483,4 +590,4 @@ def beam_cracks(cfg: DamageConfig, extents_m: tuple[float, float, float], axis: 
     span = span_mechanics(cfg, *span_m, extents_m[2], drift)
     raw = (_span_cracks(cfg, sec, span, DriftDemand(drift, 1), spacing, rng)
            + _soffit_cracks(cfg, sec, span, spacing, rng))
-    return _network(sec, _finish(cfg, sec, span, raw, rng), (other, 2, axis))
+    return _network(sec, _finish(cfg, sec, span, raw, rng, child_rng(rng)), (other, 2, axis))

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.appearance import town_textures
+from glsynth.appearance.crack_leachate import with_leachate
 from glsynth.appearance.cracks import (
     CrackNetwork,
     beam_cracks,
@@ -138,7 +139,17 @@ def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
     demand = column_demand(cfg, severity, rng)
     cracks = _beam_network(env, cfg, part, demand.drift, rng)
     record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4))
-    return record, replace(material, cracks=cracks)
+    return record, replace(material, cracks=_leaching(env, cfg, ordinal, cracks))
+
+
+def _leaching(env: Environment, cfg: DamageConfig, ordinal: int, cracks: CrackNetwork
+              ) -> CrackNetwork:
+    """``cracks`` with [damage] leachate_share of them leaching, drawn from the LEACHATE
+    stream (item = ``ordinal``, the part's index); as they are where the share is 0."""
+    if not cfg.leachate_share or not cracks.kinds:
+        return cracks
+    rng = make_rng(env.root_seed, env.env_index, Stream.LEACHATE, ordinal)
+    return with_leachate(cracks, cfg.leachate_share, rng)
 
 
 def _constant_mask(kind: PartKind) -> np.ndarray:
@@ -172,7 +183,7 @@ def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: 
     cracks = column_cracks(cfg, section, clear_spans(env, part), demand, rng)
     record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4),
                           drift_axis="xy"[demand.axis])
-    return record, replace(material, cracks=cracks)
+    return record, replace(material, cracks=_leaching(env, cfg, ordinal, cracks))
 
 
 def crack_segments(env: Environment, config: Config

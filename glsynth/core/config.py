@@ -330,6 +330,15 @@ class DamageConfig:
     (Kani's valley: about 2.5)."""
     branch_probability: float = bounded(0.5, Number(0.0, 1.0))
     """Chance that a crack forks once."""
+    echelon_probability: float = bounded(0.3, Number(0.0, 1.0))
+    """Chance that a crack runs en echelon: as 2-4 parallel pieces, each stepped a few mm to a
+    few cm across the crack from the last and overlapping it by a few cm, some joined by a
+    short bridge (docs/design.md, "Cracks"); such a crack does not fork."""
+    leachate_share: float = bounded(0.0, Number(0.0, 1.0))
+    """Share of cracks that leach: white efflorescence or, more often on wider cracks, rust
+    running down the face below them, and a damp band beside them (colour only: no label,
+    width or depth changes; docs/design.md, "Cracks"). 0: none (the default; the demo and
+    inspection presets set 0.3)."""
     beam_service_moment_ratio: float = bounded(0.5, Number(0.0, 1.0))
     """M / M_y of a beam's midspan section under the service load (gravity): allowable-stress
     design keeps the bars' service stress near half their yield strength."""
@@ -660,7 +669,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "demo": {"dataset": {"n_environments": 3, "n_test_environments": 1, "n_plates": 12,
                          "n_test_plates": 2, "plates_per_task": 6},
              "environment": _SURROUNDINGS, "cameras": {"n_regular": 6, "n_closeup": 6},
-             "damage": {"resolution": 512, "model": "mechanics", "geometry": True},
+             "damage": {"resolution": 512, "model": "mechanics", "geometry": True,
+                        "leachate_share": 0.3},
              "materials": _WEATHERED, "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
@@ -679,7 +689,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
                     "face_crack_px": 9.0},
         "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
                    "spalling_severities": ("slight",), "undamaged_probability": 0.2,
-                   "crack_width_mm": (0.05, 1.0), "geometry": True},
+                   "crack_width_mm": (0.05, 1.0), "geometry": True, "leachate_share": 0.3},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0},
         "materials": _WEATHERED, "lighting": {"metering": "face"},

@@ -46,6 +46,10 @@ class Stream(IntEnum):
     SEVERE = 15
     """A severe column's damage as geometry: its crushed bands, buckled bars and broken hoops
     (glsynth.world.severe; item = the column's index in the environment's part list)."""
+    LEACHATE = 16
+    """Which of a member's cracks leach, and how (glsynth.appearance.crack_leachate; item =
+    the part's index in the environment's part list): drawn apart from the CRACKS stream, so
+    the cracks are the same with leachate or without."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]
@@ -62,6 +66,13 @@ def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]
 def make_rng(root_seed: int, env: int, stream: Stream, item: int = 0) -> np.random.Generator:
     """Generator for one (root seed, environment, stream, item); all four must be ints >= 0."""
     return np.random.Generator(np.random.PCG64(_sequence(root_seed, env, stream, (item,))))
+
+
+def child_rng(rng: np.random.Generator) -> np.random.Generator:
+    """A generator spawned from ``rng``'s seed sequence, independent of it: drawing from the
+    child leaves ``rng``'s own draws as they were, so a feature added on its own stream keeps
+    everything else ``rng`` makes (each call spawns the next child, in call order)."""
+    return np.random.Generator(np.random.PCG64(rng.bit_generator.seed_seq.spawn(1)[0]))
 
 
 def make_seed(root_seed: int, env: int, stream: Stream, *items: int) -> int:

@@ -60,6 +60,7 @@ from glsynth.core.memory import available_bytes
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import check_render_size, create_context
 from glsynth.render.gl.programs import MAX_VIS, ProgramKey, Programs, TextureUnits, Variant
+from glsynth.render.leachate_index import LeachateIndex, pack_leachate
 from glsynth.render.passes import DRAWN, LABEL_PASSES
 from glsynth.render.scene import PartInfo, RenderScene
 from glsynth.world.cameras import Camera
@@ -92,6 +93,7 @@ before them (_color_pass)."""
 _NO_COLOUR, _ALL_COLOUR = ((False,) * 4,), ((True,) * 4,)
 """One colour attachment's write mask, off and on (Framebuffer.color_mask takes one each)."""
 _CRACK_SAMPLERS = ("u_crack_segments", "u_crack_cells", "u_crack_entries")
+_LEACH_SAMPLERS = ("u_leach_items", "u_leach_cells", "u_leach_entries")
 _MATERIAL_SAMPLERS = {"base": "u_base_color_map", "emissive": "u_emissive_map",
                       "normal": "u_normal_map", "intact": "u_intact_map", "spall": "u_spall_map"}
 """A draw's texture slot -> the colour programs' sampler that reads it."""
@@ -129,6 +131,31 @@ class CrackTextures:
     rough: bool
     """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
     demo environment's would add 155 MB to the RSS)."""
+    leach: tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture] | None = None
+    """The leaching cracks' items, cells, entries (glsynth.render.leachate_index), or None."""
+    leach_grid: tuple[tuple[float, float, float], float, tuple[int, int, int]] | None = None
+    """Their grid's origin (relative to ``origin``), cell edge and dims."""
+
+    @property
+    def all(self) -> tuple[moderngl.Texture, ...]:
+        """Every texture, to release."""
+        return self.textures + (self.leach or ())
+
+    def bind_leachate(self, prog: moderngl.Program, units: TextureUnits) -> None:
+        """A colour program's crack grid origin and leachate (shaders/crack_leachate.glsl),
+        with the crack segments whose paths it follows."""
+        prog["u_crack_origin"].value = self.origin
+        prog["u_has_leach"].value = self.leach is not None
+        if self.leach is None:
+            return
+        units.bind(_CRACK_SAMPLERS[0], self.textures[0])  # the paths the leachate follows
+        prog["u_crack_rough"].value = self.rough
+        for name, texture in zip(_LEACH_SAMPLERS, self.leach, strict=True):
+            units.bind(name, texture)
+        origin, cell, dims = self.leach_grid
+        prog["u_leach_origin"].value = origin
+        prog["u_leach_cell_m"].value = cell
+        prog["u_leach_dims"].value = dims
 
     def bind(self, prog: moderngl.Program, units: TextureUnits) -> None:
         """Bind the textures to their samplers' units and set ``prog``'s crack uniforms."""
@@ -310,16 +337,28 @@ def _emitted(material: Material) -> np.ndarray:
     return emissive * srgb_decode(material.emissive_map).mean((0, 1))
 
 
-def upload_cracks(ctx: moderngl.Context, index: CrackIndex) -> CrackTextures:
-    """A packed crack network's textures, read texel by texel (the caller releases them)."""
+def _texel_textures(ctx: moderngl.Context, arrays: tuple[np.ndarray, np.ndarray, np.ndarray]
+                    ) -> tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture]:
+    """Items (RGBA32F), cells (RG32I) and entries (R32I) of a packing, read texel by texel."""
     textures = []
-    for data, channels, dtype in ((index.segments, 4, "f4"), (index.cells, 2, "i4"),
-                                  (index.entries, 1, "i4")):
+    for data, channels, dtype in zip(arrays, (4, 2, 1), ("f4", "i4", "i4"), strict=True):
         texture = ctx.texture(data.shape[1::-1], channels, data.tobytes(), dtype=dtype)
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         textures.append(texture)
-    return CrackTextures(tuple(textures), tuple(float(v) for v in index.origin), index.cell_m,
-                         index.dims, index.rough)
+    return tuple(textures)
+
+
+def upload_cracks(ctx: moderngl.Context, index: CrackIndex,
+                  leach: LeachateIndex | None = None) -> CrackTextures:
+    """A packed crack network's textures, and its leaching cracks' if any (the caller
+    releases them)."""
+    textures = _texel_textures(ctx, (index.segments, index.cells, index.entries))
+    leach_textures = leach_grid = None
+    if leach is not None:
+        leach_textures = _texel_textures(ctx, (leach.items, leach.cells, leach.entries))
+        leach_grid = (tuple(float(v) for v in leach.origin), leach.cell_m, leach.dims)
+    return CrackTextures(textures, tuple(float(v) for v in index.origin), index.cell_m,
+                         index.dims, index.rough, leach_textures, leach_grid)
 
 
 class Renderer:
@@ -700,7 +739,7 @@ class Renderer:
                 vao.release()
             for buffer in draw.buffers:
                 buffer.release()
-            for texture in (draw.crack_textures.textures if draw.crack_textures else ()):
+            for texture in (draw.crack_textures.all if draw.crack_textures else ()):
                 texture.release()
         self._free_textures(lambda _, sources: not any(
             a is not None and a.flags.writeable for a in sources))
@@ -834,7 +873,9 @@ class Renderer:
         if waiting[:limit]:
             self.make_current()
         for draw in waiting[:limit]:
-            draw.crack_textures = upload_cracks(self.ctx, pack_cracks(draw.cracks))
+            index = pack_cracks(draw.cracks)
+            draw.crack_textures = upload_cracks(self.ctx, index,
+                                                pack_leachate(draw.cracks, index.origin))
         return sum(d.cracks is not None and d.crack_textures is None for d in self._draws)
 
     def _check_request(self, camera: Camera, passes: frozenset[str] | set[str]) -> None:
@@ -1051,6 +1092,8 @@ class Renderer:
                     prog["u_intact_uv_ratio"].value = draw.zones.intact_uv_ratio
                 if draw.detail is not None:
                     draw.detail.set(prog)
+                if Variant.CRACKS in key[1]:
+                    draw.crack_textures.bind_leachate(prog, self.units)
                 draw.vaos[key].render()
             self._draw_sky(camera)
 
