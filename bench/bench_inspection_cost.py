@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/bench_inspection_cost.py --baseline CHECKOUT [--seed 11] [--env 0]
                                                    [--cameras 6] [--rounds 3]
+                                                   [--without-issue-40]
 
 CHECKOUT is another checkout of glsynth with its own .venv (issue 39's baseline: b2f8da0).
 Each round runs one fresh process per checkout, in turn, the order swapped every round so that
@@ -14,8 +15,10 @@ photographs (where the checkout has a camera model) and writes the view's files
 (glsynth.render.view.write_render). Only that last part is timed, per view, in wall seconds
 and in process CPU seconds (every thread, llvmpipe's included): on a machine shared with other
 jobs CPU seconds are the steadier figure. A round's figure is its views' mean; the report
-gives each checkout's median over rounds and the ratio this / baseline. Writes
-bench/results/inspection_cost.json.
+gives each checkout's median over rounds and the ratio this / baseline. --without-issue-40
+adds a third process a round: this checkout with issue 40's parts of the inspection preset off
+(the environment section as the paper preset's: no town, solid fences, no class 8; no severe
+damage as geometry), which b2f8da0 predates. Writes bench/results/inspection_cost.json.
 """
 
 import argparse
@@ -32,6 +35,7 @@ from common import write_results  # noqa: E402
 HERE = Path(__file__).resolve().parents[1]
 CHILD = """
 import inspect, json, sys, time
+from dataclasses import replace
 from pathlib import Path
 import glsynth
 from glsynth.core.config import load_config
@@ -42,7 +46,11 @@ cameras, warm_up, out = args["cameras"], max(args["cameras"]) + 1, Path(args["ou
 kwargs = {}
 if "rendering" in inspect.signature(EnvironmentView.open).parameters:
     kwargs["rendering"] = cameras + [warm_up]  # as `glsynth render --camera` culls
-view = EnvironmentView.open(load_config("inspection"), args["seed"], args["env"], **kwargs)
+config = load_config("inspection")
+if args["without_issue_40"]:
+    config = replace(config, environment=load_config("paper").environment,
+                     damage=replace(config.damage, geometry=False))
+view = EnvironmentView.open(config, args["seed"], args["env"], **kwargs)
 meta = {"root_seed": args["seed"], "env": args["env"], "renderer": "gl"}
 
 def sample(index):
@@ -60,10 +68,12 @@ print(json.dumps({"glsynth": glsynth.__file__, "wall_s": wall, "cpu_s": cpu}))
 """
 
 
-def run_checkout(checkout: Path, seed: int, env: int, cameras: list[int]) -> dict:
+def run_checkout(checkout: Path, seed: int, env: int, cameras: list[int],
+                 without_issue_40: bool = False) -> dict:
     """One fresh process of ``checkout``'s python in its folder: per-view wall and CPU s."""
     with tempfile.TemporaryDirectory(prefix="inspection_cost_") as out:
-        args = {"seed": seed, "env": env, "cameras": cameras, "out": out}
+        args = {"seed": seed, "env": env, "cameras": cameras, "out": out,
+                "without_issue_40": without_issue_40}
         done = subprocess.run([str(checkout / ".venv" / "bin" / "python"), "-c", CHILD,
                                json.dumps(args)], cwd=checkout, capture_output=True,
                               text=True, check=True)
@@ -73,26 +83,30 @@ def run_checkout(checkout: Path, seed: int, env: int, cameras: list[int]) -> dic
     return result
 
 
-def measure(baseline: Path, seed: int, env: int, n_cameras: int, rounds: int) -> dict:
+def measure(baseline: Path, seed: int, env: int, n_cameras: int, rounds: int,
+            without_issue_40: bool) -> dict:
     cameras = list(range(n_cameras))
-    checkouts = {"baseline": baseline, "this": HERE}
+    checkouts = {"baseline": (baseline, False), "this": (HERE, False)}
+    if without_issue_40:
+        checkouts["this_without_issue_40"] = (HERE, True)
     per_round: dict[str, dict[str, list[float]]] = {
         name: {"wall_s": [], "cpu_s": []} for name in checkouts}
     for r in range(rounds):
         order = list(checkouts) if r % 2 == 0 else list(checkouts)[::-1]
         for name in order:
-            result = run_checkout(checkouts[name], seed, env, cameras)
+            result = run_checkout(checkouts[name][0], seed, env, cameras, checkouts[name][1])
             for key in ("wall_s", "cpu_s"):
                 per_round[name][key].append(statistics.mean(result[key]))
             print(f"round {r}: {name} {statistics.mean(result['wall_s']):.2f} s wall, "
                   f"{statistics.mean(result['cpu_s']):.2f} s CPU a view", file=sys.stderr)
     medians = {name: {key: statistics.median(values) for key, values in times.items()}
                for name, times in per_round.items()}
-    ratio = {key: medians["this"][key] / medians["baseline"][key] for key in ("wall_s", "cpu_s")}
+    ratio = {name: {key: medians[name][key] / medians["baseline"][key]
+                    for key in ("wall_s", "cpu_s")} for name in checkouts if name != "baseline"}
     return {"baseline": str(baseline), "this": str(HERE), "seed": seed, "env": env,
             "cameras": cameras, "rounds": rounds,
             "per_view_mean_each_round": per_round, "median_per_view": medians,
-            "ratio_this_over_baseline": ratio}
+            "ratio_over_baseline": ratio}
 
 
 def main() -> None:
@@ -103,9 +117,11 @@ def main() -> None:
     p.add_argument("--env", type=int, default=0)
     p.add_argument("--cameras", type=int, default=6)
     p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--without-issue-40", action="store_true",
+                   help="also time this checkout with issue 40's parts of the preset off")
     args = p.parse_args()
     write_results("inspection_cost", measure(args.baseline, args.seed, args.env, args.cameras,
-                                             args.rounds))
+                                             args.rounds, args.without_issue_40))
 
 
 if __name__ == "__main__":
