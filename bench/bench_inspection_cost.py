@@ -14,7 +14,8 @@ camera N once to compile the shaders, then for each camera 0..N-1 renders, reads
 photographs (where the checkout has a camera model) and writes the view's files
 (glsynth.render.view.write_render). Only that last part is timed, per view, in wall seconds
 and in process CPU seconds (every thread, llvmpipe's included): on a machine shared with other
-jobs CPU seconds are the steadier figure. A round's figure is its views' mean; the report
+jobs CPU seconds are the steadier figure. The CPU seconds are also split: render and read-back,
+camera model, files. A round's figure is its views' mean; the report
 gives each checkout's median over rounds and the ratio this / baseline. --without-issue-40
 adds a third process a round: this checkout with issue 40's parts of the inspection preset off
 (the environment section as the paper preset's: no town, solid fences, no class 8; no severe
@@ -54,17 +55,30 @@ view = EnvironmentView.open(config, args["seed"], args["env"], **kwargs)
 meta = {"root_seed": args["seed"], "env": args["env"], "renderer": "gl"}
 
 def sample(index):
-    placement, output = view.render(index)
+    # CPU s in render and read-back, camera model, files (view.render's work, in two calls).
+    c0 = time.process_time()
+    if hasattr(view, "photograph"):
+        placement, output = view.render(index, photo=False)
+        c1 = time.process_time()
+        output = view.photograph(output, placement.camera, index)
+    else:
+        placement, output = view.render(index)
+        c1 = time.process_time()
+    c2 = time.process_time()
     write_render(out / f"camera_{index:03d}", placement, output, meta)
+    return c1 - c0, c2 - c1, time.process_time() - c2
 
 sample(warm_up)
-wall, cpu = [], []
+wall, cpu, stages = [], [], []
 for index in cameras:
     w0, c0 = time.perf_counter(), time.process_time()
-    sample(index)
+    stages.append(sample(index))
     wall.append(time.perf_counter() - w0)
     cpu.append(time.process_time() - c0)
-print(json.dumps({"glsynth": glsynth.__file__, "wall_s": wall, "cpu_s": cpu}))
+print(json.dumps({"glsynth": glsynth.__file__, "wall_s": wall, "cpu_s": cpu,
+                  "render_cpu_s": [s[0] for s in stages],
+                  "camera_cpu_s": [s[1] for s in stages],
+                  "files_cpu_s": [s[2] for s in stages]}))
 """
 
 
@@ -89,13 +103,14 @@ def measure(baseline: Path, seed: int, env: int, n_cameras: int, rounds: int,
     checkouts = {"baseline": (baseline, False), "this": (HERE, False)}
     if without_issue_40:
         checkouts["this_without_issue_40"] = (HERE, True)
+    keys = ("wall_s", "cpu_s", "render_cpu_s", "camera_cpu_s", "files_cpu_s")
     per_round: dict[str, dict[str, list[float]]] = {
-        name: {"wall_s": [], "cpu_s": []} for name in checkouts}
+        name: {key: [] for key in keys} for name in checkouts}
     for r in range(rounds):
         order = list(checkouts) if r % 2 == 0 else list(checkouts)[::-1]
         for name in order:
             result = run_checkout(checkouts[name][0], seed, env, cameras, checkouts[name][1])
-            for key in ("wall_s", "cpu_s"):
+            for key in keys:
                 per_round[name][key].append(statistics.mean(result[key]))
             print(f"round {r}: {name} {statistics.mean(result['wall_s']):.2f} s wall, "
                   f"{statistics.mean(result['cpu_s']):.2f} s CPU a view", file=sys.stderr)
