@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/bench_inspection_cost.py --baseline CHECKOUT [--seed 11] [--env 0]
                                                    [--cameras 6] [--rounds 3]
-                                                   [--without-issue-40]
+                                                   [--without-issue-40] [--face-crack-px PX]
 
 CHECKOUT is another checkout of glsynth with its own .venv (issue 39's baseline: b2f8da0).
 Each round runs one fresh process per checkout, in turn, the order swapped every round so that
@@ -19,7 +19,9 @@ camera model, files. A round's figure is its views' mean; the report
 gives each checkout's median over rounds and the ratio this / baseline. --without-issue-40
 adds a third process a round: this checkout with issue 40's parts of the inspection preset off
 (the environment section as the paper preset's: no town, solid fences, no class 8; no severe
-damage as geometry), which b2f8da0 predates. Writes bench/results/inspection_cost.json.
+damage as geometry), which b2f8da0 predates. --face-crack-px sets this checkout's [cameras]
+face_crack_px (b2f8da0's preset: 3), so that both place their crack-aimed cameras alike. Writes
+bench/results/inspection_cost.json (with --face-crack-px: inspection_cost_face_crack_px_PX.json).
 """
 
 import argparse
@@ -51,6 +53,8 @@ config = load_config("inspection")
 if args["without_issue_40"]:
     config = replace(config, environment=load_config("paper").environment,
                      damage=replace(config.damage, geometry=False))
+if args["face_crack_px"] is not None:
+    config = replace(config, cameras=replace(config.cameras, face_crack_px=args["face_crack_px"]))
 view = EnvironmentView.open(config, args["seed"], args["env"], **kwargs)
 meta = {"root_seed": args["seed"], "env": args["env"], "renderer": "gl"}
 
@@ -83,11 +87,11 @@ print(json.dumps({"glsynth": glsynth.__file__, "wall_s": wall, "cpu_s": cpu,
 
 
 def run_checkout(checkout: Path, seed: int, env: int, cameras: list[int],
-                 without_issue_40: bool = False) -> dict:
+                 without_issue_40: bool = False, face_crack_px: float | None = None) -> dict:
     """One fresh process of ``checkout``'s python in its folder: per-view wall and CPU s."""
     with tempfile.TemporaryDirectory(prefix="inspection_cost_") as out:
         args = {"seed": seed, "env": env, "cameras": cameras, "out": out,
-                "without_issue_40": without_issue_40}
+                "without_issue_40": without_issue_40, "face_crack_px": face_crack_px}
         done = subprocess.run([str(checkout / ".venv" / "bin" / "python"), "-c", CHILD,
                                json.dumps(args)], cwd=checkout, capture_output=True,
                               text=True, check=True)
@@ -98,7 +102,7 @@ def run_checkout(checkout: Path, seed: int, env: int, cameras: list[int],
 
 
 def measure(baseline: Path, seed: int, env: int, n_cameras: int, rounds: int,
-            without_issue_40: bool) -> dict:
+            without_issue_40: bool, face_crack_px: float | None = None) -> dict:
     cameras = list(range(n_cameras))
     checkouts = {"baseline": (baseline, False), "this": (HERE, False)}
     if without_issue_40:
@@ -109,7 +113,9 @@ def measure(baseline: Path, seed: int, env: int, n_cameras: int, rounds: int,
     for r in range(rounds):
         order = list(checkouts) if r % 2 == 0 else list(checkouts)[::-1]
         for name in order:
-            result = run_checkout(checkouts[name][0], seed, env, cameras, checkouts[name][1])
+            # The baseline keeps its own preset's aims; only this checkout's are overridden.
+            result = run_checkout(checkouts[name][0], seed, env, cameras, checkouts[name][1],
+                                  None if name == "baseline" else face_crack_px)
             for key in keys:
                 per_round[name][key].append(statistics.mean(result[key]))
             print(f"round {r}: {name} {statistics.mean(result['wall_s']):.2f} s wall, "
@@ -119,7 +125,7 @@ def measure(baseline: Path, seed: int, env: int, n_cameras: int, rounds: int,
     ratio = {name: {key: medians[name][key] / medians["baseline"][key]
                     for key in ("wall_s", "cpu_s")} for name in checkouts if name != "baseline"}
     return {"baseline": str(baseline), "this": str(HERE), "seed": seed, "env": env,
-            "cameras": cameras, "rounds": rounds,
+            "cameras": cameras, "rounds": rounds, "face_crack_px": face_crack_px,
             "per_view_mean_each_round": per_round, "median_per_view": medians,
             "ratio_over_baseline": ratio}
 
@@ -134,9 +140,15 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--without-issue-40", action="store_true",
                    help="also time this checkout with issue 40's parts of the preset off")
+    p.add_argument("--face-crack-px", type=float, default=None,
+                   help="this checkout's [cameras] face_crack_px (b2f8da0's preset has 3): "
+                        "the same camera placement at both, to tell placement from code")
     args = p.parse_args()
-    write_results("inspection_cost", measure(args.baseline, args.seed, args.env, args.cameras,
-                                             args.rounds, args.without_issue_40))
+    # An override's run is kept beside the preset's, not over it.
+    name = ("inspection_cost" if args.face_crack_px is None
+            else f"inspection_cost_face_crack_px_{args.face_crack_px:g}")
+    write_results(name, measure(args.baseline, args.seed, args.env, args.cameras, args.rounds,
+                                args.without_issue_40, args.face_crack_px))
 
 
 if __name__ == "__main__":
