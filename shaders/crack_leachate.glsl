@@ -4,6 +4,7 @@
 // segment is listed in every cell its region meets). docs/design.md, "Cracks", gives the rules.
 // LEACH_* constants are macros from glsynth.appearance.crack_leachate. Needs cracks.glsl (the
 // crack's path: the deposit and the damp follow the crack as drawn, not its chord).
+// Its textures are rows of cracks_index.ROW texels, as the crack textures: crack_texel reads both.
 uniform sampler2D u_leach_items;     // RGBA32F, 4 texels per segment (leachate_index)
 uniform isampler2D u_leach_cells;    // (first entry, count) per cell
 uniform isampler2D u_leach_entries;  // segment ids, cell after cell
@@ -11,10 +12,6 @@ uniform vec3 u_leach_origin;         // the grid's corner, relative to the crack
 uniform float u_leach_cell_m;
 uniform ivec3 u_leach_dims;
 uniform bool u_has_leach;            // the part has leaching cracks
-
-ivec2 leach_texel(int i, int row) {
-    return ivec2(i % row, i / row);
-}
 
 // Value noise in [0, 1] along one coordinate (a lowbias32 hash per integer).
 float leach_noise(float x) {
@@ -28,32 +25,31 @@ float leach_noise(float x) {
 
 // The leaching segment whose middle is nearest to p in cell list ``list`` (one texel each),
 // and its parameter at p: (id, t); id -1 where the list is empty.
-vec2 leach_nearest(ivec2 list, vec3 p, int entry_row, int item_row) {
+vec2 leach_nearest(ivec2 list, vec3 p) {
     float best = 1e30;
     int id = -1;
     for (int k = 0; k < list.y; ++k) {
-        int s = texelFetch(u_leach_entries, leach_texel(list.x + k, entry_row), 0).r;
-        vec3 m = texelFetch(u_leach_items, leach_texel(4 * s + 3, item_row), 0).xyz;
+        int s = texelFetch(u_leach_entries, crack_texel(list.x + k), 0).r;
+        vec3 m = texelFetch(u_leach_items, crack_texel(4 * s + 3), 0).xyz;
         float d = distance(p, m);
         id = d < best ? s : id;
         best = min(d, best);
     }
     if (id < 0) return vec2(-1.0, 0.0);
-    vec3 a = texelFetch(u_leach_items, leach_texel(4 * id, item_row), 0).xyz;
-    vec3 b = texelFetch(u_leach_items, leach_texel(4 * id + 1, item_row), 0).xyz;
+    vec3 a = texelFetch(u_leach_items, crack_texel(4 * id), 0).xyz;
+    vec3 b = texelFetch(u_leach_items, crack_texel(4 * id + 1), 0).xyz;
     return vec2(float(id), segment_param(p, a, b));
 }
 
 // p moved across the nearest leaching crack by that crack's path offset there (the crack
 // texture's segment, cracks.glsl's crack_offset to ``finest_m``), so that what follows is
 // measured from the crack as drawn.
-vec3 leach_on_path(vec3 p, vec2 nearest, vec3 normal, float finest_m, int item_row) {
+vec3 leach_on_path(vec3 p, vec2 nearest, vec3 normal, float finest_m) {
     if (!u_crack_rough || nearest.x < 0.0) return p;
-    int segment = int(texelFetch(u_leach_items, leach_texel(4 * int(nearest.x) + 2, item_row),
+    int segment = int(texelFetch(u_leach_items, crack_texel(4 * int(nearest.x) + 2),
                                  0).z);
-    int row = textureSize(u_crack_segments, 0).x;
-    vec4 a = texelFetch(u_crack_segments, crack_texel(2 * segment, row), 0);
-    vec4 b = texelFetch(u_crack_segments, crack_texel(2 * segment + 1, row), 0);
+    vec4 a = texelFetch(u_crack_segments, crack_texel(2 * segment), 0);
+    vec4 b = texelFetch(u_crack_segments, crack_texel(2 * segment + 1), 0);
     vec3 ab = b.xyz - a.xyz, across = cross(normal, ab);
     if (!(dot(across, across) > 0.0)) return p;
     uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
@@ -72,19 +68,16 @@ vec3 leachate_at(vec3 p, vec3 normal, float size) {
     if (!u_has_leach) return leach;
     ivec3 c = ivec3(floor((p - u_leach_origin) / u_leach_cell_m));
     if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, u_leach_dims))) return leach;
-    int cell_row = textureSize(u_leach_cells, 0).x, entry_row = textureSize(u_leach_entries, 0).x;
-    int item_row = textureSize(u_leach_items, 0).x;
-    ivec2 list = texelFetch(u_leach_cells,
-                            leach_texel(c.x + u_leach_dims.x * (c.y + u_leach_dims.y * c.z),
-                                        cell_row), 0).xy;
-    p = leach_on_path(p, leach_nearest(list, p, entry_row, item_row), normal,
-                      max(size, LEACH_PATH_M), item_row);
+    int cell = c.x + u_leach_dims.x * (c.y + u_leach_dims.y * c.z);
+    ivec2 list = texelFetch(u_leach_cells, crack_texel(cell), 0).xy;
+    p = leach_on_path(p, leach_nearest(list, p), normal,
+                      max(size, LEACH_PATH_M));
     float runs = 1.0 - smoothstep(0.5, 0.9, abs(normal.z) / max(length(normal), 1e-20));
     for (int k = 0; k < list.y; ++k) {
-        int s = texelFetch(u_leach_entries, leach_texel(list.x + k, entry_row), 0).r;
-        vec4 a = texelFetch(u_leach_items, leach_texel(4 * s, item_row), 0);
-        vec4 b = texelFetch(u_leach_items, leach_texel(4 * s + 1, item_row), 0);
-        vec4 e = texelFetch(u_leach_items, leach_texel(4 * s + 2, item_row), 0);
+        int s = texelFetch(u_leach_entries, crack_texel(list.x + k), 0).r;
+        vec4 a = texelFetch(u_leach_items, crack_texel(4 * s), 0);
+        vec4 b = texelFetch(u_leach_items, crack_texel(4 * s + 1), 0);
+        vec4 e = texelFetch(u_leach_items, crack_texel(4 * s + 2), 0);
         vec3 ab = b.xyz - a.xyz;
         float level = dot(ab.xy, ab.xy);
         // The crack's point above p: by the horizontal position (a vertical segment: its foot).

@@ -17,9 +17,11 @@ uniform bool u_crack_rough;          // carry each segment's path on below its e
 // CRACK_* constants (xi, A, the H's, the reach, levels and lips) are macros, defined in
 // glsynth.appearance.crack_paths, which generates the same paths down to a few centimetres.
 
-// Texel of entry i of a texture filled row by row.
-ivec2 crack_texel(int i, int row) {
-    return ivec2(i % row, i / row);
+// Texel of entry i of a texture filled row by row, 2^CRACK_ROW_BITS texels a row
+// (cracks_index.ROW): a mask and a shift, as llvmpipe divides integers one lane at a time
+// (division here was a third of a label pass with cracks).
+ivec2 crack_texel(int i) {
+    return ivec2(i & ((1 << CRACK_ROW_BITS) - 1), i >> CRACK_ROW_BITS);
 }
 
 // Parameter t in [0, 1] of the point of segment a-b nearest to p.
@@ -172,14 +174,12 @@ void crack_defer(int s, float d, inout ivec2 near, inout vec2 near_d) {
 // far. A segment seen again changes nothing.
 void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
                 inout float nearest, inout ivec2 near, inout vec2 near_d) {
-    int cell_row = textureSize(u_crack_cells, 0).x, entry_row = textureSize(u_crack_entries, 0).x;
-    int segment_row = textureSize(u_crack_segments, 0).x;
     float size = length(dpdx) + length(dpdy);
-    ivec2 list = texelFetch(u_crack_cells, crack_texel(cell, cell_row), 0).xy;
+    ivec2 list = texelFetch(u_crack_cells, crack_texel(cell), 0).xy;
     for (int k = 0; k < list.y; ++k) {
-        int s = texelFetch(u_crack_entries, crack_texel(list.x + k, entry_row), 0).r;
-        vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
-        vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1, segment_row), 0);
+        int s = texelFetch(u_crack_entries, crack_texel(list.x + k), 0).r;
+        vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s), 0);
+        vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1), 0);
         float t = segment_param(p, a.xyz, b.xyz);
         float d = distance(p, a.xyz + (b.xyz - a.xyz) * t);
         float width_mm = crack_width_at(a.w, b.w, t);
@@ -195,9 +195,8 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
 
 // Segment s drawn along its rough path (crack_offset), across the chord on the surface.
 void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout float nearest) {
-    int segment_row = textureSize(u_crack_segments, 0).x;
-    vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s, segment_row), 0);
-    vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1, segment_row), 0);
+    vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s), 0);
+    vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1), 0);
     float t = segment_param(p, a.xyz, b.xyz);
     vec3 ab = b.xyz - a.xyz, r = p - (a.xyz + ab * t), along = ab;
     float d = length(r), width_mm = crack_width_at(a.w, b.w, t);

@@ -35,11 +35,14 @@ vec2 sky_visibility(vec3 n, out vec3 hidden) {
     if (u_vis_count == 0) return vec2(1.0);
     float weighted = 0.0, total = 0.0, mean = 0.0;
     int tiles = int(round(sqrt(float(u_vis_count))));  // the atlas is square
+    // Map k's tile, (k % tiles, k / tiles), counted along: llvmpipe divides integers one lane
+    // at a time.
+    ivec2 tile = ivec2(0);
     for (int k = 0; k < u_vis_count; ++k) {
         vec4 p = u_vis_from_view[k] * vec4(v_view_pos + n * u_vis_offset_m, 1.0);
         // A point outside its map (the far terrain, to which the maps are not fitted) would
         // read a neighbouring map: it counts as open to the sky.
-        vec2 lo = vec2(k % tiles, k / tiles) / float(tiles);
+        vec2 lo = vec2(tile) / float(tiles);
         bool inside = all(greaterThanEqual(p.xy, lo)) && all(lessThan(p.xy, lo + 1.0 / float(tiles)))
                       && p.z < 1.0;
         float v = inside ? texture(u_vis_map, p.xyz) : 1.0;
@@ -49,6 +52,7 @@ vec2 sky_visibility(vec3 n, out vec3 hidden) {
         total += w;
         mean += v;
         hidden += (1.0 - v) * c * texture(u_vis_radiance, p.xy).rgb;
+        tile = tile.x + 1 < tiles ? ivec2(tile.x + 1, tile.y) : ivec2(0, tile.y + 1);
     }
     mean /= float(u_vis_count);
     hidden *= u_vis_solid_angle;

@@ -9,7 +9,7 @@ from shader_harness import GlslHarness
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.render.cracks_index import pack_cracks
+from glsynth.render.cracks_index import ROW, pack_cracks
 from glsynth.render.gl.renderer import upload_cracks
 
 EPS = float(np.finfo(np.float32).eps)
@@ -62,6 +62,14 @@ def test_segment_distance_and_parameter_match_numpy(glsl):
     assert np.all(np.abs(out[:, 1] - t) * length <= 8 * 4.5 * EPS)
     assert np.all(out[:64, 1] == 0)
     assert ((t == 0) | (t == 1)).sum() > 1000 and ((t > 0) & (t < 1)).sum() > 1000
+
+
+def test_crack_texel_finds_every_entry_of_rows_of_ROW_texels(glsl):
+    # The shader masks and shifts by CRACK_ROW_BITS: entries past the first rows (a network's
+    # later segments and cells) must land where cracks_index._rows put them.
+    index = np.concatenate([np.arange(3 * ROW + 5), [ROW * 1000 - 1, ROW * 1000]])
+    out = glsl.run("vec2(crack_texel(int(in0.x))), 0.0, 0.0", _rows(index))
+    assert np.array_equal(out[:, :2], np.stack([index % ROW, index // ROW], 1))
 
 
 def test_width_is_linear_along_the_segment_and_exact_where_the_ends_agree(glsl):

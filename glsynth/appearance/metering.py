@@ -51,28 +51,45 @@ def hemisphere(normal: np.ndarray, count: int = SKY_RAYS) -> np.ndarray:
     return local @ np.stack([t, np.cross(normal, t), normal])
 
 
-def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part]) -> np.ndarray:
+def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part],
+            boxes: "PartBoxes | None" = None) -> np.ndarray:
     """(N,) bool: whether each ray from ``origin`` along ``dirs`` (N, 3) meets a part: its
-    box in its mesh frame first (slab test), then, for the rays that meet the box, its
-    triangles. Boxes alone are no proxy for the parts swept along the track (slab, girders,
-    rails, ground): their mesh frame is the world's, so on a track running diagonally to the
-    world axes a 40 m slab's box covers a 28 m square and hid the sun from every column
-    under it (views metered for shade came out white)."""
+    box in its mesh frame first (slab test, every part's at once), then, for the rays that
+    meet the box, its triangles. Boxes alone are no proxy for the parts swept along the track
+    (slab, girders, rails, ground): their mesh frame is the world's, so on a track running
+    diagonally to the world axes a 40 m slab's box covers a 28 m square and hid the sun from
+    every column under it (views metered for shade came out white). ``boxes``: part_boxes
+    of ``parts``, where the caller casts several times."""
     hit = np.zeros(len(dirs), bool)
-    for part in parts:
-        lo, hi = part.mesh.bounds
-        rotation = part.pose[:3, :3]
-        o = rotation.T @ (origin - part.pose[:3, 3])
-        d = dirs @ rotation
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t0, t1 = (lo - o) / d, (hi - o) / d
-        near = np.nanmax(np.minimum(t0, t1), axis=1)
-        far = np.nanmin(np.maximum(t0, t1), axis=1)
-        candidates = ~hit & (far >= np.maximum(near, 0.0))
+    if not parts:
+        return hit
+    lo, hi, rotation, shift = boxes or part_boxes(parts)
+    o = np.einsum("pji,pj->pi", rotation, origin - shift)  # origin in each mesh frame
+    d = np.einsum("nj,pji->pni", dirs, rotation)  # (P, N, 3): dirs in each mesh frame
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (lo[:, None] - o[:, None]) / d, (hi[:, None] - o[:, None]) / d
+    near = np.nanmax(np.minimum(t0, t1), axis=2)
+    far = np.nanmin(np.maximum(t0, t1), axis=2)
+    meets = far >= np.maximum(near, 0.0)  # (P, N)
+    for index in np.flatnonzero(meets.any(axis=1)):
+        candidates = ~hit & meets[index]
         if candidates.any():
+            part = parts[index]
             tri = part.world_vertices()[part.mesh.faces]
             hit[candidates] = rays_meet_triangles(origin, dirs[candidates], tri)
     return hit
+
+
+PartBoxes = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""(P, 3) box corners low and high in each part's mesh frame, (P, 3, 3) each frame's
+rotation and (P, 3) its origin (world)."""
+
+
+def part_boxes(parts: Sequence[Part]) -> PartBoxes:
+    """The boxes that ``blocked`` tests first, gathered once for several casts."""
+    bounds = np.array([p.mesh.bounds for p in parts], float)
+    return (bounds[:, 0], bounds[:, 1], np.array([p.pose[:3, :3] for p in parts], float),
+            np.array([p.pose[:3, 3] for p in parts], float))
 
 
 def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> np.ndarray:
@@ -85,15 +102,16 @@ def face_irradiance(aim: FaceAim, parts: Sequence[Part], lighting: Lighting) -> 
     # under a few degrees of the horizon); the town's merged strips hide light by their
     # triangles like every other part.
     others = [p for p in parts if p.name != aim.member and p.kind is not PartKind.TERRAIN]
+    boxes = part_boxes(others) if others else None
     sun = lighting.sun_direction
     sun_share = lighting.sun_irradiance * max(float(sun @ normal), 0.0)
-    if sun_share > 0.0 and blocked(origin, sun[None], others)[0]:
+    if sun_share > 0.0 and blocked(origin, sun[None], others, boxes)[0]:
         sun_share = 0.0
     seen = hemisphere(normal)
     seen = seen[seen[:, 2] > 0.0]  # the sky the face sees (none from a soffit)
-    face_open = 1.0 - float(blocked(origin, seen, others).mean()) if len(seen) else 0.0
+    face_open = 1.0 - float(blocked(origin, seen, others, boxes).mean()) if len(seen) else 0.0
     point_open = 1.0 - float(blocked(origin, hemisphere(np.array([0.0, 0.0, 1.0])),
-                                     others).mean())
+                                     others, boxes).mean())
     sky_sh, ground_sh = lighting.irradiance_sh()
     basis = sh_basis(normal[None])[0]
     # As shaders/color.frag weighs them: the sky through the share the face sees open, the

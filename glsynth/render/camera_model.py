@@ -100,8 +100,8 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     if not config.enabled:
         return color
     shot = draw_shot(config, rng)
-    linear = cv2.LUT(np.ascontiguousarray(color), _DECODE)
-    linear *= np.float32(shot.exposure_gain)
+    # The exposure error rides in the decoding table: the same float32 products, one pass.
+    linear = cv2.LUT(np.ascontiguousarray(color), _DECODE * np.float32(shot.exposure_gain))
     focus = focus_distance(depth, camera.zfar)
     linear = defocus(linear, blur_diameter_px(depth, focus, camera, shot.f_number))
     if velocity_mps is None:
@@ -116,8 +116,8 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     a, b = noise_parameters(config, shot.iso)
     linear = add_sensor_noise(linear, a, b, rng)
     surfaces = depth < np.float32(camera.zfar) * np.float32(0.999)
-    linear *= grey_world_gains(linear, surfaces) * np.asarray(shot.white_balance, np.float32)
-    return jpeg_round_trip(encode(linear), shot.jpeg_quality)
+    gains = grey_world_gains(linear, surfaces) * np.asarray(shot.white_balance, np.float32)
+    return jpeg_round_trip(encode(linear, gains), shot.jpeg_quality)
 
 
 def grey_world_gains(linear: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -126,10 +126,13 @@ def grey_world_gains(linear: np.ndarray, mask: np.ndarray) -> np.ndarray:
     which real cameras' AWB approximates. Over the surfaces only, as a camera's AWB leaves the
     sky out (its blue is not the light on the scene). Renders carry the daylight's colour
     (blue skylight in shade, the grass's green bounce), which a photograph does not."""
-    usable = mask & (linear.max(axis=2) < AWB_CLIP)
+    brightest = np.maximum(linear[..., 0], linear[..., 1])  # max(axis=2) is 3x slower
+    np.maximum(brightest, linear[..., 2], out=brightest)
+    usable = mask & (brightest < AWB_CLIP)
     if not usable.any():
         return np.ones(3, np.float32)
-    mean = linear[usable].mean(axis=0, dtype=np.float64)
+    # Summed in float64 by OpenCV, without gathering the pixels first.
+    mean = np.asarray(cv2.mean(linear, mask=usable.view(np.uint8))[:3])
     if mean.min() <= 0.0:
         return np.ones(3, np.float32)
     return np.clip(mean[1] / mean, 1.0 / AWB_MAX_GAIN, AWB_MAX_GAIN).astype(np.float32)
@@ -155,9 +158,13 @@ def blur_diameter_px(depth: np.ndarray, focus_m: float, camera: Camera,
     sensor, over the pixel pitch (sensor_mm / width)."""
     f = camera.focal_mm / 1000.0
     s = max(focus_m, 1.01 * f)  # focus nearer than the focal length has no real image
-    d = np.maximum(depth.astype(np.float64), 1.01 * f)
-    c_m = f * f * np.abs(d - s) / (f_number * (s - f) * d)
-    return (c_m / (camera.sensor_mm / 1000.0 / camera.width)).astype(np.float32)
+    # In float32 (7 digits; the defocus levels are 1.5x apart): |d - s| / d, then one factor.
+    d = np.maximum(depth.astype(np.float32, copy=False), np.float32(1.01 * f))
+    c_px = np.subtract(d, np.float32(s))
+    np.abs(c_px, out=c_px)
+    c_px /= d
+    c_px *= np.float32(f * f / (f_number * (s - f)) / (camera.sensor_mm / 1000.0 / camera.width))
+    return c_px
 
 
 def disc_kernel(diameter_px: float) -> np.ndarray:
@@ -209,7 +216,9 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
         np.subtract(np.float32(1), weight, out=weight)
         np.maximum(weight, np.float32(0), out=weight)
         blurred = disc_blur(linear, diameter)
-        out[band] += blurred[band] * weight[..., None]
+        # out += blurred x weight in one pass (numpy's broadcast makes a temporary first);
+        # a row band of C-ordered arrays is contiguous, so OpenCV writes into ``out`` itself.
+        cv2.accumulateProduct(blurred[band], cv2.merge((weight, weight, weight)), out[band])
     return out
 
 
@@ -299,10 +308,14 @@ def add_sensor_noise(linear: np.ndarray, a: float, b: float,
     return sigma
 
 
-def encode(linear: np.ndarray) -> np.ndarray:
-    """Linear light, clipped to [0, 1], to 8-bit sRGB."""
-    steps = np.rint(np.clip(linear, 0.0, 1.0) * _ENCODE_STEPS).astype(np.int32)
-    return _ENCODE[steps]
+def encode(linear: np.ndarray, gains: np.ndarray | None = None) -> np.ndarray:
+    """Linear light times ``gains`` (3,) per channel (None: 1), clipped to [0, 1], to 8-bit
+    sRGB. Overwrites ``linear``."""
+    scale = np.float32(_ENCODE_STEPS) * (np.ones(3, np.float32) if gains is None else gains)
+    steps = np.multiply(linear, scale.astype(np.float32), out=linear)
+    np.clip(steps, np.float32(0), np.float32(_ENCODE_STEPS), out=steps)
+    np.rint(steps, out=steps)
+    return _ENCODE[steps.astype(np.uint16)]
 
 
 def jpeg_round_trip(color: np.ndarray, quality: int) -> np.ndarray:

@@ -18,7 +18,7 @@ below w / 10 cm anyway. The cost's worst case is the longest cell list times 27 
 fragment), or one list for every fragment nearer: ``CrackIndex.longest`` reports it.
 
 Every texture is 4096 texels wide (ROW), filled row by row; the shader finds an entry's texel
-from the texture's own width.
+by a mask and a shift of its index (CRACK_ROW_BITS).
 
 Precision: the segments' end points are stored relative to the grid's lower corner (subtracted
 in float64, then rounded to float32), and the vertex shader subtracts the same float32 corner
@@ -44,6 +44,8 @@ BATCH = 1 << 16
 """The most (cell, segment) pairs tested at once: their temporaries (0.5 MB each) stay in
 the cache (docs/design.md, "Packing", gives the speed-up)."""
 ROW = 4096
+"""Texels a row of every crack texture: a power of two (CRACK_ROW_BITS, the shader's shift,
+in glsynth.render.gl.programs)."""
 CRACK_CONTRAST = 0.85
 """Share of the surface's reflected light that a crack's interior takes away: a crack is a
 cavity much deeper than wide, which traps most of the light that enters it (its effective

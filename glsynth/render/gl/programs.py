@@ -18,6 +18,7 @@ from glsynth.appearance.crack_paths import SHADER_CONSTANTS as CRACK_CONSTANTS
 from glsynth.appearance.materials import MAX_ZONES
 from glsynth.core.config import RenderConfig
 from glsynth.core.paths import shader_dir
+from glsynth.render.cracks_index import ROW
 
 
 class Variant(enum.Flag):
@@ -56,7 +57,7 @@ ProgramKey = tuple[str, Variant]
 MAX_VIS = max(typing.get_args(typing.get_type_hints(RenderConfig)["sky_visibility_maps"]))
 """The most sky-visibility maps a config may ask for: the length of the shaders' arrays."""
 GLSL_CONSTANTS = {"MAX_ZONES": MAX_ZONES, "MAX_VIS": MAX_VIS, **CRACK_CONSTANTS,
-                  **LEACH_CONSTANTS}
+                  **LEACH_CONSTANTS, "CRACK_ROW_BITS": ROW.bit_length() - 1}
 """Constants that the shaders read as macros, defined in Python only (here and in the modules
 they come from)."""
 
