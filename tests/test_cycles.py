@@ -175,7 +175,8 @@ def _small_config(tmp_path: Path, extra: str = "", n_closeup: int = 1) -> Path:
     path = tmp_path / "c.toml"
     path.write_text(f"[cameras]\nn_regular = 1\nn_closeup = {n_closeup}\n"
                     "[damage]\nresolution = 64\n[materials]\ntexture_size = 32\n"
-                    "images_per_category = 3\n" + extra)
+                    "images_per_category = 3\n[environment]\nn_viaducts = 2\n"
+                    "cutoff_factor = 1.0\n" + extra)
     return path
 
 
@@ -195,17 +196,14 @@ def test_render_with_cycles_shares_the_gl_labels_and_depth(tmp_path):
     assert not (tmp_path / "cy" / ".cycles").exists()
 
 
-ONE_VIEW = """[environment]
-n_viaducts = 2
-cutoff_factor = 1.0
-[render]
+ONE_VIEW = """[render]
 msaa = 0
 shadow_map_px = 512
 sky_visibility_maps = 4
 sky_visibility_px = 256
 """
-"""With _small_config and no close-up: one regular view of a two-viaduct environment, and the
-GL side's cheapest maps. Generate renders only at the Tokaido size, where each Cycles image is
+"""With _small_config (two viaducts) and no close-up: one regular view, and the GL side's
+cheapest maps. Generate renders only at the Tokaido size, where each Cycles image is
 the cost: one view and one plate are what the test compares (ten viaducts and two views took
 6 minutes)."""
 
