@@ -166,14 +166,14 @@ def test_a_write_that_fails_in_the_writer_ends_the_run_and_resume_completes_it(
     real = fileio.atomic_write_json
 
     def disk_full(path, data):
-        if Path(path).name == "image_case1_frame1.json":
+        if Path(path).name == "image_case1_frame0.json":
             raise UserError(f"cannot write {str(path)!r}: No space left on device")
         real(path, data)
 
     monkeypatch.setattr(fileio, "atomic_write_json", disk_full)
     out = tmp_path / "ds"
     assert generate(quick_config, out) == 2
-    assert "image_case1_frame1.json': No space left" in capsys.readouterr().err
+    assert "image_case1_frame0.json': No space left" in capsys.readouterr().err
     # Environment 0 (written first) is done; environment 1 is not.
     assert (out / "progress" / "env_000000.json").exists()
     assert not (out / "progress" / "env_000001.json").exists()
