@@ -152,3 +152,36 @@ def tiny_dataset(small_config, tmp_path_factory):
     out = tmp_path_factory.mktemp("tiny") / "ds"
     assert generate_into(out, small_config) == 0
     return out
+
+
+TINY_TRAINING = {
+    "component": ["--image-size", "192x108", "--batch-size", "2", "--schedule", "1e-3:2",
+                  "--loader-workers", "0", "--seed", "1"],
+    "damage": ["--image-size", "192x108", "--batch-size", "4", "--schedule", "1e-3:1",
+               "--loader-workers", "0", "--precision", "fp32"],
+}
+TINY_TRAINING["depth"] = TINY_TRAINING["damage"]
+"""The small trainings on tiny_dataset: component for two epochs (test_model resumes it after
+the first), damage and depth for one."""
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tiny_dataset, tmp_path_factory):
+    """``tiny_run(task)``: the run folder of TINY_TRAINING[task] on tiny_dataset, trained once
+    a session, so test_model and test_assessment (one worker: the tiny_dataset group) share
+    the three networks. Tests may evaluate into a run (its eval_* folders) but never train
+    into it."""
+    from glsynth.cli import main
+
+    root = tmp_path_factory.mktemp("tiny-runs")
+    done: dict[str, object] = {}
+
+    def run(task: str):
+        if task not in done:
+            out = root / task
+            assert main(["train", "--task", task, "--data", str(tiny_dataset), "--out",
+                         str(out), *TINY_TRAINING[task]]) == 0
+            done[task] = out
+        return done[task]
+
+    return run
