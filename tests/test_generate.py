@@ -1,7 +1,7 @@
 """Dataset generation end to end at the Tokaido format size (1920x1080 images, 640x360 maps)
 on a tiny configuration: format compliance, resume after a kill, worker-count independence.
 The tests that rerun a whole generation compare it with conftest's quick dataset (QUICK: 2
-environments of 3 cameras, a plate, cheap shadows and sky maps), so each rerun costs little."""
+environments of 2 cameras, a plate, cheap shadows and sky maps), so each rerun costs little."""
 
 import hashlib
 import json
