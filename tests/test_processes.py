@@ -282,7 +282,7 @@ def test_training_resumes_at_once_after_a_kill(tiny_dataset, tmp_path):
     pytest.importorskip("torch", reason="needs the [model] extra")
     argv = [sys.executable, "-m", "glsynth.cli", "train", "--task", "component", "--data",
             str(tiny_dataset), "--out", str(tmp_path / "run"), "--image-size", "192x108",
-            "--batch-size", "2", "--schedule", "1e-3:2", "--loader-workers", "2", "--seed", "1"]
+            "--batch-size", "2", "--schedule", "1e-3:1", "--loader-workers", "2", "--seed", "1"]
     with _session(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as driver:
         def loader_workers() -> list[int]:
             found = [p for p in _children(driver.pid) if "glsynth.cli" in _command(p)]
