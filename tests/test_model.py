@@ -152,7 +152,7 @@ def test_overfitting_one_tiny_batch_drives_the_loss_down():
     labels[0, :8] = 3
     optimizer = torch.optim.Adam(model.parameters(), lr=3e-3)
     losses = []
-    for _ in range(40):
+    for _ in range(30):  # the ratio is 0.044 after 30 steps, 0.022 after 40
         loss = weighted_cross_entropy(model(images), labels, torch.ones(3))
         optimizer.zero_grad()
         loss.backward()
