@@ -68,7 +68,7 @@ n_plates = 1
 n_test_plates = 0
 plates_per_task = 1
 [cameras]
-n_regular = 2
+n_regular = 1
 n_closeup = 1
 [render]
 msaa = 0
@@ -81,10 +81,15 @@ resolution = 64
 texture_size = 32
 builtin_size = 64
 images_per_category = 3
+[environment]
+n_viaducts = 2
+cutoff_factor = 1.0
 """
 """The cheapest run that still has two environments (one per split), a plate and the Tokaido
 image size (generate refuses any other): for the tests of workers, locks and resuming, which
-compare whole runs but not what is in the images."""
+compare whole runs but not what is in the images. Two viaducts an environment: a generation
+took 19 CPU-s with ten, 12 with two; one regular camera and one close-up (a frame of each
+kind): 9.9 CPU-s a CLI generation, 12.8 with two regular cameras."""
 
 settings.register_profile("full", max_examples=25, deadline=None, derandomize=True,
                           suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -148,3 +153,36 @@ def tiny_dataset(small_config, tmp_path_factory):
     out = tmp_path_factory.mktemp("tiny") / "ds"
     assert generate_into(out, small_config) == 0
     return out
+
+
+TINY_TRAINING = {
+    "component": ["--image-size", "192x108", "--batch-size", "2", "--schedule", "1e-3:2",
+                  "--loader-workers", "0", "--seed", "1"],
+    "damage": ["--image-size", "192x108", "--batch-size", "4", "--schedule", "1e-3:1",
+               "--loader-workers", "0", "--precision", "fp32"],
+}
+TINY_TRAINING["depth"] = TINY_TRAINING["damage"]
+"""The small trainings on tiny_dataset: component for two epochs (test_model resumes it after
+the first), damage and depth for one."""
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tiny_dataset, tmp_path_factory):
+    """``tiny_run(task)``: the run folder of TINY_TRAINING[task] on tiny_dataset, trained once
+    a session, so test_model and test_assessment (one worker: the tiny_dataset group) share
+    the three networks. Tests may evaluate into a run (its eval_* folders) but never train
+    into it."""
+    from glsynth.cli import main
+
+    root = tmp_path_factory.mktemp("tiny-runs")
+    done: dict[str, object] = {}
+
+    def run(task: str):
+        if task not in done:
+            out = root / task
+            assert main(["train", "--task", task, "--data", str(tiny_dataset), "--out",
+                         str(out), *TINY_TRAINING[task]]) == 0
+            done[task] = out
+        return done[task]
+
+    return run

@@ -186,13 +186,10 @@ def test_oracle_cli_on_generated_data(tiny_dataset, tmp_path):
 
 # --- with trained networks -------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def runs(tiny_dataset, tmp_path_factory):
-    root = tmp_path_factory.mktemp("assess-runs")
-    for task in ("component", "damage", "depth"):
-        assert main(["train", "--task", task, "--data", str(tiny_dataset), "--out",
-                     str(root / task), "--image-size", "192x108", "--batch-size", "4",
-                     "--schedule", "1e-3:1", "--loader-workers", "0"]) == 0
-    return ",".join(f"{t}={root / t}" for t in ("component", "damage", "depth"))
+def runs(tiny_run):
+    """The networks test_model trains too (conftest's tiny_run): component for two epochs,
+    damage and depth for one, all at 192x108."""
+    return ",".join(f"{t}={tiny_run(t)}" for t in ("component", "damage", "depth"))
 
 
 def test_assess_cli_with_networks(tiny_dataset, runs, tmp_path, capsys):

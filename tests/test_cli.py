@@ -19,9 +19,14 @@ def test_export_end_to_end(tmp_path, capsys):
 
 
 def test_export_is_byte_identical_for_the_same_seed(tmp_path):
+    """Of a two-viaduct environment (test_export_end_to_end exports a whole one)."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n")
     a, b = tmp_path / "a" / "scene.glb", tmp_path / "b" / "scene.glb"
     for out in (a, b):
-        assert main(["export", "--seed", "1", "--env", "0", "--out", str(out)]) == 0
+        assert main(["export", "--seed", "1", "--env", "0", "--config", str(cfg),
+                     "--out", str(out)]) == 0
+    assert len(json.loads((a.parent / "scene.json").read_text())["viaducts"]) == 2
     assert a.read_bytes() == b.read_bytes()
     assert (a.parent / "scene.json").read_bytes() == (b.parent / "scene.json").read_bytes()
 

@@ -271,7 +271,7 @@ PAPER = QUICK.replace("[damage]\n", '[damage]\nmodel = "paper"\n')
 
 @pytest.fixture(scope="module")
 def paper_dataset(tmp_path_factory):
-    """2 environments x 3 cameras and a plate at 1920x1080 under [damage] model = "paper"
+    """2 environments x 2 cameras and a plate at 1920x1080 under [damage] model = "paper"
     (seed 5)."""
     root = tmp_path_factory.mktemp("paper")
     (root / "paper.toml").write_text(PAPER)

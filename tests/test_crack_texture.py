@@ -192,7 +192,14 @@ def test_a_curved_girders_cracks_read_back_from_their_own_facets():
 
     env = curved_env()
     part = tightest_girders(env)[0]
-    net = cracks_of(env, part, 1)
+    every = cracks_of(env, part, 1)
+    # Every fifth of the cracks that have segments two texels wide: 12 cracks over 24 facets
+    # bake in 4 s (all 189 took a minute); the facets and the lookup are what is tested.
+    chosen = np.unique(every.crack[every.widths_m.min(1) >= 4e-4])[::5]
+    keep = np.isin(every.crack, chosen)
+    net = CrackNetwork(every.points[keep], every.widths_m[keep],
+                       np.searchsorted(chosen, every.crack[keep]).astype(np.int32),
+                       tuple(every.kinds[i] for i in chosen))
     texture = bake_texture(net, part.mesh, 2e-4)
     ends = net.points
     mid = (ends[:, 0] + ends[:, 1]) / 2

@@ -171,10 +171,12 @@ def test_cracks_darken_the_same_pixels_by_the_same_share_in_cycles(tmp_path):
     assert not (tmp_path / "work" / "cracks_0_atlas.png").exists()
 
 
-def _small_config(tmp_path: Path, extra: str = "") -> Path:
+def _small_config(tmp_path: Path, extra: str = "", n_closeup: int = 1) -> Path:
     path = tmp_path / "c.toml"
-    path.write_text("[cameras]\nn_regular = 1\nn_closeup = 1\n[damage]\nresolution = 64\n"
-                    "[materials]\ntexture_size = 32\nimages_per_category = 3\n" + extra)
+    path.write_text(f"[cameras]\nn_regular = 1\nn_closeup = {n_closeup}\n"
+                    "[damage]\nresolution = 64\n[materials]\ntexture_size = 32\n"
+                    "images_per_category = 3\n[environment]\nn_viaducts = 2\n"
+                    "cutoff_factor = 1.0\n" + extra)
     return path
 
 
@@ -194,11 +196,24 @@ def test_render_with_cycles_shares_the_gl_labels_and_depth(tmp_path):
     assert not (tmp_path / "cy" / ".cycles").exists()
 
 
+ONE_VIEW = """[render]
+msaa = 0
+shadow_map_px = 512
+sky_visibility_maps = 4
+sky_visibility_px = 256
+"""
+"""With _small_config (two viaducts) and no close-up: one regular view, and the GL side's
+cheapest maps. Generate renders only at the Tokaido size, where each Cycles image is
+the cost: one view and one plate are what the test compares (ten viaducts and two views took
+6 minutes)."""
+
+
 @pytest.mark.slow
 @needs_blender
 def test_generate_with_cycles_writes_the_same_views_and_labels(tmp_path):
     config = _small_config(tmp_path, "[dataset]\nn_environments = 1\nn_test_environments = 0"
-                                     "\nn_plates = 1\nn_test_plates = 0\n")
+                                     "\nn_plates = 1\nn_test_plates = 0\n" + ONE_VIEW,
+                           n_closeup=0)
     args = ["generate", "--preset", "demo", "--config", str(config), "--seed", "3"]
     assert main(args + ["--out", str(tmp_path / "gl")]) == 0
     assert main(args + ["--renderer", "cycles", "--samples", "1",

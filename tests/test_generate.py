@@ -1,7 +1,7 @@
 """Dataset generation end to end at the Tokaido format size (1920x1080 images, 640x360 maps)
 on a tiny configuration: format compliance, resume after a kill, worker-count independence.
 The tests that rerun a whole generation compare it with conftest's quick dataset (QUICK: 2
-environments of 3 cameras, a plate, cheap shadows and sky maps), so each rerun costs little."""
+environments of 2 cameras, a plate, cheap shadows and sky maps), so each rerun costs little."""
 
 import hashlib
 import json
@@ -166,14 +166,14 @@ def test_a_write_that_fails_in_the_writer_ends_the_run_and_resume_completes_it(
     real = fileio.atomic_write_json
 
     def disk_full(path, data):
-        if Path(path).name == "image_case1_frame1.json":
+        if Path(path).name == "image_case1_frame0.json":
             raise UserError(f"cannot write {str(path)!r}: No space left on device")
         real(path, data)
 
     monkeypatch.setattr(fileio, "atomic_write_json", disk_full)
     out = tmp_path / "ds"
     assert generate(quick_config, out) == 2
-    assert "image_case1_frame1.json': No space left" in capsys.readouterr().err
+    assert "image_case1_frame0.json': No space left" in capsys.readouterr().err
     # Environment 0 (written first) is done; environment 1 is not.
     assert (out / "progress" / "env_000000.json").exists()
     assert not (out / "progress" / "env_000001.json").exists()

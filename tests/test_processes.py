@@ -156,11 +156,15 @@ def test_a_forked_child_does_not_keep_the_run_folder(tmp_path):
 
 
 # --- Blender ----------------------------------------------------------------------------------
+TWO_VIADUCTS = "[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n"
+"""The driver and Blender are what these tests watch: a smaller environment builds sooner."""
+
+
 def _render_args(tmp_path: Path, *extra: str) -> list[str]:
     config = tmp_path / "c.toml"
     config.write_text("[cameras]\nn_regular = 1\nn_closeup = 1\n[damage]\nresolution = 64\n"
                       "[materials]\ntexture_size = 32\nimages_per_category = 3\n"
-                      "[render]\nwidth = 64\nheight = 36\n")
+                      "[render]\nwidth = 64\nheight = 36\n" + TWO_VIADUCTS)
     return ["render", "--preset", "demo", "--config", str(config), "--seed", "0", "--env", "0",
             "--camera", "0", "--renderer", "cycles", *extra, "--out", str(tmp_path / "out")]
 
@@ -201,10 +205,11 @@ def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tm
     """With one worker the driver starts Blender; with two, a pool worker does."""
     fake = _silent_blender(tmp_path / "bin")
     config = tmp_path / "c.toml"
-    config.write_text("[cameras]\nn_regular = 1\nn_closeup = 1\n[damage]\nresolution = 64\n"
+    config.write_text("[cameras]\nn_regular = 1\nn_closeup = 0\n[damage]\nresolution = 64\n"
                       "[materials]\ntexture_size = 32\nimages_per_category = 3\n[dataset]\n"
                       "n_environments = 1\nn_test_environments = 0\nn_plates = 1\n"
-                      "n_test_plates = 0\n")
+                      "n_test_plates = 0\n[render]\nmsaa = 0\nshadow_map_px = 512\n"
+                      "sky_visibility_maps = 4\nsky_visibility_px = 256\n" + TWO_VIADUCTS)
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
             str(config), "--seed", "3", "--renderer", "cycles", "--samples", "1", "--out",
@@ -277,7 +282,7 @@ def test_training_resumes_at_once_after_a_kill(tiny_dataset, tmp_path):
     pytest.importorskip("torch", reason="needs the [model] extra")
     argv = [sys.executable, "-m", "glsynth.cli", "train", "--task", "component", "--data",
             str(tiny_dataset), "--out", str(tmp_path / "run"), "--image-size", "192x108",
-            "--batch-size", "2", "--schedule", "1e-3:2", "--loader-workers", "2", "--seed", "1"]
+            "--batch-size", "2", "--schedule", "1e-3:1", "--loader-workers", "2", "--seed", "1"]
     with _session(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as driver:
         def loader_workers() -> list[int]:
             found = [p for p in _children(driver.pid) if "glsynth.cli" in _command(p)]

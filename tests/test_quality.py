@@ -69,7 +69,8 @@ def test_bench_quality_on_real_renders(tmp_path, capsys):
     config = tmp_path / "c.toml"
     # The paper's damage: the ray cast has no cracks (their labels are checked against numpy
     # in test_crack_render), so under mechanics its damage agreement would measure them.
-    config.write_text("[cameras]\nn_regular = 2\nn_closeup = 2\n[damage]\nmodel = \"paper\"\n")
+    config.write_text("[cameras]\nn_regular = 2\nn_closeup = 2\n[damage]\nmodel = \"paper\"\n"
+                      "[environment]\nn_viaducts = 3\ncutoff_factor = 1.5\n")
     out = tmp_path / "q"
     assert main(["bench", "quality", "--preset", "demo", "--config", str(config), "--cameras",
                  "2", "--presets", "preview,fast,reference", "--reference", "glsynth",

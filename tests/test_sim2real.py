@@ -135,6 +135,7 @@ def tiny_inspection(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # generates a dataset and trains
 def test_sim2real_runs_end_to_end(tiny_inspection, tmp_path, capsys):
     frames = read_synthetic(tiny_inspection)
     assert frames and any(f.crack.any() for f in frames)
