@@ -126,10 +126,13 @@ def test_crack_aimed_cameras_look_at_a_crack_from_where_they_resolve_it(env0):
         pose = parts[p.face.member].pose
         a, b = (local[:, k] @ pose[:3, :3].T + pose[:3, 3] for k in (0, 1))
         gap, t = segment_distance(np.array(p.face.point), a, b)
-        k = int(np.argmin(gap))
-        assert gap[k] < 1e-9
-        width_mm = 1e3 * (widths[k, 0] + t[k] * (widths[k, 1] - widths[k, 0]))
-        assert np.isclose(width_mm, p.face.crack_width_mm, rtol=1e-9)
+        # The aim lies on a segment; at a vertex two segments meet it (an en-echelon bridge
+        # joins a piece there, each with its own width), so one of them has the aim's width.
+        on = np.flatnonzero(gap < 1e-9)
+        assert on.size
+        width_mm = 1e3 * (widths[on, 0] + t[on] * (widths[on, 1] - widths[on, 0]))
+        assert np.isclose(width_mm, p.face.crack_width_mm, rtol=1e-9).any()
+        width_mm = p.face.crack_width_mm
         span_px = width_mm / 1e3 * p.camera.fx / p.face.distance_m
         near = cameras.face_distance_m[0]
         assert span_px >= cameras.face_crack_px - 1e-9 or p.face.distance_m == near
