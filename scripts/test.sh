@@ -6,7 +6,9 @@ cd "$(dirname "$0")/.."
 bash scripts/install.sh
 .venv/bin/ruff check --quiet --no-cache glsynth model tests bench
 # One worker per core, at most 4 (a worker that opens a paper environment holds 4.5 GB);
-# GLSYNTH_TEST_WORKERS=0 runs in this process (for a debugger or --pdb). tests/conftest.py groups
-# the tests (a file, or all the tests of one generated dataset) that a worker runs together.
+# GLSYNTH_TEST_WORKERS=0 runs in this process (for a debugger or --pdb). loadfile keeps a file's
+# tests on one worker, so its module fixtures are made once. (Not loadgroup: with pytest 9.2,
+# pytest-xdist 3.8 cannot rename a test's node id to carry its group, and loadgroup then spreads
+# a file's tests over every worker, each making the file's fixtures again.)
 workers=${GLSYNTH_TEST_WORKERS:-$(( $(nproc) < 4 ? $(nproc) : 4 ))}
-exec .venv/bin/python -m pytest -q -n "$workers" --dist loadgroup "$@"
+exec .venv/bin/python -m pytest -q -n "$workers" --dist loadfile "$@"

@@ -111,15 +111,12 @@ DATASET_FIXTURES = {"tiny_dataset", "quick_dataset"}
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Dataset tests are slow. Under scripts/test.sh's workers (pytest-xdist, --dist
-    loadgroup) a file runs on one worker, its module fixtures made once, and every test of one
-    dataset fixture on one worker, so the dataset is generated once, not once per worker."""
+    """Dataset tests are slow. (Under scripts/test.sh's workers, pytest-xdist's --dist loadfile
+    keeps each file on one worker, so its module fixtures are made once; a session dataset is
+    made once on each worker that runs a file using it.)"""
     for item in items:
-        datasets = sorted(DATASET_FIXTURES & set(getattr(item, "fixturenames", ())))
-        if datasets:
+        if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
-        item.add_marker(pytest.mark.xdist_group(datasets[0] if datasets
-                                                 else item.nodeid.split("::")[0]))
 
 
 def generate_into(out, config) -> int:
