@@ -67,7 +67,8 @@ def test_noise_variance_is_poisson_gaussian(rendered):
     a, b = camera_model.noise_parameters(config, 1600.0)
     assert a == pytest.approx(16 / 5000) and b == pytest.approx((16 * 1 / 5000) ** 2)
     linear = srgb_decode(render.color).astype(np.float32)
-    noisy = camera_model.add_sensor_noise(linear, a, b, make_rng(0, 0, Stream.SENSOR, 7))
+    normals = make_rng(0, 0, Stream.SENSOR, 7).standard_normal(linear.shape, dtype=np.float32)
+    noisy = camera_model.add_sensor_noise(linear, a, b, normals)
     residual, signal = (noisy - linear).ravel(), linear.ravel()
     edges = np.quantile(signal, np.linspace(0.05, 0.95, 7))
     checked = 0

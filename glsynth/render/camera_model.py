@@ -21,6 +21,7 @@ from its seeds.
 
 import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import cv2
@@ -32,9 +33,11 @@ from glsynth.render.tonemap import srgb_encode
 from glsynth.world.cameras import Camera
 
 BASE_ISO = 100.0
-DEFOCUS_LEVELS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
-"""Blur-circle diameters (px) blurred for: a pixel's blur blends the two levels around its
-own diameter; 1 px is sharp. Diameters past the last are cut to it."""
+DEFOCUS_LEVELS = tuple(m * 2.0 ** k for k in range(7) for m in (1.0, 1.5))[:-1]
+"""Blur-circle diameters (px) blurred for, 1, 1.5, 2, 3, ... 48, 64: a pixel's blur blends the
+two levels around its own diameter; 1 px is sharp. Diameters past the last are cut to it.
+Powers of two and halfway between make a diameter's level index 2 log2 (its octave) + twice
+its step into it (level_index)."""
 DIRECT_BLUR_PX = 6.0
 """A disc is blurred at the smallest power-of-two fraction of the image size that leaves it
 at least this wide (px), then scaled back up: a disc of 12 px or more loses no detail there."""
@@ -100,6 +103,12 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     if not config.enabled:
         return color
     shot = draw_shot(config, rng)
+    # The sensor noise's draws are the generator's next, whatever the image: drawn on a
+    # second thread (numpy releases the GIL while it fills) while the lens blurs here.
+    normals = np.empty(color.shape, np.float32)
+    drawing = threading.Thread(target=rng.standard_normal,
+                               kwargs={"dtype": np.float32, "out": normals})
+    drawing.start()
     # The exposure error rides in the decoding table: the same float32 products, one pass.
     linear = cv2.LUT(np.ascontiguousarray(color), _DECODE * np.float32(shot.exposure_gain))
     focus = focus_distance(depth, camera.zfar)
@@ -114,7 +123,8 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     linear *= vignetting_factor(camera, shot.vignetting)[..., None]
     linear = chromatic_aberration(linear, shot.chromatic_px)
     a, b = noise_parameters(config, shot.iso)
-    linear = add_sensor_noise(linear, a, b, rng)
+    drawing.join()
+    linear = add_sensor_noise(linear, a, b, normals)
     surfaces = depth < np.float32(camera.zfar) * np.float32(0.999)
     gains = grey_world_gains(linear, surfaces) * np.asarray(shot.white_balance, np.float32)
     return jpeg_round_trip(encode(linear, gains), shot.jpeg_quality)
@@ -193,13 +203,26 @@ def disc_blur(image: np.ndarray, diameter_px: float) -> np.ndarray:
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
+def level_index(diameter_px: np.ndarray) -> np.ndarray:
+    """Each diameter's place among DEFOCUS_LEVELS, linear between two levels (float32).
+
+    A diameter m 2^e, m in [0.5, 1), lies in the octave from 2^(e-1), whose level is 2e - 2,
+    and 2 (2m - 1) levels into it (its levels are 2^(e-1) apart over there): 4m + 2e - 4.
+    np.interp's binary search over the levels costs twice this."""
+    clipped = np.clip(diameter_px, np.float32(DEFOCUS_LEVELS[0]), np.float32(DEFOCUS_LEVELS[-1]))
+    index, exponent = np.frexp(clipped)
+    index *= np.float32(4)
+    exponent *= 2
+    exponent -= 4
+    index += exponent
+    return index
+
+
 def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
     """Each pixel blurred by its own blur circle: the image blurred at each level of
     DEFOCUS_LEVELS that some pixel needs, blended per pixel between the two levels around
     its diameter (linear in the level index). Linear in ``linear`` for a fixed map."""
-    levels = np.asarray(DEFOCUS_LEVELS, np.float32)
-    index = np.interp(diameter_px, levels, np.arange(len(levels), dtype=np.float32))
-    index = index.astype(np.float32)
+    index = level_index(diameter_px)
     row_low, row_high = index.min(axis=1), index.max(axis=1)
     if not row_high.any():
         return linear
@@ -215,6 +238,10 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
         np.abs(weight, out=weight)
         np.subtract(np.float32(1), weight, out=weight)
         np.maximum(weight, np.float32(0), out=weight)
+        if not cv2.countNonZero(weight):
+            # The band's rows span the level, but no pixel is near it (a sky edge jumps
+            # from a near surface's level to the last): blurring for it would add zeros.
+            continue
         blurred = disc_blur(linear, diameter)
         # out += blurred x weight in one pass (numpy's broadcast makes a temporary first);
         # a row band of C-ordered arrays is contiguous, so OpenCV writes into ``out`` itself.
@@ -254,21 +281,28 @@ def motion_blur(linear: np.ndarray, path_px: tuple[float, float]) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=4)
-def _offsets(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each pixel centre's x and y from the principal point (the image centre), in px; read
-    only (made once per image size)."""
+def _radius2(width: int, height: int) -> np.ndarray:
+    """Each pixel centre's squared distance from the principal point (the image centre), in
+    px^2; read only (made once per image size, as the vignetting of each view reads it)."""
     y, x = np.mgrid[0:height, 0:width].astype(np.float32)
     x -= np.float32((width - 1) / 2)
     y -= np.float32((height - 1) / 2)
-    x.flags.writeable = y.flags.writeable = False
-    return x, y
+    r2 = x * x + y * y
+    r2.flags.writeable = False
+    return r2
 
 
 def vignetting_factor(camera: Camera, strength: float) -> np.ndarray:
     """(H, W) share of light kept: 1 - v (1 - cos^4 t), t the field angle, tan t = r / fx."""
-    x, y = _offsets(camera.width, camera.height)
-    cos2 = 1.0 / (1.0 + (x * x + y * y) / np.float32(camera.fx ** 2))
-    return (1.0 - strength * (1.0 - cos2 * cos2)).astype(np.float32)
+    # In place on one float32 plane: the same operations, in the same order, as the formula.
+    factor = np.divide(_radius2(camera.width, camera.height), np.float32(camera.fx ** 2))
+    factor += np.float32(1)
+    np.divide(np.float32(1), factor, out=factor)  # cos^2 t
+    factor *= factor
+    np.subtract(np.float32(1), factor, out=factor)
+    factor *= np.float32(strength)
+    np.subtract(np.float32(1), factor, out=factor)
+    return factor
 
 
 def chromatic_aberration(linear: np.ndarray, corner_px: float) -> np.ndarray:
@@ -277,17 +311,19 @@ def chromatic_aberration(linear: np.ndarray, corner_px: float) -> np.ndarray:
     if corner_px <= 0:
         return linear
     h, w = linear.shape[:2]
-    k = np.float32(corner_px / 2 / math.hypot(w / 2, h / 2))
-    x, y = _offsets(w, h)
-    cx, cy = np.float32((w - 1) / 2), np.float32((h - 1) / 2)
-    out = linear.copy()
+    k = corner_px / 2 / math.hypot(w / 2, h / 2)
+    cx, cy = (w - 1) / 2, (h - 1) / 2
+    # Contiguous planes, each scaled about the centre by warpAffine: an affine remap that
+    # computes its coordinates itself, a third of the cost of remap's per-pixel maps.
+    planes = list(cv2.split(linear))
     for channel, sign in ((0, 1), (2, -1)):
         # A channel magnified by (1 + k) reads its value at r / (1 + k).
-        scale = np.float32(1 / (1 + sign * k))
-        out[..., channel] = cv2.remap(linear[..., channel], cx + x * scale, cy + y * scale,
-                                      cv2.INTER_LINEAR,
-                                      borderMode=cv2.BORDER_REPLICATE)
-    return out
+        scale = 1 / (1 + sign * k)
+        reads = np.array([[scale, 0.0, cx * (1 - scale)], [0.0, scale, cy * (1 - scale)]])
+        planes[channel] = cv2.warpAffine(planes[channel], reads, (w, h),
+                                         flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                         borderMode=cv2.BORDER_REPLICATE)
+    return cv2.merge(planes)
 
 
 def noise_parameters(config: SensorConfig, iso: float) -> tuple[float, float]:
@@ -296,14 +332,15 @@ def noise_parameters(config: SensorConfig, iso: float) -> tuple[float, float]:
     return gain / config.full_well_e, (gain * config.read_noise_e / config.full_well_e) ** 2
 
 
-def add_sensor_noise(linear: np.ndarray, a: float, b: float,
-                     rng: np.random.Generator) -> np.ndarray:
-    """Signal plus a Gaussian draw of variance a x + b per pixel and channel."""
+def add_sensor_noise(linear: np.ndarray, a: float, b: float, normals: np.ndarray
+                     ) -> np.ndarray:
+    """Signal plus a Gaussian draw of variance a x + b per pixel and channel: ``normals``
+    (the shape of ``linear``, float32) are the standard normal draws, one a value."""
     sigma = np.maximum(linear, np.float32(0))  # in place from here: 6 M values a frame
     sigma *= np.float32(a)
     sigma += np.float32(b)
     np.sqrt(sigma, out=sigma)
-    sigma *= rng.standard_normal(linear.shape, dtype=np.float32)
+    sigma *= normals
     sigma += linear
     return sigma
 
@@ -313,15 +350,19 @@ def encode(linear: np.ndarray, gains: np.ndarray | None = None) -> np.ndarray:
     sRGB. Overwrites ``linear``."""
     scale = np.float32(_ENCODE_STEPS) * (np.ones(3, np.float32) if gains is None else gains)
     steps = np.multiply(linear, scale.astype(np.float32), out=linear)
-    np.clip(steps, np.float32(0), np.float32(_ENCODE_STEPS), out=steps)
-    np.rint(steps, out=steps)
-    return _ENCODE[steps.astype(np.uint16)]
+    # One OpenCV pass rounds half to even (as np.rint) and clips below 0 while converting
+    # to 16 bits; the top clip stays in those 16 bits.
+    rows = steps.reshape(steps.shape[0], -1)
+    codes = cv2.add(rows, 0.0, dtype=cv2.CV_16U).reshape(steps.shape)
+    np.minimum(codes, np.uint16(_ENCODE_STEPS), out=codes)
+    return _ENCODE[codes]
 
 
 def jpeg_round_trip(color: np.ndarray, quality: int) -> np.ndarray:
     """``color`` (RGB uint8) as a JPEG of ``quality`` decodes it."""
-    ok, data = cv2.imencode(".jpg", np.ascontiguousarray(color[..., ::-1]),
+    # OpenCV's JPEG takes BGR: cvtColor swaps on both cores, and the decoder gives RGB.
+    ok, data = cv2.imencode(".jpg", cv2.cvtColor(color, cv2.COLOR_RGB2BGR),
                             [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise RuntimeError("OpenCV could not encode a JPEG")
-    return cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].copy()
+    return cv2.imdecode(data, cv2.IMREAD_COLOR_RGB)
