@@ -1,6 +1,8 @@
 """Small scenes and cameras for GL tests."""
 
+import contextlib
 import dataclasses
+from collections.abc import Iterator
 
 import numpy as np
 import trimesh
@@ -81,3 +83,13 @@ def plain_materials(env: Environment) -> dict[str, Material]:
     """Untextured materials for every part of an environment (scene panels emissive)."""
     return {p.name: plain_material(p.component, emissive=p.kind is PartKind.SCENE)
             for p in env.parts}
+
+
+@contextlib.contextmanager
+def loaded_renderer(env: Environment, config: RenderConfig) -> Iterator[Renderer]:
+    """A renderer with ``env`` loaded under plain materials and LIGHT; on leaving, GL must
+    have reported no error."""
+    with Renderer(config) as r:
+        r.load(build_scene(env.parts, plain_materials(env)), LIGHT)
+        yield r
+        assert r.ctx.error == "GL_NO_ERROR"

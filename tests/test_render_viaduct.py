@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from glhelpers import LIGHT, plain_materials, render_config
+from glhelpers import LIGHT, loaded_renderer, plain_materials, render_config
 from PIL import Image
 
 from glsynth.cli import main
@@ -24,10 +24,8 @@ CAMERAS = Config().cameras
 
 @pytest.fixture(scope="module")
 def loaded(env0):
-    with Renderer(RC) as r:
-        r.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
+    with loaded_renderer(env0, RC) as r:
         yield r
-        assert r.ctx.error == "GL_NO_ERROR"
 
 
 def cam(env0, index):

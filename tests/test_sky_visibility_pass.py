@@ -5,11 +5,10 @@ surface it draws (the pass before the depth pre-pass)."""
 import moderngl
 import numpy as np
 import pytest
-from glhelpers import LIGHT, plain_materials, render_config
+from glhelpers import loaded_renderer, render_config
 
 from glsynth.core.config import Config
 from glsynth.render.gl.renderer import Renderer
-from glsynth.render.scene import build_scene
 from glsynth.world.cameras import environment_camera
 
 RC = render_config(320, 180)
@@ -17,10 +16,8 @@ RC = render_config(320, 180)
 
 @pytest.fixture(scope="module")
 def loaded(env0):
-    with Renderer(RC) as r:
-        r.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
+    with loaded_renderer(env0, RC) as r:
         yield r
-        assert r.ctx.error == "GL_NO_ERROR"
 
 
 def _targets(r: Renderer) -> list[bytes]:

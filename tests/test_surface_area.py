@@ -4,14 +4,12 @@ maps of rendered viaduct views."""
 
 import numpy as np
 import pytest
-from glhelpers import LIGHT, plain_materials, render_config
+from glhelpers import loaded_renderer, render_config
 
 from glsynth.core.config import Config
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.core.surfaces import MAX_AREA_FACTOR
 from glsynth.data.statistics import surface_area_m2
-from glsynth.render.gl.renderer import Renderer
-from glsynth.render.scene import build_scene
 from glsynth.world.cameras import environment_camera
 
 RC = render_config(320, 180)
@@ -41,13 +39,10 @@ def vector_area(depth_m: np.ndarray, focal_px: float) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def depths(env0):
-    with Renderer(RC) as r:
-        r.load(build_scene(env0.parts, plain_materials(env0)), LIGHT)
-        cameras = [environment_camera(env0.trajectory, Config().cameras, RC, 0, 0, i).camera
-                   for i in (0, 20, 55, 80)]
-        out = [(r.render(c, {"depth"}).depth, c.fx) for c in cameras]
-        assert r.ctx.error == "GL_NO_ERROR"
-    return out
+    cameras = [environment_camera(env0.trajectory, Config().cameras, RC, 0, 0, i).camera
+               for i in (0, 20, 55, 80)]
+    with loaded_renderer(env0, RC) as r:
+        return [(r.render(c, {"depth"}).depth, c.fx) for c in cameras]
 
 
 def test_the_area_of_rendered_views_is_the_vector_forms_to_the_bit(depths):
