@@ -78,11 +78,28 @@ def test_defocus_skips_levels_no_pixel_needs(monkeypatch):
     blurred: list[float] = []
     original = camera_model.disc_blur
 
-    def counting(image: np.ndarray, diameter_px: float) -> np.ndarray:
+    def counting(image: np.ndarray, diameter_px: float, scale: int | None = None
+                 ) -> np.ndarray:
         blurred.append(diameter_px)
-        return original(image, diameter_px)
+        return original(image, diameter_px, scale)
 
     monkeypatch.setattr(camera_model, "disc_blur", counting)
     blended = camera_model.defocus(linear, diameter)
     assert sorted(blurred) == [1.5, 64.0]
     assert np.abs(blended - _weighted_sum(linear, diameter)).max() < 2e-6
+
+
+@pytest.mark.parametrize("diameter", [1.0, 3.0, 8.0, 16.0, 64.0])
+def test_a_boxes_blur_is_the_whole_images_there(diameter):
+    """Boxes inside, at the edges and at the corners of a frame, at blur scales 1 to 8: the
+    crop's blur equals the whole frame's inside the box."""
+    rng = make_rng(3, 0, Stream.SENSOR, 0)
+    linear = rng.random((216, 384, 3), dtype=np.float32)
+    whole = camera_model.disc_blur(linear, diameter)
+    for x, y, w, h in ((0, 0, 50, 40), (101, 77, 93, 51), (300, 150, 84, 66), (0, 13, 384, 5),
+                       (383, 215, 1, 1)):
+        box = camera_model.disc_blur_box(linear, diameter, (x, y, w, h))
+        assert box.shape == (h, w, 3)
+        assert np.abs(box - whole[y:y + h, x:x + w]).max() < 1e-6, (x, y, w, h)
+    assert camera_model.blur_scale(diameter, linear.shape) == (8 if diameter == 64 else
+                                                                2 if diameter == 16 else 1)

@@ -44,6 +44,8 @@ at least this wide (px), then scaled back up: a disc of 12 px or more loses no d
 AWB_CLIP = 0.98
 """Pixels at or over this linear value in a channel are clipped: the white balance's grey
 world leaves them out (their colour is the clip's, not the light's)."""
+_UNDER_CLIP = float(np.nextafter(np.float32(AWB_CLIP), np.float32(0)))
+"""The largest float32 under AWB_CLIP: an unclipped value is at most this."""
 AWB_MAX_GAIN = 4.0
 """The most a white-balance gain corrects (a camera's presets span about 2,500-10,000 K)."""
 FOCUS_WINDOW = 0.1
@@ -135,13 +137,13 @@ def grey_world_gains(linear: np.ndarray, mask: np.ndarray) -> np.ndarray:
     which real cameras' AWB approximates. Over the surfaces only, as a camera's AWB leaves the
     sky out (its blue is not the light on the scene). Renders carry the daylight's colour
     (blue skylight in shade, the grass's green bounce), which a photograph does not."""
-    brightest = np.maximum(linear[..., 0], linear[..., 1])  # max(axis=2) is 3x slower
-    np.maximum(brightest, linear[..., 2], out=brightest)
-    usable = mask & (brightest < AWB_CLIP)
-    if not usable.any():
+    # Every channel under the clip (at most the float32 below it), in one OpenCV pass.
+    unclipped = cv2.inRange(linear, (-np.inf,) * 3, (_UNDER_CLIP,) * 3)
+    usable = cv2.bitwise_and(unclipped, mask.view(np.uint8))
+    if not cv2.countNonZero(usable):
         return np.ones(3, np.float32)
     # Summed in float64 by OpenCV, without gathering the pixels first.
-    mean = np.asarray(cv2.mean(linear, mask=usable.view(np.uint8))[:3])
+    mean = np.asarray(cv2.mean(linear, mask=usable)[:3])
     if mean.min() <= 0.0:
         return np.ones(3, np.float32)
     return np.clip(mean[1] / mean, 1.0 / AWB_MAX_GAIN, AWB_MAX_GAIN).astype(np.float32)
@@ -185,13 +187,21 @@ def disc_kernel(diameter_px: float) -> np.ndarray:
     return kernel / kernel.sum()
 
 
-def disc_blur(image: np.ndarray, diameter_px: float) -> np.ndarray:
-    """``image`` seen through a disc; wide discs at a smaller size (they lose no detail there)."""
+def blur_scale(diameter_px: float, shape: tuple[int, ...]) -> int:
+    """The power of two that a disc of ``diameter_px`` is blurred at a 1 / it of an image of
+    ``shape`` (DIRECT_BLUR_PX)."""
+    scale = 1
+    while diameter_px / (2 * scale) >= DIRECT_BLUR_PX and min(shape[:2]) >= 16 * scale:
+        scale *= 2
+    return scale
+
+
+def disc_blur(image: np.ndarray, diameter_px: float, scale: int | None = None) -> np.ndarray:
+    """``image`` seen through a disc; wide discs at a smaller size (they lose no detail there),
+    1 / ``scale`` of it (None: blur_scale's)."""
     if diameter_px <= 1.0:
         return image
-    scale = 1
-    while diameter_px / (2 * scale) >= DIRECT_BLUR_PX and min(image.shape[:2]) >= 16 * scale:
-        scale *= 2
+    scale = blur_scale(diameter_px, image.shape) if scale is None else scale
     if scale == 1:
         return cv2.filter2D(image, -1, disc_kernel(diameter_px), borderType=cv2.BORDER_REFLECT)
     h, w = image.shape[:2]
@@ -200,6 +210,25 @@ def disc_blur(image: np.ndarray, diameter_px: float) -> np.ndarray:
     small = cv2.filter2D(small, -1, disc_kernel(diameter_px / scale),
                          borderType=cv2.BORDER_REFLECT)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def disc_blur_box(image: np.ndarray, diameter_px: float, box: tuple[int, int, int, int]
+                  ) -> np.ndarray:
+    """disc_blur(image, diameter_px) inside ``box`` (x, y, w, h), from the box and the margin
+    around it that the disc and the small image's resampling read: a crop whose sides lie on
+    the small image's pixels (or on the image's edges, reflected about as the whole image's
+    are) blurs as the whole image does there, to float32 rounding."""
+    x, y, w, h = box
+    height, width = image.shape[:2]
+    scale = blur_scale(diameter_px, image.shape)
+    if diameter_px <= 1.0 or height % scale or width % scale:
+        return disc_blur(image, diameter_px)[y:y + h, x:x + w]
+    margin = (math.ceil(diameter_px / scale / 2) + 1) * scale
+    y0, x0 = max(0, (y - margin) // scale * scale), max(0, (x - margin) // scale * scale)
+    y1 = min(height, -(-(y + h + margin) // scale) * scale)
+    x1 = min(width, -(-(x + w + margin) // scale) * scale)
+    blurred = disc_blur(image[y0:y1, x0:x1], diameter_px, scale)
+    return blurred[y - y0:y - y0 + h, x - x0:x - x0 + w]
 
 
 def level_index(diameter_px: np.ndarray) -> np.ndarray:
@@ -242,17 +271,17 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
         band = slice(rows[0], rows[-1] + 1)
         as_lower = cv2.inRange(key[band], 2 * level, 2 * level + 1)
         as_upper = cv2.compare(key[band], 2 * level - 1, cv2.CMP_EQ)
-        has_lower, has_upper = cv2.countNonZero(as_lower), cv2.countNonZero(as_upper)
-        if not (has_lower or has_upper):
+        x, y, w, h = cv2.boundingRect(cv2.bitwise_or(as_lower, as_upper))
+        if not w:
             # The band's rows span the level, but no pixel is near it (a sky edge jumps
             # from a near surface's level to the last): blurring for it would add zeros.
             continue
-        blurred = disc_blur(linear, diameter)
-        # A row band of C-ordered arrays is contiguous: OpenCV writes into the band itself.
-        if has_lower:
-            cv2.copyTo(blurred[band], as_lower, below[band])
-        if has_upper:
-            cv2.copyTo(blurred[band], as_upper, above[band])
+        # Only the box of the pixels that need the level is blurred (a quarter of the
+        # blurring, at close, slanted views); OpenCV writes into the arrays' boxes in place.
+        blurred = disc_blur_box(linear, diameter, (x, band.start + y, w, h))
+        box = (slice(band.start + y, band.start + y + h), slice(x, x + w))
+        cv2.copyTo(blurred, as_lower[y:y + h, x:x + w], below[box])
+        cv2.copyTo(blurred, as_upper[y:y + h, x:x + w], above[box])
     # below + share (above - below): every pixel's lower level is blurred; where its upper
     # one is not, its share is 0 and the zeros there drop out exactly.
     np.subtract(above, below, out=above)
@@ -373,13 +402,11 @@ def add_sensor_noise(linear: np.ndarray, a: float, b: float, normals: np.ndarray
 
 def encode(linear: np.ndarray, gains: np.ndarray | None = None) -> np.ndarray:
     """Linear light times ``gains`` (3,) per channel (None: 1), clipped to [0, 1], to 8-bit
-    sRGB. Overwrites ``linear``."""
+    sRGB."""
     scale = np.float32(_ENCODE_STEPS) * (np.ones(3, np.float32) if gains is None else gains)
-    steps = np.multiply(linear, scale.astype(np.float32), out=linear)
-    # One OpenCV pass rounds half to even (as np.rint) and clips below 0 while converting
-    # to 16 bits; the top clip stays in those 16 bits.
-    rows = steps.reshape(steps.shape[0], -1)
-    codes = cv2.add(rows, 0.0, dtype=cv2.CV_16U).reshape(steps.shape)
+    # One OpenCV pass scales each channel, rounds half to even (as np.rint) and clips below
+    # 0 while converting to 16 bits; the top clip stays in those 16 bits.
+    codes = cv2.multiply(linear, (*(float(s) for s in scale), 0.0), dtype=cv2.CV_16U)
     np.minimum(codes, np.uint16(_ENCODE_STEPS), out=codes)
     return _ENCODE[codes]
 
