@@ -48,6 +48,9 @@ _UNDER_CLIP = float(np.nextafter(np.float32(AWB_CLIP), np.float32(0)))
 """The largest float32 under AWB_CLIP: an unclipped value is at most this."""
 AWB_MAX_GAIN = 4.0
 """The most a white-balance gain corrects (a camera's presets span about 2,500-10,000 K)."""
+CHUNK_ROWS = 64
+"""Rows of a frame that a pass with a temporary works on at a time: the temporary stays in the
+cache, and no frame-sized one is allocated (a fresh one costs the kernel its page faults)."""
 FOCUS_WINDOW = 0.1
 """The aimed point: the middle FOCUS_WINDOW x FOCUS_WINDOW of the frame."""
 _DECODE = srgb_decode(np.arange(256)).astype(np.float32).reshape(256, 1)
@@ -284,8 +287,11 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
         cv2.copyTo(blurred, as_upper[y:y + h, x:x + w], above[box])
     # below + share (above - below): every pixel's lower level is blurred; where its upper
     # one is not, its share is 0 and the zeros there drop out exactly.
-    np.subtract(above, below, out=above)
-    cv2.accumulateProduct(above, cv2.merge((share, share, share)), below)
+    for top in range(0, linear.shape[0], CHUNK_ROWS):
+        rows = slice(top, top + CHUNK_ROWS)
+        step = np.subtract(above[rows], below[rows])
+        step *= share[rows, :, None]
+        below[rows] += step
     return below
 
 
@@ -347,23 +353,24 @@ def vignetting_factor(camera: Camera, strength: float) -> np.ndarray:
 
 def chromatic_aberration(linear: np.ndarray, corner_px: float) -> np.ndarray:
     """Red magnified and blue shrunk about the centre, so that at the corners each lies
-    ``corner_px`` / 2 px from green (``corner_px`` apart)."""
+    ``corner_px`` / 2 px from green (``corner_px`` apart). Overwrites ``linear``."""
     if corner_px <= 0:
         return linear
     h, w = linear.shape[:2]
     k = corner_px / 2 / math.hypot(w / 2, h / 2)
     cx, cy = (w - 1) / 2, (h - 1) / 2
-    # Contiguous planes, each scaled about the centre by warpAffine: an affine remap that
-    # computes its coordinates itself, a third of the cost of remap's per-pixel maps.
-    planes = list(cv2.split(linear))
     for channel, sign in ((0, 1), (2, -1)):
-        # A channel magnified by (1 + k) reads its value at r / (1 + k).
+        # A channel magnified by (1 + k) reads its value at r / (1 + k). Each plane is
+        # scaled about the centre by warpAffine (an affine remap that computes its
+        # coordinates itself, a third of remap's cost) and put back in place (half the CPU
+        # of splitting and merging the frame).
         scale = 1 / (1 + sign * k)
         reads = np.array([[scale, 0.0, cx * (1 - scale)], [0.0, scale, cy * (1 - scale)]])
-        planes[channel] = cv2.warpAffine(planes[channel], reads, (w, h),
-                                         flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                         borderMode=cv2.BORDER_REPLICATE)
-    return cv2.merge(planes)
+        plane = cv2.warpAffine(cv2.extractChannel(linear, channel), reads, (w, h),
+                               flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_REPLICATE)
+        linear = cv2.insertChannel(plane, linear, channel)  # in place where C-ordered
+    return linear
 
 
 def noise_parameters(config: SensorConfig, iso: float) -> tuple[float, float]:
@@ -390,14 +397,17 @@ def fill_standard_normal(out: np.ndarray, seed: int) -> None:
 def add_sensor_noise(linear: np.ndarray, a: float, b: float, normals: np.ndarray
                      ) -> np.ndarray:
     """Signal plus a Gaussian draw of variance a x + b per pixel and channel: ``normals``
-    (the shape of ``linear``, float32) are the standard normal draws, one a value."""
-    sigma = np.maximum(linear, np.float32(0))  # in place from here: 6 M values a frame
-    sigma *= np.float32(a)
-    sigma += np.float32(b)
-    np.sqrt(sigma, out=sigma)
-    sigma *= normals
-    sigma += linear
-    return sigma
+    (the shape of ``linear``, float32) are the standard normal draws, one a value.
+    Overwrites ``linear``."""
+    for top in range(0, linear.shape[0], CHUNK_ROWS):  # the deviations' buffer: CHUNK_ROWS
+        rows = slice(top, top + CHUNK_ROWS)
+        sigma = np.maximum(linear[rows], np.float32(0))
+        sigma *= np.float32(a)
+        sigma += np.float32(b)
+        np.sqrt(sigma, out=sigma)
+        sigma *= normals[rows]
+        linear[rows] += sigma
+    return linear
 
 
 def encode(linear: np.ndarray, gains: np.ndarray | None = None) -> np.ndarray:
