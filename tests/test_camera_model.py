@@ -68,7 +68,7 @@ def test_noise_variance_is_poisson_gaussian(rendered):
     assert a == pytest.approx(16 / 5000) and b == pytest.approx((16 * 1 / 5000) ** 2)
     linear = srgb_decode(render.color).astype(np.float32)
     normals = make_rng(0, 0, Stream.SENSOR, 7).standard_normal(linear.shape, dtype=np.float32)
-    noisy = camera_model.add_sensor_noise(linear, a, b, normals)
+    noisy = camera_model.add_sensor_noise(linear.copy(), a, b, normals)
     residual, signal = (noisy - linear).ravel(), linear.ravel()
     edges = np.quantile(signal, np.linspace(0.05, 0.95, 7))
     checked = 0
@@ -209,7 +209,7 @@ def test_chromatic_aberration_parts_red_and_blue_radially(rendered):
     _, render, _ = rendered
     grey = np.repeat(srgb_decode(render.color)[..., 1:2], 3, axis=2).astype(np.float32)
     corner_px = 1.0
-    shifted = camera_model.chromatic_aberration(grey, corner_px)
+    shifted = camera_model.chromatic_aberration(grey.copy(), corner_px)
     assert np.array_equal(shifted[..., 1], grey[..., 1])
     h, w = grey.shape[:2]
     scale = corner_px / math.hypot((w - 1) / 2, (h - 1) / 2)

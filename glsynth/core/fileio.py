@@ -88,9 +88,12 @@ def image_bytes(array: np.ndarray, format: str = "PNG") -> bytes:
     """Encode uint8 (H, W) or (H, W, 3) RGB, or uint16 (H, W) as a 16-bit PNG, to file bytes."""
     if format == "PNG":
         # OpenCV's encoder at zlib level 1: faster than Pillow's and than level 6 for the same
-        # file size (docs/results.md); PNG stays lossless either way.
+        # file size; every row through PNG's Up filter, not the best of five tried row by row:
+        # half the CPU, the file within a few per cent (docs/results.md). Lossless either way.
         pixels = cv2.cvtColor(array, cv2.COLOR_RGB2BGR) if array.ndim == 3 else array
-        ok, encoded = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        ok, encoded = cv2.imencode(".png", pixels, [cv2.IMWRITE_PNG_COMPRESSION, 1,
+                                                    cv2.IMWRITE_PNG_FILTER,
+                                                    cv2.IMWRITE_PNG_FILTER_UP])
         if not ok:  # cv2 refuses only what the types above exclude
             raise ValueError(f"PNG encoding failed for {array.dtype} {array.shape}")
         return encoded.tobytes()

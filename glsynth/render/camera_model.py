@@ -15,8 +15,8 @@ model"), in this order:
    error, the tone curve, 8 bits, a JPEG round trip.
 
 Labels and depth are the scene's and are not touched. Pure numpy and OpenCV; every draw comes
-from the generator the caller makes for the view (Stream.SENSOR), so an image is reproduced
-from its seeds.
+from the generator the caller makes for the view (Stream.SENSOR), the noise's from OpenCV's
+generator seeded by it, so an image is reproduced from its seeds.
 """
 
 import functools
@@ -44,8 +44,13 @@ at least this wide (px), then scaled back up: a disc of 12 px or more loses no d
 AWB_CLIP = 0.98
 """Pixels at or over this linear value in a channel are clipped: the white balance's grey
 world leaves them out (their colour is the clip's, not the light's)."""
+_UNDER_CLIP = float(np.nextafter(np.float32(AWB_CLIP), np.float32(0)))
+"""The largest float32 under AWB_CLIP: an unclipped value is at most this."""
 AWB_MAX_GAIN = 4.0
 """The most a white-balance gain corrects (a camera's presets span about 2,500-10,000 K)."""
+CHUNK_ROWS = 64
+"""Rows of a frame that a pass with a temporary works on at a time: the temporary stays in the
+cache, and no frame-sized one is allocated (a fresh one costs the kernel its page faults)."""
 FOCUS_WINDOW = 0.1
 """The aimed point: the middle FOCUS_WINDOW x FOCUS_WINDOW of the frame."""
 _DECODE = srgb_decode(np.arange(256)).astype(np.float32).reshape(256, 1)
@@ -103,11 +108,10 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     if not config.enabled:
         return color
     shot = draw_shot(config, rng)
-    # The sensor noise's draws are the generator's next, whatever the image: drawn on a
-    # second thread (numpy releases the GIL while it fills) while the lens blurs here.
+    # The sensor noise's seed is the generator's next draw, whatever the image; its normals
+    # are drawn on a second thread (OpenCV releases the GIL) while the lens blurs here.
     normals = np.empty(color.shape, np.float32)
-    drawing = threading.Thread(target=rng.standard_normal,
-                               kwargs={"dtype": np.float32, "out": normals})
+    drawing = threading.Thread(target=fill_standard_normal, args=(normals, noise_seed(rng)))
     drawing.start()
     # The exposure error rides in the decoding table: the same float32 products, one pass.
     linear = cv2.LUT(np.ascontiguousarray(color), _DECODE * np.float32(shot.exposure_gain))
@@ -136,13 +140,13 @@ def grey_world_gains(linear: np.ndarray, mask: np.ndarray) -> np.ndarray:
     which real cameras' AWB approximates. Over the surfaces only, as a camera's AWB leaves the
     sky out (its blue is not the light on the scene). Renders carry the daylight's colour
     (blue skylight in shade, the grass's green bounce), which a photograph does not."""
-    brightest = np.maximum(linear[..., 0], linear[..., 1])  # max(axis=2) is 3x slower
-    np.maximum(brightest, linear[..., 2], out=brightest)
-    usable = mask & (brightest < AWB_CLIP)
-    if not usable.any():
+    # Every channel under the clip (at most the float32 below it), in one OpenCV pass.
+    unclipped = cv2.inRange(linear, (-np.inf,) * 3, (_UNDER_CLIP,) * 3)
+    usable = cv2.bitwise_and(unclipped, mask.view(np.uint8))
+    if not cv2.countNonZero(usable):
         return np.ones(3, np.float32)
     # Summed in float64 by OpenCV, without gathering the pixels first.
-    mean = np.asarray(cv2.mean(linear, mask=usable.view(np.uint8))[:3])
+    mean = np.asarray(cv2.mean(linear, mask=usable)[:3])
     if mean.min() <= 0.0:
         return np.ones(3, np.float32)
     return np.clip(mean[1] / mean, 1.0 / AWB_MAX_GAIN, AWB_MAX_GAIN).astype(np.float32)
@@ -186,13 +190,21 @@ def disc_kernel(diameter_px: float) -> np.ndarray:
     return kernel / kernel.sum()
 
 
-def disc_blur(image: np.ndarray, diameter_px: float) -> np.ndarray:
-    """``image`` seen through a disc; wide discs at a smaller size (they lose no detail there)."""
+def blur_scale(diameter_px: float, shape: tuple[int, ...]) -> int:
+    """The power of two that a disc of ``diameter_px`` is blurred at a 1 / it of an image of
+    ``shape`` (DIRECT_BLUR_PX)."""
+    scale = 1
+    while diameter_px / (2 * scale) >= DIRECT_BLUR_PX and min(shape[:2]) >= 16 * scale:
+        scale *= 2
+    return scale
+
+
+def disc_blur(image: np.ndarray, diameter_px: float, scale: int | None = None) -> np.ndarray:
+    """``image`` seen through a disc; wide discs at a smaller size (they lose no detail there),
+    1 / ``scale`` of it (None: blur_scale's)."""
     if diameter_px <= 1.0:
         return image
-    scale = 1
-    while diameter_px / (2 * scale) >= DIRECT_BLUR_PX and min(image.shape[:2]) >= 16 * scale:
-        scale *= 2
+    scale = blur_scale(diameter_px, image.shape) if scale is None else scale
     if scale == 1:
         return cv2.filter2D(image, -1, disc_kernel(diameter_px), borderType=cv2.BORDER_REFLECT)
     h, w = image.shape[:2]
@@ -201,6 +213,25 @@ def disc_blur(image: np.ndarray, diameter_px: float) -> np.ndarray:
     small = cv2.filter2D(small, -1, disc_kernel(diameter_px / scale),
                          borderType=cv2.BORDER_REFLECT)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def disc_blur_box(image: np.ndarray, diameter_px: float, box: tuple[int, int, int, int]
+                  ) -> np.ndarray:
+    """disc_blur(image, diameter_px) inside ``box`` (x, y, w, h), from the box and the margin
+    around it that the disc and the small image's resampling read: a crop whose sides lie on
+    the small image's pixels (or on the image's edges, reflected about as the whole image's
+    are) blurs as the whole image does there, to float32 rounding."""
+    x, y, w, h = box
+    height, width = image.shape[:2]
+    scale = blur_scale(diameter_px, image.shape)
+    if diameter_px <= 1.0 or height % scale or width % scale:
+        return disc_blur(image, diameter_px)[y:y + h, x:x + w]
+    margin = (math.ceil(diameter_px / scale / 2) + 1) * scale
+    y0, x0 = max(0, (y - margin) // scale * scale), max(0, (x - margin) // scale * scale)
+    y1 = min(height, -(-(y + h + margin) // scale) * scale)
+    x1 = min(width, -(-(x + w + margin) // scale) * scale)
+    blurred = disc_blur(image[y0:y1, x0:x1], diameter_px, scale)
+    return blurred[y - y0:y - y0 + h, x - x0:x - x0 + w]
 
 
 def level_index(diameter_px: np.ndarray) -> np.ndarray:
@@ -226,27 +257,42 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
     row_low, row_high = index.min(axis=1), index.max(axis=1)
     if not row_high.any():
         return linear
-    out = np.zeros_like(linear)
+    lower = np.floor(index)
+    share = np.subtract(index, lower)  # of the level above, in [0, 1)
+    # Per pixel: twice its lower level, plus 1 where the level above has a share.
+    key = cv2.add(lower, lower, dtype=cv2.CV_8U)
+    key += share > 0
+    # Each level's blur is copied where it is a pixel's lower level and where its upper one,
+    # and the two blended once at the end: a level's own weight pass costs more.
+    below, above = np.zeros_like(linear), np.zeros_like(linear)
     for level, diameter in enumerate(DEFOCUS_LEVELS):
         # Level L serves the pixels whose index lies in (L - 1, L + 1); depth is smooth, so
-        # they lie in a band of rows, and only the band is blended.
+        # they lie in a band of rows, and only the band is looked at.
         rows = np.flatnonzero((row_low < level + 1) & (row_high > level - 1))
         if not rows.size:
             continue
         band = slice(rows[0], rows[-1] + 1)
-        weight = np.subtract(index[band], np.float32(level))
-        np.abs(weight, out=weight)
-        np.subtract(np.float32(1), weight, out=weight)
-        np.maximum(weight, np.float32(0), out=weight)
-        if not cv2.countNonZero(weight):
+        as_lower = cv2.inRange(key[band], 2 * level, 2 * level + 1)
+        as_upper = cv2.compare(key[band], 2 * level - 1, cv2.CMP_EQ)
+        x, y, w, h = cv2.boundingRect(cv2.bitwise_or(as_lower, as_upper))
+        if not w:
             # The band's rows span the level, but no pixel is near it (a sky edge jumps
             # from a near surface's level to the last): blurring for it would add zeros.
             continue
-        blurred = disc_blur(linear, diameter)
-        # out += blurred x weight in one pass (numpy's broadcast makes a temporary first);
-        # a row band of C-ordered arrays is contiguous, so OpenCV writes into ``out`` itself.
-        cv2.accumulateProduct(blurred[band], cv2.merge((weight, weight, weight)), out[band])
-    return out
+        # Only the box of the pixels that need the level is blurred (a quarter of the
+        # blurring, at close, slanted views); OpenCV writes into the arrays' boxes in place.
+        blurred = disc_blur_box(linear, diameter, (x, band.start + y, w, h))
+        box = (slice(band.start + y, band.start + y + h), slice(x, x + w))
+        cv2.copyTo(blurred, as_lower[y:y + h, x:x + w], below[box])
+        cv2.copyTo(blurred, as_upper[y:y + h, x:x + w], above[box])
+    # below + share (above - below): every pixel's lower level is blurred; where its upper
+    # one is not, its share is 0 and the zeros there drop out exactly.
+    for top in range(0, linear.shape[0], CHUNK_ROWS):
+        rows = slice(top, top + CHUNK_ROWS)
+        step = np.subtract(above[rows], below[rows])
+        step *= share[rows, :, None]
+        below[rows] += step
+    return below
 
 
 def image_velocity(camera: Camera, velocity_mps: np.ndarray, depth_m: float
@@ -307,23 +353,24 @@ def vignetting_factor(camera: Camera, strength: float) -> np.ndarray:
 
 def chromatic_aberration(linear: np.ndarray, corner_px: float) -> np.ndarray:
     """Red magnified and blue shrunk about the centre, so that at the corners each lies
-    ``corner_px`` / 2 px from green (``corner_px`` apart)."""
+    ``corner_px`` / 2 px from green (``corner_px`` apart). Overwrites ``linear``."""
     if corner_px <= 0:
         return linear
     h, w = linear.shape[:2]
     k = corner_px / 2 / math.hypot(w / 2, h / 2)
     cx, cy = (w - 1) / 2, (h - 1) / 2
-    # Contiguous planes, each scaled about the centre by warpAffine: an affine remap that
-    # computes its coordinates itself, a third of the cost of remap's per-pixel maps.
-    planes = list(cv2.split(linear))
     for channel, sign in ((0, 1), (2, -1)):
-        # A channel magnified by (1 + k) reads its value at r / (1 + k).
+        # A channel magnified by (1 + k) reads its value at r / (1 + k). Each plane is
+        # scaled about the centre by warpAffine (an affine remap that computes its
+        # coordinates itself, a third of remap's cost) and put back in place (half the CPU
+        # of splitting and merging the frame).
         scale = 1 / (1 + sign * k)
         reads = np.array([[scale, 0.0, cx * (1 - scale)], [0.0, scale, cy * (1 - scale)]])
-        planes[channel] = cv2.warpAffine(planes[channel], reads, (w, h),
-                                         flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                         borderMode=cv2.BORDER_REPLICATE)
-    return cv2.merge(planes)
+        plane = cv2.warpAffine(cv2.extractChannel(linear, channel), reads, (w, h),
+                               flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_REPLICATE)
+        linear = cv2.insertChannel(plane, linear, channel)  # in place where C-ordered
+    return linear
 
 
 def noise_parameters(config: SensorConfig, iso: float) -> tuple[float, float]:
@@ -332,28 +379,44 @@ def noise_parameters(config: SensorConfig, iso: float) -> tuple[float, float]:
     return gain / config.full_well_e, (gain * config.read_noise_e / config.full_well_e) ** 2
 
 
+def noise_seed(rng: np.random.Generator) -> int:
+    """The seed of a view's sensor noise (fill_standard_normal), ``rng``'s next draw: OpenCV
+    seeds its generator from a C int, so one of 2^31 - 1."""
+    return int(rng.integers(1, 2**31))
+
+
+def fill_standard_normal(out: np.ndarray, seed: int) -> None:
+    """Fill float32 ``out`` (C-ordered) with standard normal draws, the same for the same
+    ``seed``: OpenCV's generator (multiply-with-carry, ziggurat), a third of the CPU time of
+    numpy's Generator for the 6 M draws of a frame. Its state is the calling thread's own,
+    seeded here just before the draw, so no other draw comes between."""
+    cv2.setRNGSeed(seed)
+    cv2.randn(out.reshape(out.shape[0], -1), 0.0, 1.0)  # one channel: the scalars apply
+
+
 def add_sensor_noise(linear: np.ndarray, a: float, b: float, normals: np.ndarray
                      ) -> np.ndarray:
     """Signal plus a Gaussian draw of variance a x + b per pixel and channel: ``normals``
-    (the shape of ``linear``, float32) are the standard normal draws, one a value."""
-    sigma = np.maximum(linear, np.float32(0))  # in place from here: 6 M values a frame
-    sigma *= np.float32(a)
-    sigma += np.float32(b)
-    np.sqrt(sigma, out=sigma)
-    sigma *= normals
-    sigma += linear
-    return sigma
+    (the shape of ``linear``, float32) are the standard normal draws, one a value.
+    Overwrites ``linear``."""
+    for top in range(0, linear.shape[0], CHUNK_ROWS):  # the deviations' buffer: CHUNK_ROWS
+        rows = slice(top, top + CHUNK_ROWS)
+        sigma = np.maximum(linear[rows], np.float32(0))
+        sigma *= np.float32(a)
+        sigma += np.float32(b)
+        np.sqrt(sigma, out=sigma)
+        sigma *= normals[rows]
+        linear[rows] += sigma
+    return linear
 
 
 def encode(linear: np.ndarray, gains: np.ndarray | None = None) -> np.ndarray:
     """Linear light times ``gains`` (3,) per channel (None: 1), clipped to [0, 1], to 8-bit
-    sRGB. Overwrites ``linear``."""
+    sRGB."""
     scale = np.float32(_ENCODE_STEPS) * (np.ones(3, np.float32) if gains is None else gains)
-    steps = np.multiply(linear, scale.astype(np.float32), out=linear)
-    # One OpenCV pass rounds half to even (as np.rint) and clips below 0 while converting
-    # to 16 bits; the top clip stays in those 16 bits.
-    rows = steps.reshape(steps.shape[0], -1)
-    codes = cv2.add(rows, 0.0, dtype=cv2.CV_16U).reshape(steps.shape)
+    # One OpenCV pass scales each channel, rounds half to even (as np.rint) and clips below
+    # 0 while converting to 16 bits; the top clip stays in those 16 bits.
+    codes = cv2.multiply(linear, (*(float(s) for s in scale), 0.0), dtype=cv2.CV_16U)
     np.minimum(codes, np.uint16(_ENCODE_STEPS), out=codes)
     return _ENCODE[codes]
 

@@ -1,0 +1,105 @@
+"""The camera model's sensor-noise draws (OpenCV's generator seeded from the view's) and its
+defocus blend (each level copied where a pixel needs it, blended once) against the plain
+per-level weighted sum, on synthetic frames (tests/test_camera_model.py tests both on renders)."""
+
+import numpy as np
+import pytest
+
+from glsynth.core.seeding import Stream, make_rng
+from glsynth.render import camera_model
+
+
+def test_noise_seed_is_the_generators_next_draw():
+    seeds = {camera_model.noise_seed(make_rng(0, 0, Stream.SENSOR, i)) for i in range(8)}
+    assert len(seeds) == 8 and all(1 <= s < 2**31 for s in seeds)
+    assert camera_model.noise_seed(make_rng(0, 0, Stream.SENSOR, 3)) == \
+        camera_model.noise_seed(make_rng(0, 0, Stream.SENSOR, 3))
+
+
+def test_standard_normals_are_reproducible_and_standard():
+    shape = (540, 960, 3)
+    first, again, other = (np.empty(shape, np.float32) for _ in range(3))
+    camera_model.fill_standard_normal(first, 12345)
+    camera_model.fill_standard_normal(again, 12345)
+    camera_model.fill_standard_normal(other, 12346)
+    assert np.array_equal(first, again)
+    assert np.abs(first - other).mean() > 1.0  # an independent draw: E|x - y| = 2 / sqrt(pi)
+    # Each channel standard normal (1.5 M draws: the mean within 0.003, the variance 0.5 %),
+    # the channels uncorrelated, and the tails a Gaussian's.
+    for channel in range(3):
+        values = first[..., channel].ravel().astype(np.float64)
+        assert values.mean() == pytest.approx(0.0, abs=0.003)
+        assert values.var() == pytest.approx(1.0, rel=0.005)
+        assert np.mean(np.abs(values) > 2.0) == pytest.approx(0.0455, abs=0.001)
+    red, blue = first[..., 0].ravel(), first[..., 2].ravel()
+    assert abs(np.corrcoef(red, blue)[0, 1]) < 0.003
+
+
+def _weighted_sum(linear: np.ndarray, diameter: np.ndarray) -> np.ndarray:
+    """The defocus as its docstring states it: every level's blur times the pixel's weight
+    max(0, 1 - |index - level|), summed."""
+    index = camera_model.level_index(diameter)
+    out = np.zeros_like(linear, dtype=np.float64)
+    for level, level_diameter in enumerate(camera_model.DEFOCUS_LEVELS):
+        weight = np.maximum(0.0, 1.0 - np.abs(index - level))[..., None]
+        if weight.any():
+            out += camera_model.disc_blur(linear, level_diameter) * weight
+    return out
+
+
+def test_defocus_is_the_weighted_sum_of_its_levels():
+    """A frame whose blur circles ramp across every level, on levels exactly and between them,
+    with a jump to the last (a sky edge) and a sharp stretch: the blend equals the per-level
+    weighted sum to float32 rounding."""
+    rng = make_rng(1, 0, Stream.SENSOR, 0)
+    h, w = 200, 320
+    linear = rng.random((h, w, 3), dtype=np.float32)
+    ramp = np.geomspace(0.5, 80.0, w, dtype=np.float32)
+    diameter = np.repeat(ramp[None, :], h, axis=0)
+    diameter[:, :40] = 1.0  # sharp
+    diameter[60:90] = np.float32(64.0)  # the last level, exactly
+    diameter[120:140, 100:180] = np.float32(3.0)  # on a level
+    diameter[150:, 200:] = np.float32(1.5)
+    blended = camera_model.defocus(linear, diameter)
+    assert blended.dtype == np.float32 and blended.shape == linear.shape
+    assert np.abs(blended - _weighted_sum(linear, diameter)).max() < 2e-6
+    # The sharp stretch away from any blur keeps the frame (weight 1 on level 0).
+    sharp = (slice(0, 50), slice(0, 30))
+    assert np.abs(blended[sharp] - linear[sharp]).max() < 1e-6
+
+
+def test_defocus_skips_levels_no_pixel_needs(monkeypatch):
+    """Blur circles of 1.5 and 64 px only: the levels between get no pixel, so only the two
+    are blurred; the result is still the weighted sum."""
+    rng = make_rng(2, 0, Stream.SENSOR, 0)
+    linear = rng.random((96, 128, 3), dtype=np.float32)
+    diameter = np.full((96, 128), 1.5, np.float32)
+    diameter[:, 64:] = 64.0
+    blurred: list[float] = []
+    original = camera_model.disc_blur
+
+    def counting(image: np.ndarray, diameter_px: float, scale: int | None = None
+                 ) -> np.ndarray:
+        blurred.append(diameter_px)
+        return original(image, diameter_px, scale)
+
+    monkeypatch.setattr(camera_model, "disc_blur", counting)
+    blended = camera_model.defocus(linear, diameter)
+    assert sorted(blurred) == [1.5, 64.0]
+    assert np.abs(blended - _weighted_sum(linear, diameter)).max() < 2e-6
+
+
+@pytest.mark.parametrize("diameter", [1.0, 3.0, 8.0, 16.0, 64.0])
+def test_a_boxes_blur_is_the_whole_images_there(diameter):
+    """Boxes inside, at the edges and at the corners of a frame, at blur scales 1 to 8: the
+    crop's blur equals the whole frame's inside the box."""
+    rng = make_rng(3, 0, Stream.SENSOR, 0)
+    linear = rng.random((216, 384, 3), dtype=np.float32)
+    whole = camera_model.disc_blur(linear, diameter)
+    for x, y, w, h in ((0, 0, 50, 40), (101, 77, 93, 51), (300, 150, 84, 66), (0, 13, 384, 5),
+                       (383, 215, 1, 1)):
+        box = camera_model.disc_blur_box(linear, diameter, (x, y, w, h))
+        assert box.shape == (h, w, 3)
+        assert np.abs(box - whole[y:y + h, x:x + w]).max() < 1e-6, (x, y, w, h)
+    assert camera_model.blur_scale(diameter, linear.shape) == (8 if diameter == 64 else
+                                                                2 if diameter == 16 else 1)
