@@ -150,11 +150,16 @@ def test_the_component_pass_is_the_palette_and_crack_width_needs_its_map():
 
 # --- the server, over a real websocket -------------------------------------------------------
 
+SERVER_QUALITY = ("--quality", "preview")
+"""The server's (and the render its saved view is checked against): a quarter of the image
+size, small textures and damage maps (as in test_view_fuzz and test_view_bank)."""
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     from viewhelpers import ViewServer
 
-    running = ViewServer(tmp_path_factory.mktemp("views"))
+    running = ViewServer(tmp_path_factory.mktemp("views"), *SERVER_QUALITY)
     try:
         yield running
     finally:
@@ -210,7 +215,8 @@ def test_save_view_writes_renders_files_and_its_camera_renders_the_same(server, 
     assert sorted(p.name for p in folder.iterdir()) == ["camera.json", "component.png",
                                                         "crack_width.npy", "damage.png",
                                                         "depth.npy", "image.png"]
-    again = render_camera_json(json.loads((folder / "camera.json").read_text()), tmp_path)
+    again = render_camera_json(json.loads((folder / "camera.json").read_text()), tmp_path,
+                               True, *SERVER_QUALITY)
     for name in ("image.png", "component.png", "damage.png"):
         assert np.array_equal(cv2.imread(str(folder / name)), cv2.imread(str(again / name))), name
     for name in ("depth.npy", "crack_width.npy"):
