@@ -8,10 +8,19 @@ from PIL import Image
 
 from glsynth.cli import main, non_negative_int, positive_int, positive_int_list
 
+SMALL_TEXTURES = ("[materials]\ntexture_size = 64\nbuiltin_size = 64\nimages_per_category = 3\n"
+                  "[damage]\nresolution = 64\n")
+"""Textures and damage maps small enough that an export builds and dresses a whole environment
+in a few CPU-seconds (the demo's own: 13 CPU-s, most of it the texture repository's first
+generation)."""
+
 
 def test_export_end_to_end(tmp_path, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_TEXTURES)
     out = tmp_path / "deep" / "scene.glb"
-    assert main(["export", "--seed", "4", "--env", "2", "--out", str(out)]) == 0
+    assert main(["export", "--seed", "4", "--env", "2", "--config", str(cfg), "--out",
+                 str(out)]) == 0
     assert out.stat().st_size > 100_000
     info = json.loads((tmp_path / "deep" / "scene.json").read_text())
     assert info["root_seed"] == 4 and info["env"] == 2
@@ -21,7 +30,7 @@ def test_export_end_to_end(tmp_path, capsys):
 def test_export_is_byte_identical_for_the_same_seed(tmp_path):
     """Of a two-viaduct environment (test_export_end_to_end exports a whole one)."""
     cfg = tmp_path / "c.toml"
-    cfg.write_text("[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n")
+    cfg.write_text(SMALL_TEXTURES + "[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n")
     a, b = tmp_path / "a" / "scene.glb", tmp_path / "b" / "scene.glb"
     for out in (a, b):
         assert main(["export", "--seed", "1", "--env", "0", "--config", str(cfg),
@@ -43,7 +52,10 @@ def test_bad_config_value_is_a_clear_error(tmp_path, capsys):
 def test_unwritable_output_is_a_clear_error(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    code = main(["export", "--seed", "0", "--env", "0", "--out", str(blocker / "s.glb")])
+    cfg = tmp_path / "c.toml"  # the export is built before its folder is made
+    cfg.write_text(SMALL_TEXTURES + "[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n")
+    code = main(["export", "--seed", "0", "--env", "0", "--config", str(cfg), "--out",
+                 str(blocker / "s.glb")])
     assert code == 2 and "Choose a writable --out" in capsys.readouterr().err
 
 

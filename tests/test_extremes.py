@@ -65,8 +65,11 @@ def test_depth_from_the_near_plane_to_1000_m(small, distance):
 @pytest.mark.parametrize("focal", [15.0, 55.0])
 @pytest.mark.parametrize("height, radius", [(5.0, math.inf), (14.0, 500.0)])
 def test_viaduct_views_at_the_extremes(focal, height, radius):
+    # Two viaducts: the heights, curves and lenses at their extremes are the subject, not the
+    # number of viaducts (each of the four openings dressed ten).
     environment = EnvironmentConfig(initial_height_m=(height, height), ground_amplitude_m=0.0,
-                                    height_amplitude_m=0.0, min_radius_m=(radius, radius))
+                                    height_amplitude_m=0.0, min_radius_m=(radius, radius),
+                                    n_viaducts=2, cutoff_factor=1.0)
     config = preview_config(Config(), 160)
     config = dataclasses.replace(
         config, environment=environment,

@@ -64,6 +64,10 @@ sign_probability = 0.0
 [flight]
 point_stride_px = 3
 """
+TWO_VIADUCTS = SMALL.replace("[flight]\n", "n_viaducts = 2\ncutoff_factor = 1.0\n[flight]\n")
+"""The rendered flights' environment: a flight (and a resume) builds it again, 3.3 CPU-s with
+ten viaducts. Not for the culling and clearance tests: with two, the casters of shadows are
+most of the parts, and the first viaduct's ties stand elsewhere."""
 FRAMES = 30
 NO_OTHERS = {f"{rule}_probability": 0.0 for rule in ("jacket", "brace", "downpipe", "trough",
                                                      "sign")}
@@ -291,7 +295,7 @@ def _fly_args(cfg: Path, out: Path) -> list[str]:
 def flight(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fly")
     cfg = folder / "small.toml"
-    cfg.write_text(SMALL + f"max_frames = {FRAMES}\n")
+    cfg.write_text(TWO_VIADUCTS + f"max_frames = {FRAMES}\n")
     out = folder / "flight"
     assert main(_fly_args(cfg, out)) == 0
     return cfg, out
@@ -410,7 +414,7 @@ def test_points_carry_their_frames_and_a_stated_density(flight):
 @pytest.mark.slow  # COLMAP's reader (pycolmap)
 def test_single_frame_flight(tmp_path):
     cfg = tmp_path / "one.toml"
-    cfg.write_text(SMALL + "max_frames = 1\n")
+    cfg.write_text(TWO_VIADUCTS + "max_frames = 1\n")
     out = tmp_path / "one"
     assert main(_fly_args(cfg, out)) == 0
     assert [p.name for p in (out / "frames").iterdir()] == ["frame_0000"]
@@ -426,7 +430,7 @@ def test_single_frame_flight(tmp_path):
 def test_a_zero_length_flight_renders_and_exports(tmp_path):
     """An orbit of arc 0 is one frame per ring, each above the last."""
     cfg = tmp_path / "zero.toml"
-    cfg.write_text(SMALL + "arc_deg = 0.0\nheights_m = [1.5, 3.0]\n")
+    cfg.write_text(TWO_VIADUCTS + "arc_deg = 0.0\nheights_m = [1.5, 3.0]\n")
     out = tmp_path / "zero"
     assert main(_fly_args(cfg, out)) == 0
     assert sorted(p.name for p in (out / "frames").iterdir()) == ["frame_0000", "frame_0001"]
@@ -448,7 +452,7 @@ def test_under_mechanics_components_reproject_exactly(tmp_path):
     a point's damage id may differ between frames; its component id may not."""
     pycolmap = pytest.importorskip("pycolmap", reason="pycolmap is not installed")
     cfg = tmp_path / "mechanics.toml"
-    cfg.write_text(SMALL.replace('model = "paper"\n', "") + "max_frames = 10\n")
+    cfg.write_text(TWO_VIADUCTS.replace('model = "paper"\n', "") + "max_frames = 10\n")
     assert load_config("demo", cfg).damage.model == "mechanics"
     out = tmp_path / "mechanics"
     assert main(_fly_args(cfg, out)) == 0
@@ -589,7 +593,7 @@ def test_a_distorted_flight_reprojects_through_colmaps_model(tmp_path, model_nam
     # The lens alone: a severe column's bars and hoops, 1-2 pixels wide in these 192 x 108
     # frames, add label edges that nearest resampling misses (docs/design.md, "Open fences
     # and severe damage as geometry": 97.95 % in the worst frame with them, 98.5 % without).
-    cfg.write_text(SMALL.replace("[damage]\n", "[damage]\ngeometry = false\n")
+    cfg.write_text(TWO_VIADUCTS.replace("[damage]\n", "[damage]\ngeometry = false\n")
                    + f'max_frames = 10\ncamera_model = "{model_name}"\nk1 = {k1}\n'
                    f"k2 = {k2}\n")
     out = tmp_path / "lens"

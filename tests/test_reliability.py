@@ -55,15 +55,17 @@ def test_debug_shows_the_traceback_of_a_user_error(tmp_path, capsys):
         main(["--debug", *args])
 
 
-def test_gl_unavailable_is_one_line(tmp_path, capsys, monkeypatch):
+def test_gl_unavailable_is_one_line(quick_config, tmp_path, capsys, monkeypatch):
+    """(QUICK's small environment and textures: the context is asked for after the
+    environment is built and dressed, 17 CPU-s of the demo's ten viaducts.)"""
     from glsynth.render.gl import context
 
     def missing(platform):
         raise OSError(f"lib{platform}.so: cannot open shared object file")
 
     monkeypatch.setattr(context, "_create", missing)
-    code = main(["render", "--seed", "0", "--env", "0", "--camera", "0", "--out",
-                 str(tmp_path / "r")])
+    code = main(["render", "--seed", "0", "--env", "0", "--camera", "0", "--config",
+                 str(quick_config), "--out", str(tmp_path / "r")])
     assert code == 2
     one_line_error(capsys, "no OpenGL context", "libegl1", "libosmesa6")
     assert not (tmp_path / "r").exists()

@@ -20,6 +20,17 @@ from glsynth.world.cameras import environment_camera
 
 RC = render_config(160, 90)
 CAMERAS = Config().cameras
+TWO_VIADUCTS_TOML = "[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n"
+"""For the tests of the commands' and openings' plumbing: each opening builds and dresses the
+environment again, 2-3 CPU-s with the default ten viaducts. Not for the culling tests: with
+two, every part may shadow some view or hide its sky, and none is culled."""
+
+
+def two_viaducts(config: Config) -> Config:
+    import dataclasses
+
+    return dataclasses.replace(config, environment=dataclasses.replace(
+        config.environment, n_viaducts=2, cutoff_factor=1.0))
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +102,8 @@ def test_only_requested_passes_are_returned(env0, loaded):
 def test_render_command_writes_the_documented_files(tmp_path):
     cfg = tmp_path / "small.toml"
     cfg.write_text("[render]\nwidth = 192\nheight = 108\n[damage]\nresolution = 128\n"
-                   "[materials]\ntexture_size = 64\nimages_per_category = 3\n")
+                   "[materials]\ntexture_size = 64\nbuiltin_size = 64\nimages_per_category = 3\n"
+                   + TWO_VIADUCTS_TOML)
     out = tmp_path / "r"
     assert main(["render", "--seed", "0", "--env", "1", "--camera", "7", "--config", str(cfg),
                  "--out", str(out)]) == 0
@@ -117,10 +129,10 @@ def test_render_command_writes_the_documented_files(tmp_path):
     assert (tmp_path / "many" / "camera_002" / "depth.npy").exists()
 
 
-def test_preview_command(tmp_path):
+def test_preview_command(quick_config, tmp_path):
     out = tmp_path / "p.png"
     assert main(["preview", "--seed", "0", "--env", "0", "--cameras", "2", "--width", "96",
-                 "--out", str(out)]) == 0
+                 "--config", str(quick_config), "--out", str(out)]) == 0
     assert Image.open(out).size == (4 * 96, 2 * 54)
 
 
@@ -238,7 +250,7 @@ def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
     import glsynth.render.view as view_module
     from glsynth.render.view import EnvironmentView, preview_config
 
-    config = preview_config(Config(), 96)
+    config = preview_config(two_viaducts(Config()), 96)
     with Renderer(config.render) as renderer:
         EnvironmentView.open(config, 0, 0, renderer)
         assert renderer._draws

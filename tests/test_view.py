@@ -9,6 +9,7 @@ import types
 import numpy as np
 import pytest
 import trimesh
+from viewhelpers import SCENE_TOML
 
 from glsynth.core.config import Config
 from glsynth.core.errors import UserError
@@ -20,12 +21,18 @@ from glsynth.view.protocol import (
     SceneRequest,
     parse_message,
 )
+from glsynth.view.scene import SceneSettings
 from glsynth.world.cameras import Camera, euler_xyz
 from glsynth.world.environment import Part, PartKind
 
 POSE = np.eye(4)
 POSE[:3, :3] = euler_xyz(1.4, 0.1, 0.3)
 POSE[:3, 3] = (10.0, -4.0, 6.0)
+
+
+PREVIEW = SceneSettings("demo", 0, 0, quality="preview", config_toml=SCENE_TOML)
+"""The in-process scene tests' scene: the viewer tests' two viaducts (tests/viewhelpers.py),
+as their plumbing needs no more; ten took 5 CPU-s an opening, nine openings a file."""
 
 
 def camera_message(**change) -> str:
@@ -143,11 +150,16 @@ def test_the_component_pass_is_the_palette_and_crack_width_needs_its_map():
 
 # --- the server, over a real websocket -------------------------------------------------------
 
+SERVER_QUALITY = ("--quality", "preview")
+"""The server's (and the render its saved view is checked against): a quarter of the image
+size, small textures and damage maps (as in test_view_fuzz and test_view_bank)."""
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     from viewhelpers import ViewServer
 
-    running = ViewServer(tmp_path_factory.mktemp("views"))
+    running = ViewServer(tmp_path_factory.mktemp("views"), *SERVER_QUALITY)
     try:
         yield running
     finally:
@@ -203,7 +215,8 @@ def test_save_view_writes_renders_files_and_its_camera_renders_the_same(server, 
     assert sorted(p.name for p in folder.iterdir()) == ["camera.json", "component.png",
                                                         "crack_width.npy", "damage.png",
                                                         "depth.npy", "image.png"]
-    again = render_camera_json(json.loads((folder / "camera.json").read_text()), tmp_path)
+    again = render_camera_json(json.loads((folder / "camera.json").read_text()), tmp_path,
+                               True, *SERVER_QUALITY)
     for name in ("image.png", "component.png", "damage.png"):
         assert np.array_equal(cv2.imread(str(folder / name)), cv2.imread(str(again / name))), name
     for name in ("depth.npy", "crack_width.npy"):
@@ -240,9 +253,9 @@ def test_view_refuses_a_cycles_config_before_it_serves(tmp_path, capsys):
 def test_relighting_draws_what_opening_under_that_light_draws():
     """Scene.relight (Renderer.relight, no upload) against a scene opened afresh under the
     same fixed lighting: the same bytes."""
-    from glsynth.view.scene import SceneSettings, open_scene
+    from glsynth.view.scene import open_scene
 
-    settings = SceneSettings("demo", 0, 0, quality="preview")
+    settings = PREVIEW
     values = {"sun_elevation_deg": 35.0, "sun_azimuth_deg": 80.0, "turbidity": 5.0,
               "exposure": 1.5}
     relit = open_scene(settings, None, lambda *_: None)
@@ -250,7 +263,7 @@ def test_relighting_draws_what_opening_under_that_light_draws():
         relit.relight(values)
         _, colour = relit.view.render(1)
         assert relit.view.lighting.sun_azimuth_deg == 80.0
-        fresh = open_scene(SceneSettings("demo", 0, 0, quality="preview", lighting=values),
+        fresh = open_scene(dataclasses.replace(PREVIEW, lighting=values),
                            relit.view.renderer, lambda *_: None)
         _, expected = fresh.view.render(1)
         assert np.array_equal(colour.color, expected.color)
@@ -292,9 +305,9 @@ def test_a_banded_interruptible_render_is_the_same_bytes_and_stops_at_a_checkpoi
     go; an interrupt raises RenderInterrupted at the next checkpoint, and leaves no state
     (scissor, depth mask) that changes the next render."""
     from glsynth.render.gl.renderer import RenderInterrupted
-    from glsynth.view.scene import SceneSettings, open_scene
+    from glsynth.view.scene import open_scene
 
-    scene = open_scene(SceneSettings("demo", 0, 0, quality="preview"), None, lambda *_: None)
+    scene = open_scene(PREVIEW, None, lambda *_: None)
     with scene.view.renderer as renderer:
         camera = scene.cameras[1].camera
         whole = renderer.render(camera)
@@ -321,10 +334,9 @@ def preview_worker(tmp_path):
     """A render worker with the demo's environment 0 open at preview quality, its jobs run by
     the test. The renderer it holds at the end is released however the test ends, so a
     failing test leaks no GL context."""
-    from glsynth.view.scene import SceneSettings
     from glsynth.view.worker import RenderWorker
 
-    worker = RenderWorker(SceneSettings("demo", 0, 0, quality="preview"), tmp_path)
+    worker = RenderWorker(PREVIEW, tmp_path)
     worker._pick_job()()  # opens the scene
     yield worker
     if worker.scene is not None:
@@ -420,9 +432,9 @@ def test_a_failed_opening_releases_its_context(monkeypatch):
     the next opening makes a context afresh and serves."""
     import glsynth.view.scene as scene_module
     from glsynth.render.gl.renderer import Renderer
-    from glsynth.view.scene import SceneSettings, open_scene
+    from glsynth.view.scene import open_scene
 
-    settings = SceneSettings("demo", 0, 0, quality="preview")
+    settings = PREVIEW
     scene = open_scene(settings, None, lambda *_: None)
     renderer, released = scene.view.renderer, []
     monkeypatch.setattr(renderer, "release", lambda: (released.append(True),

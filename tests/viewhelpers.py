@@ -66,14 +66,17 @@ def receive(ws, want: str, timeout: float = 120.0) -> dict | tuple[dict, bytes]:
             return json.loads(message)
 
 
-def render_camera_json(camera: dict, folder: Path, photo: bool = True) -> Path:
+def render_camera_json(camera: dict, folder: Path, photo: bool = True,
+                       *extra: str) -> Path:
     """`glsynth render --camera-json` of ``camera`` into ``folder``, with the viewer tests'
     scene; ``photo`` False: the render before the camera model ([sensor] off), which is what
-    the viewer's live frames show."""
+    the viewer's live frames show. ``extra``: more arguments (a server's own, such as
+    ``--quality preview``)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "camera_in.json").write_text(json.dumps(camera))
     args = scene_args(folder, "" if photo else "[sensor]\nenabled = false\n")
     subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *args,
-                    "--camera-json", str(folder / "camera_in.json"), "--out", str(folder)],
+                    "--camera-json", str(folder / "camera_in.json"), "--out", str(folder),
+                    *extra],
                    check=True, capture_output=True, timeout=300)
     return folder
