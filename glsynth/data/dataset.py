@@ -32,7 +32,12 @@ from glsynth.core.fileio import (
     png_bytes,
     write_files,
 )
-from glsynth.core.filters import mask_damage, removal_reason, view_rrdr
+from glsynth.core.filters import (
+    label_reason,
+    mask_damage,
+    removal_before_resolve,
+    view_rrdr,
+)
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.readers import is_marker, read_json
@@ -60,6 +65,7 @@ from glsynth.data.tokaido import (
 from glsynth.data.visible_cracks import visible_cracks
 
 if TYPE_CHECKING:  # the world layer is imported where a view is opened, not at import
+    from glsynth.render.gl.renderer import RenderOutput
     from glsynth.world.cameras import CameraPlacement
 
 RUN_FILE = "glsynth_run.json"
@@ -144,10 +150,9 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     with BackgroundWriter() as writer:
         for index in range(config.cameras.total):
             # The filters judge the render; only the views they keep are photographed.
-            placement, output = view.render(index, photo=False)
+            placement, output = view.render(index, photo=False, defer_colour=True)
             clock.lap("render and read back")
-            reason = removal_reason(output.color, output.component, output.depth,
-                                    config.filters)
+            reason, output = _filtered(view.renderer, output, config.filters)
             if reason is not None:
                 removed[placement.kind][reason] += 1
                 clock.lap("filters, RRDR and labels")
@@ -179,6 +184,21 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     clock.lap("encode and write files")
     return {"kind": "env", "env": env, "split": split, "rows": rows, "counts": counts,
             "removed": removed, "timings": clock.totals}
+
+
+def _filtered(renderer, output: "RenderOutput", filters) -> tuple[str | None, "RenderOutput"]:
+    """removal_reason of a view rendered with its colour deferred (Renderer.render), and the
+    output with its colour: the MSAA pass runs only where the single-sample colour leaves the
+    answer open (removal_before_resolve), so a view removed by its labels, or dark by a clear
+    margin, costs no MSAA pass; the answer is the same either way."""
+    by_labels = label_reason(output.component, output.depth, filters)
+    reason = removal_before_resolve(renderer.deferred_colour(resolved=False), by_labels,
+                                    filters)
+    if reason is not None:
+        return reason, output
+    colour = renderer.deferred_colour()
+    reason = "dark" if float(colour.mean()) < filters.min_intensity else by_labels
+    return reason, dataclasses.replace(output, color=colour)
 
 
 def _label_maps(output, camera, filters) -> tuple[dict[str, np.ndarray], bool, np.ndarray]:
