@@ -554,6 +554,8 @@ class Renderer:
         """Whether the last label pass drew cracks (read-back then reads their widths)."""
         self._deferred: tuple[Camera, list[_Placed]] | None = None
         """The camera and draws of a render(defer_colour=True) whose MSAA pass waits."""
+        self._single: np.ndarray | None = None
+        """Its single-sample colour, once read back."""
 
     def _make_ao_targets(self) -> None:
         self.ao_raw, self.ao = (self.ctx.texture(self.size, 1, dtype="f2") for _ in range(2))
@@ -757,7 +759,7 @@ class Renderer:
         self._scene_textures = []
         self._draws = []
         self._used = set()
-        self._deferred = None
+        self._deferred = self._single = None
 
     def release(self) -> None:
         """Free the scene, the cached textures and the context (``with`` does it on leaving)."""
@@ -847,7 +849,7 @@ class Renderer:
         self.make_current()
         draws = self._front_to_back(camera)
         placed = self._place(camera, draws)
-        self._deferred = None
+        self._deferred = self._single = None
         self.prepare_cracks([item.draw for item in placed])
         check = self._checkpoint(interrupt)
         color = "color" in passes
@@ -875,14 +877,18 @@ class Renderer:
         """(H, W, 3) uint8: the colour of the view the last render(defer_colour=True) drew.
         ``resolved``: as render gives it (the MSAA pass runs now, once); otherwise the
         single-sample colour pass's, from which msaa_resolve.frag takes each sample's colour
-        (a pixel's own or one of its four neighbours'). Without MSAA both are the same."""
+        (a pixel's own or one of its four neighbours'). Without MSAA both are the same
+        array, read back once."""
         if self._deferred is None:
             raise ValueError("no deferred colour: call render(camera, defer_colour=True) first")
         self.make_current()
         if not (resolved and self.config.msaa):
-            return self._read_colour(self.color_fbo)
+            if self._single is None:
+                self._single = self._read_colour(self.color_fbo)
+            return self._single
         self._msaa_pass(*self._deferred)
-        self._deferred = None  # the colour pass's targets now hold the resolve's inputs only
+        # The colour pass's targets now hold the resolve's inputs only.
+        self._deferred = self._single = None
         return self._read_colour(self.resolve_fbo)
 
     def _checkpoint(self, interrupt: Callable[[], bool] | None) -> Callable[[], None]:
