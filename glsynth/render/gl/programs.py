@@ -99,8 +99,8 @@ def _expand(name: str, within: tuple[str, ...]) -> str:
 def settings_constants(config: RenderConfig) -> dict[str, int]:
     """Constants that a renderer's settings fix for its programs' life: MSAA_SAMPLES, the
     samples per pixel ([render] msaa), which the resolve's loops then run a known number of
-    times (unrolled: 7 % less CPU in the MSAA pass on llvmpipe, the same bytes;
-    docs/results.md, "Dataset generation")."""
+    times: unrolled, with the same bytes and less work on llvmpipe (docs/results.md,
+    "Dataset generation")."""
     return {"MSAA_SAMPLES": config.msaa}
 
 
