@@ -15,7 +15,7 @@ void main() {
     vec3 normal = texelFetch(u_normals, px, 0).xyz;
     bool interior = labels.a > 0.5;
     float lo = 1e30, hi = 0.0;
-    for (int s = 0; s < u_samples; ++s) {
+    for (int s = 0; s < MSAA_SAMPLES; ++s) {
         vec4 surface = texelFetch(u_sample_surface, px, s);
         float depth = texelFetch(u_sample_depth, px, s).r;
         interior = interior && surface.a > 0.5 && dot(surface.xyz, normal) > 0.999;

@@ -23,7 +23,7 @@ void main() {
         shaded[i] = texelFetch(u_shaded, q, 0);
     }
     vec4 sum = vec4(0.0);
-    for (int s = 0; s < u_samples; ++s) {
+    for (int s = 0; s < MSAA_SAMPLES; ++s) {
         vec4 surface = texelFetch(u_sample_surface, px, s);
         float depth = max(texelFetch(u_sample_depth, px, s).r, 1e-30);
         vec4 best = shaded[0];
@@ -39,5 +39,5 @@ void main() {
         }
         sum += best;
     }
-    f_color = sum / float(u_samples);
+    f_color = sum / float(MSAA_SAMPLES);
 }

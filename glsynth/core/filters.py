@@ -2,6 +2,7 @@
 recognition (RRDR, Section 4.2, and the RRDR for cracks of docs/design.md), as pure functions of
 the maps. Their settings are [filters] (glsynth.core.config.FiltersConfig)."""
 
+import cv2
 import numpy as np
 
 from glsynth.core.config import FiltersConfig
@@ -19,10 +20,50 @@ def removal_reason(image: np.ndarray, component: np.ndarray, depth: np.ndarray,
     depth not larger than 0.5 m."""
     if float(image.mean()) < filters.min_intensity:
         return "dark"
-    if np.unique(component).size < filters.min_components:
+    return label_reason(component, depth, filters)
+
+
+def label_reason(component: np.ndarray, depth: np.ndarray,
+                 filters: FiltersConfig = PAPER_FILTERS) -> str | None:
+    """removal_reason's answer for a view that is not dark: the filters after the first."""
+    if _distinct(component) < filters.min_components:
         return "single_component"
     if float(depth.min()) <= filters.min_depth_m:
         return "too_close"
+    return None
+
+
+def _distinct(labels: np.ndarray) -> int:
+    """How many different values ``labels`` holds (np.unique's size; a uint8 map by its
+    histogram, cheaper than np.unique's sort or hash)."""
+    if labels.dtype == np.uint8:
+        return int(np.count_nonzero(np.bincount(labels.ravel(), minlength=256)))
+    return int(np.unique(labels).size)
+
+
+_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+"""A pixel and its four neighbours: where the MSAA resolve takes a pixel's colours from."""
+
+
+def removal_before_resolve(single_sample: np.ndarray, by_labels: str | None,
+                           filters: FiltersConfig = PAPER_FILTERS) -> str | None:
+    """removal_reason's answer for a view rendered with MSAA, where its single-sample colour
+    (H, W, 3) uint8 decides it, given ``by_labels`` (label_reason); None where only the
+    resolved colour can (the view is kept, or dark by a margin too small to call here).
+
+    The resolve (shaders/msaa_resolve.frag, msaa_interior.frag) gives every channel of a
+    pixel the mean of four values, each the single-sample colour of the pixel or of one of its
+    four neighbours: it lies between their minimum and maximum. So the resolved image's mean
+    lies between the means of the single-sample image eroded and dilated by that cross, and
+    where the bound falls wholly on one side of min_intensity, "dark" is decided exactly."""
+    threshold = filters.min_intensity
+    mean = float(single_sample.mean())
+    # The resolved mean lies between the eroded and the dilated one, around this one: only
+    # the side this one falls on can be proved.
+    if mean < threshold:
+        return "dark" if float(cv2.dilate(single_sample, _CROSS).mean()) < threshold else None
+    if by_labels is not None and float(cv2.erode(single_sample, _CROSS).mean()) >= threshold:
+        return by_labels
     return None
 
 

@@ -32,7 +32,12 @@ from glsynth.core.fileio import (
     png_bytes,
     write_files,
 )
-from glsynth.core.filters import mask_damage, removal_reason, view_rrdr
+from glsynth.core.filters import (
+    label_reason,
+    mask_damage,
+    removal_before_resolve,
+    view_rrdr,
+)
 from glsynth.core.labels import Damage
 from glsynth.core.runlock import DRIVER_LOCK, WORKERS_LOCK
 from glsynth.data.readers import is_marker, read_json
@@ -49,17 +54,18 @@ from glsynth.data.tokaido import (
     FrameRecord,
     PuretexRecord,
     downsample_crack_width,
-    downsample_damage,
     downsample_labels,
     encode_crack_width,
     encode_depth,
     frame_paths,
     manifest_text,
+    mark_cracked_blocks,
     puretex_paths,
 )
 from glsynth.data.visible_cracks import visible_cracks
 
 if TYPE_CHECKING:  # the world layer is imported where a view is opened, not at import
+    from glsynth.render.gl.renderer import RenderOutput
     from glsynth.world.cameras import CameraPlacement
 
 RUN_FILE = "glsynth_run.json"
@@ -144,10 +150,9 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
     with BackgroundWriter() as writer:
         for index in range(config.cameras.total):
             # The filters judge the render; only the views they keep are photographed.
-            placement, output = view.render(index, photo=False)
+            placement, output = view.render(index, photo=False, defer_colour=True)
             clock.lap("render and read back")
-            reason = removal_reason(output.color, output.component, output.depth,
-                                    config.filters)
+            reason, output = _filtered(view.renderer, output, config.filters)
             if reason is not None:
                 removed[placement.kind][reason] += 1
                 clock.lap("filters, RRDR and labels")
@@ -181,21 +186,40 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
             "removed": removed, "timings": clock.totals}
 
 
+def _filtered(renderer, output: "RenderOutput", filters) -> tuple[str | None, "RenderOutput"]:
+    """removal_reason of a view rendered with its colour deferred (Renderer.render), and the
+    output with its colour: the MSAA pass runs only where the single-sample colour leaves the
+    answer open (removal_before_resolve), so a view removed by its labels, or dark by a clear
+    margin, costs no MSAA pass; the answer is the same either way."""
+    by_labels = label_reason(output.component, output.depth, filters)
+    reason = removal_before_resolve(renderer.deferred_colour(resolved=False), by_labels,
+                                    filters)
+    if reason is not None:
+        return reason, output
+    colour = renderer.deferred_colour()
+    reason = "dark" if float(colour.mean()) < filters.min_intensity else by_labels
+    return reason, dataclasses.replace(output, color=colour)
+
+
 def _label_maps(output, camera, filters) -> tuple[dict[str, np.ndarray], bool, np.ndarray]:
     """The maps a kept view writes, at a LABEL_STRIDE-th of its size: component ids, damage
     ids inside the RRDR, encoded depth, encoded crack widths inside the RRDR; whether the
     damage map shows damage; and the render's crack widths inside the RRDR (full size, mm).
     Crack pixels of the render keep their block (docs/design.md)."""
-    reliable = view_rrdr(filters, output.depth, camera.fx)
-    masked = mask_damage(output.damage, reliable)
     widths = output.crack_width
     if widths.any():  # a view without cracks (all of the paper model's) skips the copy
         # Outside the RRDR a crack's pixels are unlabelled, so the map holds no width there.
-        widths = np.where(reliable, widths, np.float32(0))
+        widths = np.where(view_rrdr(filters, output.depth, camera.fx), widths, np.float32(0))
     blocks = downsample_crack_width(widths)
+    # The maps sample each block's centre pixel, and the RRDR's mask and the depth's code are
+    # pixel by pixel: taken at the sampled pixels alone, they give the same maps for a ninth
+    # of the work.
+    depth = downsample_labels(output.depth)
+    reliable = view_rrdr(filters, depth, camera.fx)
     maps = {"component": downsample_labels(output.component),
-            "damage": downsample_damage(masked, blocks),
-            "depth": downsample_labels(encode_depth(output.depth)),
+            "damage": mark_cracked_blocks(mask_damage(downsample_labels(output.damage),
+                                                      reliable), blocks),
+            "depth": encode_depth(depth),
             "crackwidth": encode_crack_width(blocks)}
     # The flag describes the map that is written: damage inside the RRDR at full size
     # can vanish in the 3x downsampling.

@@ -130,13 +130,18 @@ def downsample_damage(damage: np.ndarray, block_width_mm: np.ndarray,
     (exposed rebar stays), as the crack-width map marks it: a crack thinner than a block is
     kept. ``block_width_mm`` is downsample_crack_width of the render's crack widths. Without
     cracks (the paper model) this is downsample_labels exactly."""
-    small = downsample_labels(damage, stride)
-    if block_width_mm.shape != small.shape:
+    return mark_cracked_blocks(downsample_labels(damage, stride), block_width_mm)
+
+
+def mark_cracked_blocks(blocks: np.ndarray, block_width_mm: np.ndarray) -> np.ndarray:
+    """downsample_damage's crack rule on damage ids already downsampled (``blocks``): concrete
+    damage wherever the block holds a crack pixel, exposed rebar kept."""
+    if block_width_mm.shape != blocks.shape:
         raise ValueError(f"block crack widths {block_width_mm.shape} and damage blocks "
-                         f"{small.shape} differ in size")
+                         f"{blocks.shape} differ in size")
     cracked = block_width_mm > 0
-    return np.where(cracked & (small < Damage.CONCRETE), Damage.CONCRETE, small
-                    ).astype(damage.dtype)
+    return np.where(cracked & (blocks < Damage.CONCRETE), Damage.CONCRETE, blocks
+                    ).astype(blocks.dtype)
 
 
 @dataclass(frozen=True)

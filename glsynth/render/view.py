@@ -104,18 +104,19 @@ class EnvironmentView:
                              f"[0, {len(self.placements) - 1}]")
         return self.placements[index]
 
-    def render(self, index: int, passes: frozenset[str] = PASSES, photo: bool = True
-               ) -> tuple[CameraPlacement, RenderOutput]:
+    def render(self, index: int, passes: frozenset[str] = PASSES, photo: bool = True,
+               defer_colour: bool = False) -> tuple[CameraPlacement, RenderOutput]:
         """Sampled camera ``index``'s ``passes``, exposed as [lighting] metering says; its
         colour as [sensor]'s camera photographs it (``photo``; glsynth.render.camera_model),
-        or the render's own."""
+        or the render's own. ``defer_colour`` (with ``photo`` False): no colour yet, the
+        renderer's deferred_colour() reads it (Renderer.render)."""
         placement = self.camera(index)
         lighting = self.exposure(placement)
         if lighting is not self.renderer.lighting:
             self.renderer.relight(lighting)
         if photo and self.config.sensor.enabled and "color" in passes:
             passes = passes | {"depth"}  # defocus reads the depth
-        output = self.renderer.render(placement.camera, passes)
+        output = self.renderer.render(placement.camera, passes, defer_colour=defer_colour)
         return placement, self.photograph(output, placement.camera, index) if photo else output
 
     def photograph(self, output: RenderOutput, camera: Camera, item: int,

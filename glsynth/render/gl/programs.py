@@ -96,16 +96,28 @@ def _expand(name: str, within: tuple[str, ...]) -> str:
     return _INCLUDE.sub(include, path.read_text(encoding="utf-8"))
 
 
-def defines(variant: Variant = Variant.NONE) -> str:
-    """The ``#define`` lines of the shared constants and of ``variant``'s flags."""
-    lines = [f"#define {name} {value}\n" for name, value in GLSL_CONSTANTS.items()]
+def settings_constants(config: RenderConfig) -> dict[str, int]:
+    """Constants that a renderer's settings fix for its programs' life: MSAA_SAMPLES, the
+    samples per pixel ([render] msaa), which the resolve's loops then run a known number of
+    times: unrolled, with the same bytes and less work on llvmpipe (docs/results.md,
+    "Dataset generation")."""
+    return {"MSAA_SAMPLES": config.msaa}
+
+
+def defines(variant: Variant = Variant.NONE, settings: dict[str, int] | None = None) -> str:
+    """The ``#define`` lines of the shared constants, of ``settings`` (settings_constants) and
+    of ``variant``'s flags."""
+    lines = [f"#define {name} {value}\n"
+             for name, value in (GLSL_CONSTANTS | (settings or {})).items()]
     return "".join(lines + [f"#define {flag.name}\n" for flag in variant])
 
 
-def with_defines(source: str, variant: Variant = Variant.NONE) -> str:
-    """``source`` with defines(variant) after its #version line (which must come first)."""
+def with_defines(source: str, variant: Variant = Variant.NONE,
+                 settings: dict[str, int] | None = None) -> str:
+    """``source`` with defines(variant, settings) after its #version line (which must come
+    first)."""
     version, rest = source.split("\n", 1)
-    return f"{version}\n{defines(variant)}{rest}"
+    return f"{version}\n{defines(variant, settings)}{rest}"
 
 
 class TextureUnits:
@@ -144,9 +156,12 @@ class TextureUnits:
 class Programs:
     """A context's programs, each compiled once per set of defines (program_keys)."""
 
-    def __init__(self, ctx: moderngl.Context, units: TextureUnits) -> None:
-        """Compile every program and variant (a GLSL error names the files that failed)."""
-        self._programs = {key: _compile(ctx, units, *key) for key in program_keys()}
+    def __init__(self, ctx: moderngl.Context, units: TextureUnits,
+                 settings: dict[str, int] | None = None) -> None:
+        """Compile every program and variant with ``settings`` (settings_constants; a GLSL
+        error names the files that failed)."""
+        self._programs = {key: _compile(ctx, units, *key, settings or {})
+                          for key in program_keys()}
 
     def get(self, name: str, variant: Variant = Variant.NONE) -> moderngl.Program:
         return self._programs[name, variant]
@@ -159,10 +174,10 @@ class Programs:
         return [(v, prog) for (n, v), prog in self._programs.items() if n == name]
 
 
-def _compile(ctx: moderngl.Context, units: TextureUnits, name: str,
-             variant: Variant) -> moderngl.Program:
+def _compile(ctx: moderngl.Context, units: TextureUnits, name: str, variant: Variant,
+             settings: dict[str, int]) -> moderngl.Program:
     vert, frag, _ = PROGRAMS[name]
-    sources = [with_defines(shader_source(file), variant) for file in (vert, frag)]
+    sources = [with_defines(shader_source(file), variant, settings) for file in (vert, frag)]
     try:
         prog = ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
     except moderngl.Error as err:

@@ -59,7 +59,14 @@ from glsynth.core.labels import Component, Damage
 from glsynth.core.memory import available_bytes
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
 from glsynth.render.gl.context import check_render_size, create_context
-from glsynth.render.gl.programs import MAX_VIS, ProgramKey, Programs, TextureUnits, Variant
+from glsynth.render.gl.programs import (
+    MAX_VIS,
+    ProgramKey,
+    Programs,
+    TextureUnits,
+    Variant,
+    settings_constants,
+)
 from glsynth.render.leachate_index import LeachateIndex, pack_leachate
 from glsynth.render.passes import DRAWN, LABEL_PASSES
 from glsynth.render.scene import PartInfo, RenderScene
@@ -381,7 +388,7 @@ class Renderer:
             self.ctx.release()
             raise
         self.units = TextureUnits(self.ctx.default_texture_unit)
-        self.programs = Programs(self.ctx, self.units)
+        self.programs = Programs(self.ctx, self.units, settings_constants(config))
         # The image-sized targets are made small first: what they take a pixel is then
         # measured, and the full size checked against the free memory before it is allocated.
         self.size = PROBE_SIZE
@@ -545,6 +552,10 @@ class Renderer:
                                                     label_depth)
         self._view_has_cracks = False
         """Whether the last label pass drew cracks (read-back then reads their widths)."""
+        self._deferred: tuple[Camera, list[_Placed]] | None = None
+        """The camera and draws of a render(defer_colour=True) whose MSAA pass waits."""
+        self._single: np.ndarray | None = None
+        """Its single-sample colour, once read back."""
 
     def _make_ao_targets(self) -> None:
         self.ao_raw, self.ao = (self.ctx.texture(self.size, 1, dtype="f2") for _ in range(2))
@@ -748,6 +759,7 @@ class Renderer:
         self._scene_textures = []
         self._draws = []
         self._used = set()
+        self._deferred = self._single = None
 
     def release(self) -> None:
         """Free the scene, the cached textures and the context (``with`` does it on leaving)."""
@@ -819,7 +831,8 @@ class Renderer:
 
     # --- one view ---------------------------------------------------------------------------
     def render(self, camera: Camera, passes: frozenset[str] | set[str] = PASSES,
-               interrupt: Callable[[], bool] | None = None, bands: int = 1) -> RenderOutput:
+               interrupt: Callable[[], bool] | None = None, bands: int = 1,
+               defer_colour: bool = False) -> RenderOutput:
         """``passes`` of ``camera``. The passes run in this order, each into its own targets:
         sky visibility, shadow, labels, ambient occlusion, colour, MSAA, read-back (the module
         docstring says what each draws, and when it is skipped).
@@ -827,11 +840,16 @@ class Renderer:
         With ``interrupt``, the GL work is finished after each pass and after each of the
         colour pass's ``bands`` bands of rows, and RenderInterrupted is raised as soon as
         ``interrupt()`` is true there (the work already queued cannot be stopped, so a band is
-        the longest wait); the image is the same bytes however it is cut."""
+        the longest wait); the image is the same bytes however it is cut.
+
+        ``defer_colour``: stop after the colour pass, before MSAA, and read back no colour;
+        deferred_colour() then reads it, resolved or not (a caller that may drop the view on
+        the single-sample colour spares the MSAA pass)."""
         self._check_request(camera, passes)
         self.make_current()
         draws = self._front_to_back(camera)
         placed = self._place(camera, draws)
+        self._deferred = self._single = None
         self.prepare_cracks([item.draw for item in placed])
         check = self._checkpoint(interrupt)
         color = "color" in passes
@@ -847,10 +865,31 @@ class Renderer:
             self._ao_pass(camera)
         if color:
             self._color_pass(camera, placed, shadow, ao, bands, check)
+            if defer_colour:
+                self._deferred = (camera, placed)
+                return self._read_back(passes - {"color"})
             if self.config.msaa:
                 self._msaa_pass(camera, placed)
                 check()
         return self._read_back(passes)
+
+    def deferred_colour(self, resolved: bool = True) -> np.ndarray:
+        """(H, W, 3) uint8: the colour of the view the last render(defer_colour=True) drew.
+        ``resolved``: as render gives it (the MSAA pass runs now, once); otherwise the
+        single-sample colour pass's, from which msaa_resolve.frag takes each sample's colour
+        (a pixel's own or one of its four neighbours'). Without MSAA both are the same
+        array, read back once."""
+        if self._deferred is None:
+            raise ValueError("no deferred colour: call render(camera, defer_colour=True) first")
+        self.make_current()
+        if not (resolved and self.config.msaa):
+            if self._single is None:
+                self._single = self._read_colour(self.color_fbo)
+            return self._single
+        self._msaa_pass(*self._deferred)
+        # The colour pass's targets now hold the resolve's inputs only.
+        self._deferred = self._single = None
+        return self._read_colour(self.resolve_fbo)
 
     def _checkpoint(self, interrupt: Callable[[], bool] | None) -> Callable[[], None]:
         """What render calls between pieces of work: nothing without ``interrupt``; with it,
@@ -1156,7 +1195,6 @@ class Renderer:
             self.units.bind(name, texture)
         with _depth_state(self.ctx, depth_func="1"):  # every pixel writes its mark
             for step in ("msaa_interior", "msaa_resolve"):
-                self.programs.get(step)["u_samples"].value = self.config.msaa
                 self._fullscreen(step)
                 self.ctx.depth_func = "<="  # the full resolve where the mark is 1
 
@@ -1176,11 +1214,15 @@ class Renderer:
         if "damage" in passes:
             out["crack_width"] = self._read_crack_width()
         if "color" in passes:
-            fbo = self.resolve_fbo if self.config.msaa else self.color_fbo
-            raw = fbo.read(components=3, alignment=1)
-            out["color"] = np.ascontiguousarray(
-                np.frombuffer(raw, np.uint8).reshape(height, width, 3)[::-1])
+            out["color"] = self._read_colour(self.resolve_fbo if self.config.msaa
+                                             else self.color_fbo)
         return RenderOutput(**out)
+
+    def _read_colour(self, fbo: moderngl.Framebuffer) -> np.ndarray:
+        """(H, W, 3) uint8 of ``fbo``'s first attachment, rows top to bottom."""
+        width, height = self.size
+        raw = fbo.read(components=3, alignment=1)
+        return np.ascontiguousarray(np.frombuffer(raw, np.uint8).reshape(height, width, 3)[::-1])
 
     def _read_crack_width(self) -> np.ndarray:
         """(H, W) float32 mm, rows top to bottom: the label pass's crack widths, or zeros in a
