@@ -674,11 +674,10 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
              "materials": _WEATHERED, "sensor": {"enabled": True}},
     # Close-range inspection (issue 29, the paper's future work iv; docs/design.md,
     # "Inspection preset"): 4 environments (1 test) x 24 cameras at member faces = 96 views,
-    # three in four aimed at a crack from where its width spans 9 pixels (3 in the 640x360
-    # labels) or more; slight
-    # cracks of 0.05-1 mm by mechanics with early spalling in the hinge zones, the RRDR for
-    # cracks of 0.2 mm and more. No plates: they show Section 3.3's noise damage of every
-    # severity, not cracks.
+    # three in four aimed at a crack from where its width spans 18 pixels (6 in the 640x360
+    # labels) or more; slight and medium cracks of 0.05-3 mm by mechanics with early spalling
+    # in the hinge zones, the RRDR for cracks of 0.2 mm and more. No plates: they show
+    # Section 3.3's noise damage of every severity, not cracks.
     "inspection": {
         "environment": _SURROUNDINGS,
         "dataset": {"n_environments": 4, "n_test_environments": 1, "n_plates": 0,
@@ -686,10 +685,10 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
         "cameras": {"placement": "faces", "n_regular": 0, "n_closeup": 24,
                     "focal_mm": (24.0, 105.0), "face_distance_m": (0.3, 3.0),
                     "face_angle_deg": 30.0, "face_roll_deg": 5.0, "face_crack_share": 0.75,
-                    "face_crack_px": 9.0},
-        "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight",),
+                    "face_crack_px": 18.0},
+        "damage": {"resolution": 512, "model": "mechanics", "severities": ("slight", "medium"),
                    "spalling_severities": ("slight",), "undamaged_probability": 0.2,
-                   "crack_width_mm": (0.05, 1.0), "geometry": True, "leachate_share": 0.3},
+                   "crack_width_mm": (0.05, 3.0), "geometry": True, "leachate_share": 0.3},
         "filters": {"min_components": 1, "min_depth_m": 0.1, "rrdr_crack_mm": 0.2,
                     "rrdr_footprint_factor": 2.0},
         "materials": _WEATHERED, "lighting": {"metering": "face"},
