@@ -243,9 +243,9 @@ def run_sim2real(synthetic: list[str | Path], real: str | Path, out: str | Path,
                  settings: Sim2RealSettings, other_real: list[str | Path] = ()) -> dict:
     """Train one network on each dataset of ``synthetic``, one on each whole folder of
     ``other_real`` and one on the training share of ``real`` (none with test_share 1), the
-    same way; score them all on the rest of ``real``. Writes sim2real.json and
-    predictions.png into ``out`` and returns the result (networks by name: each dataset's
-    and other folder's name, then "real")."""
+    same way; score them all on the rest of ``real``. Writes sim2real.json (again after each
+    network; "complete" once all are in) and predictions.png into ``out`` and returns the
+    result (networks by name: each dataset's and other folder's name, then "real")."""
     out, other_real = Path(out), list(other_real)
     names = network_names(synthetic, other_real, real)
     real_train, test = split_real(read_real_folder(real), settings)
@@ -257,7 +257,7 @@ def run_sim2real(synthetic: list[str | Path], real: str | Path, out: str | Path,
                     "other_real": [str(o) for o in other_real],
                     "tolerance_px": TOLERANCE_PX, "test_images": len(test),
                     "real_train_images": len(real_train), "real_trained": bool(real_train),
-                    "networks": {}}
+                    "networks": {}, "complete": False}
     predictions, thresholds = {}, {}
     for name, (kind, images) in zip(names, sets):
         # Every network draws the same crops' randomness and initial weights: item 0.
@@ -266,7 +266,9 @@ def run_sim2real(synthetic: list[str | Path], real: str | Path, out: str | Path,
         score = best_threshold(predictions[name], [image.crack for image in test])
         thresholds[name] = score["threshold"]
         result["networks"][name] = {"trained_on": kind, **score, **training}
-    atomic_write_json(out / "sim2real.json", result)
+        # Each network takes minutes on a CPU: a run stopped early keeps those finished.
+        result["complete"] = len(result["networks"]) == len(sets)
+        atomic_write_json(out / "sim2real.json", result)
     atomic_write_bytes(out / "predictions.png", png_bytes(_picture(test, predictions,
                                                                    thresholds)))
     return result

@@ -9,7 +9,7 @@ import pytest
 
 from glsynth.cli import main
 from glsynth.core.errors import UserError
-from glsynth.data.crack_folders import read_real_folder, read_synthetic
+from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
 from glsynth.measure.crack_scores import best_threshold, count, scores
 
 
@@ -255,3 +255,35 @@ def test_a_real_folder_of_one_image_is_tested_whole_or_refused(tmp_path):
     assert split_real(images, Sim2RealSettings(test_share=1.0)) == ([], images)
     with pytest.raises(UserError, match="or test on all of it with --test-share 1"):
         split_real(images, Sim2RealSettings())
+
+
+def test_a_stopped_run_keeps_the_networks_it_finished(tmp_path, monkeypatch):
+    """sim2real.json is written after each network: stopped during the second, it holds the
+    first ("complete" false); run through, all of them ("complete" true)."""
+    from glsynth.model import sim2real
+
+    crack = np.zeros((32, 40), bool)
+    crack[5:9, 3:30] = True
+    rendered = [CrackImage(f"v{i}", np.full((32, 40, 3), 90 + i, np.uint8), crack)
+                for i in range(2)]
+    monkeypatch.setattr(sim2real, "read_synthetic", lambda path: rendered)
+    real, other = write_real(tmp_path / "photos"), write_real(tmp_path / "pavement")
+    settings = sim2real.Sim2RealSettings(steps=2, crop=16, batch=2, width=4, test_share=1.0)
+    trained = sim2real.train_network
+
+    def stop_at_second(images, settings, item):
+        if stop_at_second.calls:
+            raise KeyboardInterrupt
+        stop_at_second.calls += 1
+        return trained(images, settings, item)
+
+    stop_at_second.calls = 0
+    monkeypatch.setattr(sim2real, "train_network", stop_at_second)
+    with pytest.raises(KeyboardInterrupt):
+        sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "o", settings, [other])
+    partial = json.loads((tmp_path / "o" / "sim2real.json").read_text())
+    assert list(partial["networks"]) == ["ds"] and partial["complete"] is False
+    monkeypatch.setattr(sim2real, "train_network", trained)
+    whole = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "o", settings, [other])
+    assert list(whole["networks"]) == ["ds", "pavement"] and whole["complete"] is True
+    assert json.loads((tmp_path / "o" / "sim2real.json").read_text()) == whole
