@@ -13,6 +13,7 @@ Stream.TRAINING generators, so a run is repeated exactly on the same machine."""
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -214,8 +215,8 @@ KINDS = {"synthetic": "glsynth dataset", "other_real": "other real folder, whole
 """What each kind of network is trained on, as the summary says it."""
 
 
-def network_names(synthetic: list[str | Path], other_real: list[str | Path], real: str | Path
-                  ) -> list[str]:
+def network_names(synthetic: Sequence[str | Path], other_real: Sequence[str | Path],
+                  real: str | Path) -> list[str]:
     """The networks' names, each dataset's and other real folder's folder name, refused
     where two are alike, one is 'real' or an other real folder is the real folder itself."""
     for path in other_real:
@@ -230,7 +231,7 @@ def network_names(synthetic: list[str | Path], other_real: list[str | Path], rea
     return names
 
 
-def _training_sets(synthetic: list[str | Path], other_real: list[str | Path],
+def _training_sets(synthetic: Sequence[str | Path], other_real: Sequence[str | Path],
                    real_train: list[CrackImage]) -> list[tuple[str, list[CrackImage]]]:
     """(kind, images) of every network, in the order of the names: each real folder is
     read before any synthetic dataset, so a bad folder is refused before the slow reads."""
@@ -239,14 +240,14 @@ def _training_sets(synthetic: list[str | Path], other_real: list[str | Path],
     return [*sets, *others, *([(REAL, real_train)] if real_train else [])]
 
 
-def run_sim2real(synthetic: list[str | Path], real: str | Path, out: str | Path,
-                 settings: Sim2RealSettings, other_real: list[str | Path] = ()) -> dict:
+def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | Path,
+                 settings: Sim2RealSettings, other_real: Sequence[str | Path] = ()) -> dict:
     """Train one network on each dataset of ``synthetic``, one on each whole folder of
     ``other_real`` and one on the training share of ``real`` (none with test_share 1), the
     same way; score them all on the rest of ``real``. Writes sim2real.json (again after each
     network; "complete" once all are in) and predictions.png into ``out`` and returns the
     result (networks by name: each dataset's and other folder's name, then "real")."""
-    out, other_real = Path(out), list(other_real)
+    out = Path(out)
     names = network_names(synthetic, other_real, real)
     real_train, test = split_real(read_real_folder(real), settings)
     sets = _training_sets(synthetic, other_real, real_train)
