@@ -773,7 +773,7 @@ def cmd_bench_blender(args: argparse.Namespace) -> int:
 
 def add_bench_sim2real_parser(sub: Commands) -> None:
     p = sub.add_parser("sim2real", help="train a small crack segmenter on glsynth renders and "
-                                        "on real photographs; score both on real ones (needs "
+                                        "on real photographs; score all on real ones (needs "
                                         "torch)")
     p.add_argument("--synthetic", required=True, nargs="+",
                    help="glsynth datasets (Tokaido layout, with crack-width maps: --preset "
@@ -781,6 +781,9 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
     p.add_argument("--real", required=True,
                    help="folder of real photographs: images/ and masks/ (same file names; "
                         "crack pixels > 0 in a 0/1 mask, > 127 in a 0/255 one)")
+    p.add_argument("--other-real", nargs="+", default=[], metavar="FOLDER",
+                   help="folders of real photographs of another kind (images/ and masks/), "
+                        "one network each trained on the whole folder, tested like the rest")
     p.add_argument("--steps", type=positive_int, default=300, help="optimiser steps a network")
     p.add_argument("--crop", type=positive_int, default=128,
                    help="training crop side, pixels (multiple of 8)")
@@ -789,7 +792,8 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
                    help="U-Net channels at the first level")
     p.add_argument("--learning-rate", type=float, default=2e-3)
     p.add_argument("--test-share", type=float, default=0.3,
-                   help="share of the real folder held out for testing")
+                   help="share of the real folder held out for testing; 1 tests on all of "
+                        "it and trains no network on it (a folder too small to split)")
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--out", required=True, help="folder for sim2real.json and predictions.png")
     p.set_defaults(func=cmd_bench_sim2real)
@@ -800,7 +804,7 @@ def cmd_bench_sim2real(args: argparse.Namespace) -> None:
 
     settings = Sim2RealSettings(args.steps, args.crop, args.batch, args.width,
                                 args.learning_rate, args.test_share, args.seed)
-    result = run_sim2real(args.synthetic, args.real, args.out, settings)
+    result = run_sim2real(args.synthetic, args.real, args.out, settings, args.other_real)
     print(summary(result))
     print(f"-> {args.out}/sim2real.json, predictions.png")
 

@@ -3,14 +3,17 @@ on glsynth renders find cracks in real photographs, beside the same network trai
 photographs?
 
 A small U-Net (CrackUNet) is trained the same way on each glsynth dataset given (crack pixels
-of the crack-width maps) and on the training share of a real folder; all are scored on the
-rest of that folder (glsynth.measure.crack_scores: F1 with a 2 px tolerance at the best
-single threshold, IoU). Training samples square crops, half of them centred on a crack
-pixel, flipped at random; everything draws from Stream.TRAINING generators, so a run is
-repeated exactly on the same machine."""
+of the crack-width maps), on the whole of each other real folder given (photographs of
+another kind: pavement beside concrete) and on the training share of the real folder; all
+are scored on the rest of that folder (glsynth.measure.crack_scores: F1 with a 2 px
+tolerance at the best single threshold, IoU). A real folder too small to split is tested
+whole (test_share 1), and then no network is trained on it. Training samples square crops,
+half of them centred on a crack pixel, flipped at random; everything draws from
+Stream.TRAINING generators, so a run is repeated exactly on the same machine."""
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,7 +46,8 @@ class Sim2RealSettings:
     """Channels of the U-Net's first level (doubled at each of its three levels down)."""
     learning_rate: float = 2e-3
     test_share: float = 0.3
-    """Share of the real folder held out for testing (the rest trains the real network)."""
+    """Share of the real folder held out for testing (the rest trains the real network); 1
+    tests on all of it and trains no network on it."""
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -53,7 +57,8 @@ class Sim2RealSettings:
                   ("batch", 1 <= self.batch <= 256, "an integer in [1, 256]"),
                   ("width", 4 <= self.width <= 128, "an integer in [4, 128]"),
                   ("learning_rate", 0 < self.learning_rate <= 1, "in (0, 1]"),
-                  ("test_share", 0 < self.test_share < 1, "in (0, 1)"),
+                  ("test_share", 0 < self.test_share <= 1,
+                   "in (0, 1]; 1 tests on the whole real folder"),
                   ("seed", self.seed >= 0, "an integer >= 0"))
         for name, ok, expected in checks:
             if not ok:
@@ -170,10 +175,13 @@ def predict(net: CrackUNet, rgb: np.ndarray) -> np.ndarray:
 def split_real(images: list[CrackImage], settings: Sim2RealSettings
                ) -> tuple[list[CrackImage], list[CrackImage]]:
     """(train, test) of a real folder: a seeded shuffle, ``test_share`` of it (at least one
-    image each) for testing."""
+    image each) for testing; with ``test_share`` 1, no training share and all of it to
+    test."""
+    if settings.test_share == 1:
+        return [], list(images)
     if len(images) < 2:
         raise UserError(f"the real folder holds {len(images)} image; give at least 2, one to "
-                        "train on and one to test on")
+                        "train on and one to test on, or test on all of it with --test-share 1")
     order = make_rng(settings.seed, 0, Stream.TRAINING, 2).permutation(len(images))
     n_test = min(len(images) - 1, max(1, round(settings.test_share * len(images))))
     test = {int(i) for i in order[:n_test]}
@@ -200,33 +208,68 @@ def _picture(test: list[CrackImage], predictions: dict[str, list[np.ndarray]],
                            for r in rows], axis=0)
 
 
-def run_sim2real(synthetic: list[str | Path], real: str | Path, out: str | Path,
-                 settings: Sim2RealSettings) -> dict:
-    """Train one network on each dataset of ``synthetic`` and one on the training share of
-    ``real``, the same way; score them all on the rest of ``real``. Writes sim2real.json and
-    predictions.png into ``out`` and returns the result (networks by name: each synthetic
-    dataset's folder name, then "real")."""
+REAL = "real"
+"""The name of the network trained on the training share of the real folder."""
+KINDS = {"synthetic": "glsynth dataset", "other_real": "other real folder, whole",
+         "real": "training share of the real folder"}
+"""What each kind of network is trained on, as the summary says it."""
+
+
+def network_names(synthetic: Sequence[str | Path], other_real: Sequence[str | Path],
+                  real: str | Path) -> list[str]:
+    """The networks' names, each dataset's and other real folder's folder name, refused
+    where two are alike, one is 'real' or an other real folder is the real folder itself."""
+    for path in other_real:
+        if Path(path).resolve() == Path(real).resolve():
+            raise UserError(f"--other-real {path}: is the --real folder itself, whose images "
+                            "test every network; give a folder of other photographs")
+    names = [Path(s).resolve().name for s in [*synthetic, *other_real]]
+    if len(set(names)) != len(names) or REAL in names:
+        given = " ".join(map(str, [*synthetic, *other_real]))
+        raise UserError(f"--synthetic/--other-real {given}: give folders of different folder "
+                        f"names, none named '{REAL}' (they name the networks)")
+    return names
+
+
+def _training_sets(synthetic: Sequence[str | Path], other_real: Sequence[str | Path],
+                   real_train: list[CrackImage]) -> list[tuple[str, list[CrackImage]]]:
+    """(kind, images) of every network, in the order of the names: each real folder is
+    read before any synthetic dataset, so a bad folder is refused before the slow reads."""
+    others = [("other_real", read_real_folder(path)) for path in other_real]
+    sets = [("synthetic", read_synthetic(path)) for path in synthetic]
+    return [*sets, *others, *([(REAL, real_train)] if real_train else [])]
+
+
+def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | Path,
+                 settings: Sim2RealSettings, other_real: Sequence[str | Path] = ()) -> dict:
+    """Train one network on each dataset of ``synthetic``, one on each whole folder of
+    ``other_real`` and one on the training share of ``real`` (none with test_share 1), the
+    same way; score them all on the rest of ``real``. Writes sim2real.json (again after each
+    network; "complete" once all are in) and predictions.png into ``out`` and returns the
+    result (networks by name: each dataset's and other folder's name, then "real")."""
     out = Path(out)
-    names = [Path(s).name or str(s) for s in synthetic]
-    if len(set(names)) != len(names) or "real" in names:
-        raise UserError(f"--synthetic {' '.join(map(str, synthetic))}: give datasets of "
-                        "different folder names, none named 'real' (they name the networks)")
+    names = network_names(synthetic, other_real, real)
     real_train, test = split_real(read_real_folder(real), settings)
-    sets = [(name, read_synthetic(path)) for name, path in zip(names, synthetic)]
+    sets = _training_sets(synthetic, other_real, real_train)
+    names = [*names, REAL][:len(sets)]
     out.mkdir(parents=True, exist_ok=True)
     result: dict = {"settings": dataclasses.asdict(settings),
                     "synthetic": [str(s) for s in synthetic], "real": str(real),
+                    "other_real": [str(o) for o in other_real],
                     "tolerance_px": TOLERANCE_PX, "test_images": len(test),
-                    "real_train_images": len(real_train), "networks": {}}
+                    "real_train_images": len(real_train), "real_trained": bool(real_train),
+                    "networks": {}, "complete": False}
     predictions, thresholds = {}, {}
-    for name, images in [*sets, ("real", real_train)]:
+    for name, (kind, images) in zip(names, sets):
         # Every network draws the same crops' randomness and initial weights: item 0.
         net, training = train_network(images, settings, 0)
         predictions[name] = [predict(net, image.rgb) for image in test]
         score = best_threshold(predictions[name], [image.crack for image in test])
         thresholds[name] = score["threshold"]
-        result["networks"][name] = {**score, **training}
-    atomic_write_json(out / "sim2real.json", result)
+        result["networks"][name] = {"trained_on": kind, **score, **training}
+        # Each network takes minutes on a CPU: a run stopped early keeps those finished.
+        result["complete"] = len(result["networks"]) == len(sets)
+        atomic_write_json(out / "sim2real.json", result)
     atomic_write_bytes(out / "predictions.png", png_bytes(_picture(test, predictions,
                                                                    thresholds)))
     return result
@@ -236,7 +279,11 @@ def summary(result: dict) -> str:
     lines = [f"{len(result['networks'])} networks, scored on {result['test_images']} held-out "
              f"real images (F1 with a {result['tolerance_px']:g} px tolerance):"]
     for name, s in result["networks"].items():
-        lines.append(f"  trained on {name:12s} ({s['images']} images, {s['train_s']:.0f} s): "
-                     f"F1 {s['f1']:.3f} (P {s['precision']:.3f}, R {s['recall']:.3f}) IoU "
-                     f"{s['iou']:.3f} at threshold {s['threshold']:.2f}")
+        lines.append(f"  trained on {name:12s} ({KINDS[s['trained_on']]}, {s['images']} "
+                     f"images, {s['train_s']:.0f} s): F1 {s['f1']:.3f} (P {s['precision']:.3f},"
+                     f" R {s['recall']:.3f}) IoU {s['iou']:.3f} at threshold "
+                     f"{s['threshold']:.2f}")
+    if not result["real_trained"]:
+        lines.append(f"  no network trained on the real folder: --test-share 1 tests on all "
+                     f"{result['test_images']} of its images")
     return "\n".join(lines)

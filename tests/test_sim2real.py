@@ -9,7 +9,7 @@ import pytest
 
 from glsynth.cli import main
 from glsynth.core.errors import UserError
-from glsynth.data.crack_folders import read_real_folder, read_synthetic
+from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
 from glsynth.measure.crack_scores import best_threshold, count, scores
 
 
@@ -185,3 +185,105 @@ def test_sim2real_bad_options_are_one_line(tmp_path, capsys):
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert "different folder names" in err and "\n" not in err
+
+
+def crops_folder(root, frames, lefts):
+    """A stand-in real folder: 320 px wide crops of the renders at ``lefts``, their cracks as
+    masks."""
+    (root / "images").mkdir(parents=True)
+    (root / "masks").mkdir()
+    for k, frame in enumerate(frames):
+        for left in lefts:
+            name = f"{k}_{left}"
+            cv2.imwrite(str(root / "images" / f"{name}.png"), frame.rgb[:, left:left + 320, ::-1])
+            cv2.imwrite(str(root / "masks" / f"{name}.png"),
+                        frame.crack[:, left:left + 320].astype(np.uint8) * 255)
+    return root
+
+
+@pytest.mark.slow  # generates a dataset and trains
+def test_sim2real_other_real_folders_on_a_test_only_folder(tiny_inspection, tmp_path, capsys):
+    frames = read_synthetic(tiny_inspection)
+    real = crops_folder(tmp_path / "real", frames, (0,))       # too few to split: all tested
+    other = crops_folder(tmp_path / "pavement", frames, (320,))
+    out = tmp_path / "bench"
+    assert main(["bench", "sim2real", "--synthetic", str(tiny_inspection), "--real", str(real),
+                 "--other-real", str(other), "--test-share", "1", "--out", str(out),
+                 "--steps", "6", "--crop", "64", "--batch", "2", "--width", "4"]) == 0
+    console = capsys.readouterr().out
+    assert "trained on pavement " in console and "other real folder, whole" in console
+    assert f"no network trained on the real folder: --test-share 1 tests on all {len(frames)}" \
+        in console
+    result = json.loads((out / "sim2real.json").read_text())
+    assert list(result["networks"]) == ["ds", "pavement"]  # and none named "real"
+    assert result["test_images"] == len(frames) and result["real_train_images"] == 0
+    assert result["real_trained"] is False and result["other_real"] == [str(other)]
+    pavement = result["networks"]["pavement"]
+    assert pavement["trained_on"] == "other_real" and pavement["images"] == len(frames)
+    assert result["networks"]["ds"]["trained_on"] == "synthetic"
+    assert 0 <= pavement["f1"] <= 1 and np.isfinite(pavement["last_loss"])
+    picture = cv2.imread(str(out / "predictions.png"))
+    assert picture.shape[1] == 4 * 320  # photograph, truth, then the two networks
+
+
+@pytest.mark.parametrize("damage, words", [
+    ("same as real", "--other-real {real}: is the --real folder itself"),
+    ("name of real", "none named 'real'"),
+    ("name of synthetic", "give folders of different folder names"),
+    ("missing", "real folder '{missing}' does not exist"),
+    ("test share", "--test-share 1.5: must be in (0, 1]"),
+])
+def test_sim2real_other_real_refusals_are_one_line(tmp_path, capsys, damage, words):
+    """Each refused before any dataset is read or network trained (the synthetic dataset
+    given does not exist, so reaching it would say so instead)."""
+    real, missing = write_real(tmp_path / "photos"), tmp_path / "missing"
+    other = {"same as real": real, "name of real": write_real(tmp_path / "a" / "real"),
+             "name of synthetic": write_real(tmp_path / "b" / "ds"), "missing": missing,
+             "test share": write_real(tmp_path / "pavement")}[damage]
+    argv = ["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
+            "--other-real", str(other), "--out", str(tmp_path / "o")]
+    assert main(argv + (["--test-share", "1.5"] if damage == "test share" else [])) == 2
+    err = capsys.readouterr().err.strip()
+    assert words.format(real=real, missing=missing) in err and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_real_folder_of_one_image_is_tested_whole_or_refused(tmp_path):
+    from glsynth.model.sim2real import Sim2RealSettings, split_real
+
+    images = read_real_folder(write_real(tmp_path / "one", names=("a",)))
+    assert split_real(images, Sim2RealSettings(test_share=1.0)) == ([], images)
+    with pytest.raises(UserError, match="or test on all of it with --test-share 1"):
+        split_real(images, Sim2RealSettings())
+
+
+def test_a_stopped_run_keeps_the_networks_it_finished(tmp_path, monkeypatch):
+    """sim2real.json is written after each network: stopped during the second, it holds the
+    first ("complete" false); run through, all of them ("complete" true)."""
+    from glsynth.model import sim2real
+
+    crack = np.zeros((32, 40), bool)
+    crack[5:9, 3:30] = True
+    rendered = [CrackImage(f"v{i}", np.full((32, 40, 3), 90 + i, np.uint8), crack)
+                for i in range(2)]
+    monkeypatch.setattr(sim2real, "read_synthetic", lambda path: rendered)
+    real, other = write_real(tmp_path / "photos"), write_real(tmp_path / "pavement")
+    settings = sim2real.Sim2RealSettings(steps=2, crop=16, batch=2, width=4, test_share=1.0)
+    trained = sim2real.train_network
+
+    def stop_at_second(images, settings, item):
+        if stop_at_second.calls:
+            raise KeyboardInterrupt
+        stop_at_second.calls += 1
+        return trained(images, settings, item)
+
+    stop_at_second.calls = 0
+    monkeypatch.setattr(sim2real, "train_network", stop_at_second)
+    with pytest.raises(KeyboardInterrupt):
+        sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "o", settings, [other])
+    partial = json.loads((tmp_path / "o" / "sim2real.json").read_text())
+    assert list(partial["networks"]) == ["ds"] and partial["complete"] is False
+    monkeypatch.setattr(sim2real, "train_network", trained)
+    whole = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "o", settings, [other])
+    assert list(whole["networks"]) == ["ds", "pavement"] and whole["complete"] is True
+    assert json.loads((tmp_path / "o" / "sim2real.json").read_text()) == whole
