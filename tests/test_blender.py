@@ -54,7 +54,11 @@ def test_bad_blender_path_camera_and_samples_are_clear_errors(tmp_path, capsys):
 @pytest.mark.skipif(shutil.which("blender") is None, reason="Blender is not installed")
 def test_cycles_sees_the_same_components_and_depth(tmp_path):
     config = tmp_path / "small.toml"
-    config.write_text("[render]\nwidth = 192\nheight = 108\n")
+    # Small textures and damage maps and two viaducts: what Blender is handed to load, not
+    # what the agreement reads (components and depth).
+    config.write_text("[render]\nwidth = 192\nheight = 108\n[damage]\nresolution = 64\n"
+                      "[materials]\ntexture_size = 32\nimages_per_category = 3\n"
+                      "[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n")
     out = tmp_path / "b"
     assert main(["bench", "blender", "--config", str(config), "--camera", "3", "--samples",
                  "1", "--out", str(out)]) == 0

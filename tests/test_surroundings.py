@@ -261,7 +261,9 @@ def test_demo_views_show_the_town_and_sky_and_no_panel():
     and the sky shows."""
     config = load_config("demo")
     config = dataclasses.replace(
-        config, render=dataclasses.replace(config.render, width=192, height=108, msaa=0),
+        config, render=dataclasses.replace(config.render, width=192, height=108, msaa=0,
+                                           shadow_map_px=512, sky_visibility_maps=4,
+                                           sky_visibility_px=256),
         materials=dataclasses.replace(config.materials, texture_size=64, builtin_size=64,
                                       images_per_category=3),
         damage=dataclasses.replace(config.damage, resolution=64))
