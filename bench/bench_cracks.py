@@ -17,8 +17,7 @@ costs per sample, and what opening an environment costs at the paper and inspect
    full size (1920x1080), its cracks measured back by the code `glsynth assess --oracle` runs
    and compared with the rendered crack-width map; the median errors over skeleton pixels
    whose true width is at least 2 px, and how many cracks and pixels that covers. (The
-   dataset's 640x360 maps hold no inspection crack 2 px wide: there, every crack is
-   sub-pixel.)
+   dataset's 640x360 maps hold few inspection cracks 2 px wide: most are sub-pixel there.)
 5. The picture in the README (`--picture`, alone): of the inspection preset's 96 views, the
    one with the most crack pixels at least 1.5 px wide, cropped around them at full size:
    image | damage labels | crack-width map (bench/results/cracks_inspection.png).
@@ -283,7 +282,8 @@ def picture(path: Path, crop: tuple[int, int] = (480, 270)) -> dict:
     top = int(np.clip(np.median(rows) - h // 2, 0, out.crack_width.shape[0] - h))
     left = int(np.clip(np.median(cols) - w // 2, 0, out.crack_width.shape[1] - w))
     box = (slice(top, top + h), slice(left, left + w))
-    widths = np.clip(out.crack_width[box] / 1.0, 0, 1)  # mm, the scale ends at 1 mm
+    widest = config.damage.crack_width_mm[1]
+    widths = np.clip(out.crack_width[box] / widest, 0, 1)  # the scale ends at the widest crack
     scale = (plt.get_cmap("inferno")(widths)[..., :3] * 255).astype(np.uint8)
     scale[out.crack_width[box] == 0] = 0
     panels = [out.color[box], overlay(out.color[box], out.damage[box], DAMAGE_RGB, 0.8,

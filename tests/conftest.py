@@ -58,8 +58,8 @@ sky_visibility_px = 256
 """
 """The tiny dataset's config: five cameras (three regular, two close-ups) and three plates for
 the tests that train on it, read it or check its format. MSAA off and small shadow and sky maps
-give the same labels: a generation 31 CPU-s, was 36. (Two viaducts, 17 CPU-s, put a view's
-listed crack pixels at 76 % of its width map's, under test_crack_data's 80 %: left at ten.)"""
+give the same labels at less cost (docs/results.md, "The test suite"). Ten viaducts: with two,
+one view's listed crack pixels fell under test_crack_data's 80 % of its width map's."""
 
 
 @pytest.fixture(scope="session")
