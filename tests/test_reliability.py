@@ -79,8 +79,9 @@ def test_workers_that_cannot_start_end_the_run(small_config, tmp_path, workers):
     loaded machine yet fails a run that starts workers again and again before it gives up. A
     pool that restarted them for ever would hang: the timeout stops that one."""
     config = tmp_path / "c.toml"
-    config.write_text(Path(small_config).read_text().replace("[damage]", "[render]\nmsaa = 8\n"
-                                                             "[damage]"))
+    text = Path(small_config).read_text().replace("msaa = 0", "msaa = 8")
+    assert "msaa = 8" in text  # the small config's [render] section sets msaa
+    config.write_text(text)
     t0 = time.monotonic()
     done = run_cli("generate", "--preset", "demo", "--config", str(config), "--seed", "0",
                    "--out", str(tmp_path / "ds"), "--workers", workers, timeout=180)

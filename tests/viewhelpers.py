@@ -23,6 +23,12 @@ def scene_args(folder: Path, extra_toml: str = "") -> list[str]:
     return [*VIEW_ARGS, "--config", str(folder / "scene.toml")]
 
 
+def _ctrl_c_as_at_a_terminal() -> None:
+    """The server's SIGINT as a terminal's Ctrl-C reaches it: a test run started as a
+    background job ignores SIGINT, and its children would inherit that and exit 0."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class ViewServer:
     """``glsynth view`` in a child process on a free port; ``stop()`` sends Ctrl-C."""
 
@@ -31,7 +37,8 @@ class ViewServer:
         scene = scene_args(out.with_name(out.name + "_scene"))
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "glsynth.cli", "view", *scene, "--port", "0", "--out",
-             str(out), *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+             str(out), *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            preexec_fn=_ctrl_c_as_at_a_terminal)
         line = self.proc.stdout.readline()
         found = re.search(r"(http://\S+/)", line)
         if not found:
