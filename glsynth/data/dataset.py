@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from glsynth.core.config import Config, config_to_dict
+from glsynth.core.config import Config, FiltersConfig, config_to_dict
 from glsynth.core.errors import UserError, named
 from glsynth.core.fileio import (
     BackgroundWriter,
@@ -65,7 +65,7 @@ from glsynth.data.tokaido import (
 from glsynth.data.visible_cracks import visible_cracks
 
 if TYPE_CHECKING:  # the world layer is imported where a view is opened, not at import
-    from glsynth.render.gl.renderer import RenderOutput
+    from glsynth.render.gl.renderer import Renderer, RenderOutput
     from glsynth.world.cameras import CameraPlacement
 
 RUN_FILE = "glsynth_run.json"
@@ -186,7 +186,8 @@ def run_environment(config: Config, root_seed: int, env: int, out: Path, rendere
             "removed": removed, "timings": clock.totals}
 
 
-def _filtered(renderer, output: "RenderOutput", filters) -> tuple[str | None, "RenderOutput"]:
+def _filtered(renderer: "Renderer", output: "RenderOutput", filters: FiltersConfig
+              ) -> tuple[str | None, "RenderOutput"]:
     """removal_reason of a view rendered with its colour deferred (Renderer.render), and the
     output with its colour: the MSAA pass runs only where the single-sample colour leaves the
     answer open (removal_before_resolve), so a view removed by its labels, or dark by a clear
