@@ -58,20 +58,29 @@ float paste(vec2 p, float footprint, uint salt) {
     return sum;
 }
 
-// Sand grains: Voronoi cells around one jittered point per cell of size_m, each cell a
-// shade in [-1, 1]; the nearest point's shade.
-float grains(vec2 p, float size_m, uint salt) {
+// Sand and aggregate: in a share of the cells of size_m, one grain set in the paste, of mean
+// radius 0.2-0.38 of the cell, stretched up to 1.6:1 at a random angle, its outline frayed
+// inwards by up to 23 % by noise at a sixth of the cell, and placed whole inside its cell; of a
+// shade in [-1, 1] (light quartz to dark minerals) that fades towards its rim, where the paste
+// skin covers it; 0 in the paste between grains. Grains, not a tessellation: cells that each
+// fill with one shade read as tiles (polygon edges a photograph never shows), and one cell per
+// level costs well under a 3x3 Voronoi search.
+float grains(vec2 p, float footprint, float size_m, float share, uint salt) {
     vec2 q = p / size_m, cell = floor(q);
-    float best = 1e9, shade = 0.0;
-    for (int k = 0; k < 9; ++k) {
-        ivec2 c = ivec2(cell) + ivec2(k % 3 - 1, k / 3 - 1);
-        uint h = cell_hash(c, salt);
-        vec2 point = vec2(c) + vec2(unit_float(h), unit_float(detail_hash(h)));
-        float d = dot(q - point, q - point);
-        shade = d < best ? 2.0 * unit_float(detail_hash(h ^ 0x5bd1e995u)) - 1.0 : shade;
-        best = min(d, best);
-    }
-    return shade;
+    uint h = cell_hash(ivec2(cell), salt);
+    float r = 0.2 + 0.18 * unit_float(detail_hash(h));
+    float stretch = sqrt(1.0 + 0.6 * unit_float(detail_hash(h ^ 3u)));
+    float reach = r * stretch;  // the long half-axis: at most 0.48 of the cell
+    vec2 centre = cell + reach + (1.0 - 2.0 * reach) * vec2(unit_float(detail_hash(h ^ 1u)),
+                                                            unit_float(detail_hash(h ^ 2u)));
+    float angle = 6.2831853 * unit_float(detail_hash(h ^ 4u));
+    vec2 d = q - centre, along = vec2(cos(angle), sin(angle));
+    float dist = length(vec2(dot(d, along) / stretch, (d.x * along.y - d.y * along.x) * stretch))
+                 * (1.15 + 0.15 * value_noise(q * 6.0, salt ^ 0x68e31da4u));  // frays inwards
+    float shade = 2.0 * unit_float(detail_hash(h ^ 5u)) - 1.0;
+    float rim = sqrt(clamp(1.0 - dist / r, 0.0, 1.0));
+    return float(unit_float(h) < share) * shade * disk(dist, r, footprint / size_m)
+           * mix(1.0, rim, resolved(0.5 * r * size_m, footprint));
 }
 
 // Holes (pores, bug holes): in a share of the cells of size_m, a disk of radius log-uniform
@@ -125,9 +134,11 @@ float concrete_detail(vec3 pos, vec3 n, uint seed) {
     detail_face(pos, n, seed, p, salt);
     float footprint = max(max(length(dFdx(pos)), length(dFdy(pos))), 1e-6);
     float shade = 1.0 + paste(p, footprint, salt)
-                  + 0.22 * resolved(0.0025, footprint) * grains(p, 0.0025, salt ^ 3u)
-                  + 0.15 * resolved(0.005, footprint) * grains(p, 0.005, salt ^ 12u)
-                  + 0.15 * resolved(0.012, footprint) * grains(p, 0.012, salt ^ 4u)
+                  + 0.45 * grains(p, footprint, 0.0012, 0.9, salt ^ 13u)
+                  + 0.55 * grains(p, footprint, 0.0025, 0.8, salt ^ 3u)
+                  + 0.45 * grains(p, footprint, 0.005, 0.6, salt ^ 12u)
+                  + 0.40 * grains(p, footprint, 0.012, 0.5, salt ^ 4u)
+                  + 0.25 * grains(p, footprint, 0.025, 0.5, salt ^ 14u)
                   + formwork(p, footprint, salt);
     float dark = 0.55 * holes(p, footprint, 0.006, 0.40, 0.0002, 0.0008, salt ^ 5u)
                  + 0.65 * holes(p, footprint, 0.025, 0.12, 0.0005, 0.004, salt ^ 6u);

@@ -81,6 +81,23 @@ def test_detail_has_pixel_scale_contrast_near_and_fades_far(harness):
     assert far.std() < 0.03 and abs(far.mean() - near.mean()) < 0.05
 
 
+def test_grains_are_particles_set_in_paste_each_inside_its_cell(harness):
+    """Sand and aggregate are grains with paste between them, not cells that each fill with
+    one shade (a tessellation reads as polygon tiles): most points are paste (0), grains come
+    light and dark, and none reaches its cell's border (docs/design.md, "Concrete detail")."""
+    step, cell = 0.02, 1.0  # in cells: 50 points across each
+    r, c = np.mgrid[0:16 * WIDTH, 0:WIDTH]
+    pos = np.zeros((r.size, 4), np.float32)
+    pos[:, 0], pos[:, 1] = 0.013 + c.ravel() * step, 0.007 + r.ravel() * step
+    out = harness.run(f"vec4(grains(in0.xy, {step}, {cell}, 0.8, 5u))", pos)[:, 0]
+    paste = np.mean(out == 0.0)
+    assert 0.6 < paste < 0.95, paste  # 0.8 of the cells hold a grain of ~0.2 of its area
+    assert out.min() < -0.3 and out.max() > 0.3
+    u, v = np.modf(pos[:, 0] / cell)[0], np.modf(pos[:, 1] / cell)[0]
+    border = (np.minimum(u, 1 - u) < 0.015) | (np.minimum(v, 1 - v) < 0.015)
+    assert border.sum() > 1000 and np.all(out[border] == 0.0)
+
+
 def _plate_image(detail_seed: int | None) -> np.ndarray:
     """A fronto-parallel plate 1.56 mm a pixel whose built-in concrete texture repeats twice
     across the image (every 64 pixels)."""
@@ -210,8 +227,9 @@ def _keypoints(tmp_path, out) -> list[int]:
 
 
 def test_colmap_finds_more_features_with_detail_and_metering(tmp_path, tiny_flights):
-    """SIFT found 87-124 keypoints a frame on the flight as glsynth flew it before, and finds
-    961-1,128 now (measured): the floor and the ratio (4x; measured 10x) leave margin."""
+    """SIFT found 61-123 keypoints a frame on the flight as glsynth flew it before, and finds
+    357-456 now (measured; 961-1,128 while sand and aggregate were Voronoi cells, whose
+    polygon corners SIFT took for features): the floor and the ratio (4x; measured 5x)."""
     before = _keypoints(tmp_path, tiny_flights["before"])
     now = _keypoints(tmp_path, tiny_flights["now"])
     assert min(now) >= 300, now
