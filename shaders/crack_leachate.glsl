@@ -53,7 +53,7 @@ vec3 leach_on_path(vec3 p, vec2 nearest, vec3 normal, float finest_m) {
     vec3 ab = b.xyz - a.xyz, across = cross(normal, ab);
     if (!(dot(across, across) > 0.0)) return p;
     uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
-    return p - normalize(across) * crack_offset(nearest.y, length(ab), seed, finest_m, finest_m).x;
+    return p - normalize(across) * crack_offset(nearest.y, length(ab), seed, finest_m).x;
 }
 
 // (efflorescence, rust, damp), each 0-1, at p (relative to the crack grid's corner) on a

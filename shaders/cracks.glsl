@@ -87,17 +87,13 @@ float crack_structure(float x) {
     return pow(CRACK_ROUGHNESS * CRACK_AGGREGATE_M, 2.0) * pow(x / CRACK_AGGREGATE_M, 2.0 * h);
 }
 
-// The lateral offset (m) at parameter t of a segment ``length_m`` long, by random midpoint
-// displacement from 0 at both ends (the polyline's vertices), halving while the new points lie
-// at least ``finest_m`` apart; clamped to CRACK_REACH_M. And the path's slope over the last
-// interval at least ``slope_m`` long: a band is drawn across the path's direction over its own
-// width, not the pixel's. Across the slope of a pixel-long step (self-affine slopes grow as
-// steps shrink), the band's edges jumped by up to a width where one step met the next: hairs
-// a width long on every wide crack's lips.
-vec2 crack_offset(float t, float length_m, uint seed, float finest_m, float slope_m) {
+// The lateral offset (m) at parameter t of a segment ``length_m`` long, and its slope, by
+// random midpoint displacement from 0 at both ends (the polyline's vertices), halving while
+// the new points lie at least ``finest_m`` apart; clamped to CRACK_REACH_M.
+vec2 crack_offset(float t, float length_m, uint seed, float finest_m) {
     float lo = 0.0, hi = 0.0, a = 0.0, b = 1.0, interval = length_m;
     uint index = 0u;
-    float s_whole = crack_structure(interval), slope = 0.0;
+    float s_whole = crack_structure(interval);
     // Counted before the loop, not bounded by a constant in it: a loop with a constant bound
     // is unrolled, and llvmpipe runs unrolled code for every pixel, needed or not (40 % of a
     // view's time).
@@ -116,10 +112,9 @@ vec2 crack_offset(float t, float length_m, uint seed, float finest_m, float slop
         b = left ? m : b;
         index = 2u * index + (left ? 0u : 1u);
         interval *= 0.5;
-        slope = interval >= slope_m ? (hi - lo) / interval : slope;
     }
     float offset = clamp(mix(lo, hi, (t - a) / (b - a)), -CRACK_REACH_M, CRACK_REACH_M);
-    return vec2(offset, slope);
+    return vec2(offset, (hi - lo) / interval);
 }
 
 // The surface's normal with its largest component positive, whichever way the view sees it:
@@ -209,8 +204,7 @@ void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout 
     if (dot(across, across) > 0.0) {
         across = normalize(across);
         uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
-        vec2 o = crack_offset(t, length(ab), seed, 0.5 * (length(dpdx) + length(dpdy)),
-                              0.001 * width_mm);
+        vec2 o = crack_offset(t, length(ab), seed, 0.5 * (length(dpdx) + length(dpdy)));
         float ra = dot(r, across);
         d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y) + max(dot(r, r) - ra * ra, 0.0));
         along = normalize(ab) + o.y * across;
