@@ -138,7 +138,7 @@ float concrete_detail(vec3 pos, vec3 n, uint seed) {
                   + 0.55 * grains(p, footprint, 0.0025, 0.8, salt ^ 3u)
                   + 0.45 * grains(p, footprint, 0.005, 0.5, salt ^ 12u)
                   + 0.30 * grains(p, footprint, 0.012, 0.2, salt ^ 4u)
-                  + 0.25 * grains(p, footprint, 0.025, 0.5, salt ^ 14u)
+                  + 0.40 * grains(p, footprint, 0.025, 0.5, salt ^ 14u)
                   + formwork(p, footprint, salt);
     float dark = 0.55 * holes(p, footprint, 0.006, 0.40, 0.0002, 0.0008, salt ^ 5u)
                  + 0.65 * holes(p, footprint, 0.025, 0.12, 0.0005, 0.004, salt ^ 6u);
