@@ -159,6 +159,9 @@ def test_generate_filters_a_real_environment_as_before_and_skips_msaa_where_it_c
             assert got == reason, index
             if reason is None:
                 assert np.array_equal(out.color, colour), index
+        # A deferred colour cannot be photographed in the same call: refused, not skipped.
+        with pytest.raises(ValueError, match="photo=False"):
+            view.render(indices[0], defer_colour=True)
     removed = sum(reason is not None for reason, _ in expected)
     assert removed >= 3
     assert len(passes) <= len(indices) - 2  # removed views decided without the resolve

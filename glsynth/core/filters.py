@@ -18,9 +18,14 @@ def removal_reason(image: np.ndarray, component: np.ndarray, depth: np.ndarray,
     """Why an image is filtered out (Section 3.4), or None to keep it. Checked in the paper's
     order: mean intensity < 30, a single component label (fewer than min_components), minimum
     depth not larger than 0.5 m."""
-    if float(image.mean()) < filters.min_intensity:
+    if is_dark(image, filters):
         return "dark"
     return label_reason(component, depth, filters)
+
+
+def is_dark(image: np.ndarray, filters: FiltersConfig = PAPER_FILTERS) -> bool:
+    """The first filter: the image's mean intensity under min_intensity."""
+    return float(image.mean()) < filters.min_intensity
 
 
 def label_reason(component: np.ndarray, depth: np.ndarray,

@@ -33,6 +33,7 @@ from glsynth.core.fileio import (
     write_files,
 )
 from glsynth.core.filters import (
+    is_dark,
     label_reason,
     mask_damage,
     removal_before_resolve,
@@ -198,7 +199,7 @@ def _filtered(renderer: "Renderer", output: "RenderOutput", filters: FiltersConf
     if reason is not None:
         return reason, output
     colour = renderer.deferred_colour()
-    reason = "dark" if float(colour.mean()) < filters.min_intensity else by_labels
+    reason = "dark" if is_dark(colour, filters) else by_labels
     return reason, dataclasses.replace(output, color=colour)
 
 

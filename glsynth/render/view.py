@@ -110,6 +110,9 @@ class EnvironmentView:
         colour as [sensor]'s camera photographs it (``photo``; glsynth.render.camera_model),
         or the render's own. ``defer_colour`` (with ``photo`` False): no colour yet, the
         renderer's deferred_colour() reads it (Renderer.render)."""
+        if defer_colour and photo:
+            raise ValueError("defer_colour leaves no colour to photograph: pass photo=False "
+                             "and photograph the deferred colour")
         placement = self.camera(index)
         lighting = self.exposure(placement)
         if lighting is not self.renderer.lighting:
