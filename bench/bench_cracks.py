@@ -200,7 +200,7 @@ def segments_measured(view: EnvironmentView, camera: Camera, out, measure) -> np
         net = view.dressing.materials.factors(part.name).cracks
         if net is None or not len(net.points):
             continue
-        row, col, segment, _, on = on_surface(net, part.pose, camera, out.depth)
+        row, col, segment, _, on = on_surface(net, part, camera, out.depth)
         for dr in (-1, 0, 1):
             for dc in (-1, 0, 1):
                 r, c = row[on] + dr, col[on] + dc

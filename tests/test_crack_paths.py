@@ -15,7 +15,9 @@ from glsynth.assess.cracks import Intrinsics, error_summary, measure_cracks, wid
 from glsynth.core.config import DamageConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
+from glsynth.data.visible_cracks import near_crack, on_surface
 from glsynth.render.gl.renderer import Renderer
+from glsynth.world.environment import Part, PartKind
 from glsynth.world.meshes import box
 
 W, H = 960, 540
@@ -170,3 +172,34 @@ def test_rough_cracks_label_more_of_a_crack_aimed_view_than_straight_ones():
             assert labelled.any() and (out.crack_width[labelled] >= 0).all()
             shares.append(labelled.mean())
     assert shares[1] > 1.05 * shares[0]
+
+
+def test_the_crack_lists_samples_follow_the_rough_paths_onto_their_labels():
+    """The meta JSON's crack list (glsynth.data.visible_cracks) samples each crack's path: on
+    a render of a generated column's rough cracks from 0.5 m, at least 97 % of the chord length
+    whose samples land on the visible surface has labels within a pixel, as on straight cracks;
+    samples taken along the chords instead find labels for less than 85 % of it (the paths
+    stray by millimetres, several pixels)."""
+    cfg = DamageConfig()
+    rng = make_rng(3, 0, Stream.CRACKS)
+    net = column_cracks(cfg, (0.7, 0.8), [(-2.5, 2.5)], column_demand(cfg, "severe", rng), rng)
+    column = box((0.7, 0.8, 5.0))
+    pose = np.eye(4)
+    pose[:3, :3] = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]  # looking down -x at face x = +0.35
+    pose[:3, 3] = [0.85, 0.0, -2.0]
+    cam = camera(640, 360, 36.0, pose)
+    with Renderer(render_config(640, 360)) as r:
+        r.load(scene_of(("part", Component.COLUMN, column,
+                         Material(base_color=GREY, cracks=net))), LIGHT)
+        out = r.render(cam)
+    near = near_crack(out.crack_width)
+    part = Part("column", PartKind.COLUMN, None, column, np.eye(4))
+
+    def labelled_share(sampled: CrackNetwork) -> float:
+        row, col, _, weight, on = on_surface(sampled, part, cam, out.depth)
+        found = on.copy()
+        found[on] = near[row[on], col[on]]
+        return float(weight[found].sum() / weight[on].sum())
+
+    assert labelled_share(net) >= 0.97
+    assert labelled_share(dataclasses.replace(net, rough=False)) < 0.85

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from shader_harness import GlslHarness
 
+from glsynth.appearance import crack_paths
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance
 from glsynth.core.seeding import Stream, make_rng
@@ -13,6 +14,7 @@ from glsynth.render.cracks_index import ROW, pack_cracks
 from glsynth.render.gl.renderer import upload_cracks
 
 EPS = float(np.finfo(np.float32).eps)
+REACH = crack_paths.SHADER_CONSTANTS["CRACK_REACH_M"]
 
 
 @pytest.fixture(scope="module")
@@ -100,6 +102,29 @@ def test_band_coverage_matches_the_box_filter(glsl):
                      np.full_like(offsets, footprint))
         out = glsl.run("band_coverage(in0.x, in0.y, in0.z), 0.0, 0.0, 0.0", rows)[:, 0]
         assert out.sum() * step == pytest.approx(width, rel=1e-3)
+
+
+def test_the_paths_offsets_match_their_numpy_twin(glsl):
+    """crack_offset, seeded from a segment's end widths as crack_rough seeds it, against
+    crack_paths.shader_offsets (which the meta JSON's crack lists follow): segments of 5 mm to
+    0.3 m, footprints of 20 um to 5 cm (from every level of halving to none), everywhere along
+    them."""
+    rng = make_rng(5, 0, Stream.DAMAGE)
+    n = 8192
+    t, length = rng.uniform(0, 1, n), rng.uniform(0.005, 0.3, n)
+    widths_mm = rng.uniform(0.05, 5.0, (n, 2)).astype(np.float32)
+    finest = np.exp(rng.uniform(np.log(2e-5), np.log(0.05), n))
+    rows = _rows(t, length, widths_mm)
+    out = glsl.run("crack_offset(in0.x, in0.y, crack_hash(floatBitsToUint(in0.z) ^ "
+                   "crack_hash(floatBitsToUint(in0.w))), in1.x).x, 0.0, 0.0, 0.0",
+                   rows, _rows(finest))[:, 0]
+    t, length, finest = (x.astype(np.float32).astype(np.float64) for x in (t, length, finest))
+    seeds = crack_paths.segment_seeds(widths_mm.astype(np.float64) / 1000.0)
+    ref = crack_paths.shader_offsets(t, length, seeds, finest)
+    assert np.abs(out - ref).max() <= 1e-7  # float32 sums of offsets of up to 30 mm
+    assert np.std(ref) > 1e-3 and np.abs(ref).max() <= REACH
+    # At footprints of a segment's length or more, the path is its chord.
+    assert np.array_equal(ref[finest >= length], np.zeros((finest >= length).sum()))
 
 
 def test_footprint_across_the_crack_matches_numpy(glsl):

@@ -2,8 +2,14 @@
 
 import numpy as np
 import pytest
+import trimesh
 
-from glsynth.core.geometry import segment_distance, segment_distance_axes, transform_points
+from glsynth.core.geometry import (
+    nearest_triangles,
+    segment_distance,
+    segment_distance_axes,
+    transform_points,
+)
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.world.meshes import pose
 
@@ -59,3 +65,18 @@ def test_transform_points_is_the_homogeneous_product():
     points = rng.normal(size=(5, 4, 3))
     homogeneous = np.concatenate([points, np.ones((5, 4, 1))], -1) @ matrix.T
     assert np.allclose(transform_points(matrix, points), homogeneous[..., :3], atol=1e-12)
+
+
+def test_nearest_triangles_finds_the_triangle_a_surface_point_lies_on():
+    """Points on an I-shaped girder's surface (trimesh's surface samples) find their own
+    triangle, or another that holds the point (on an edge they share)."""
+    flange = trimesh.creation.box((2.0, 0.4, 0.05))
+    mesh = trimesh.util.concatenate([flange, trimesh.creation.box((2.0, 0.05, 0.5)),
+                                     flange.copy().apply_translation((0, 0, 0.5))])
+    rng = make_rng(1, 0, Stream.GEOMETRY)
+    points, faces = trimesh.sample.sample_surface(mesh, 4000, seed=int(rng.integers(1 << 31)))
+    found = nearest_triangles(mesh.triangles, points)
+    same = found == faces
+    assert same.mean() > 0.99
+    closest = trimesh.triangles.closest_point(mesh.triangles[found], points)
+    assert np.abs(closest - points).max() < 1e-9

@@ -104,3 +104,71 @@ def path(lo: float, hi: float, z_at: float, angle_deg: float, step_m: float,
     s = lo + sense * (arc * np.cos(slope) - offset * np.sin(slope))
     z = arc * np.sin(slope) + offset * np.cos(slope)
     return s, z + z_at - z[len(z) // 2], arc
+
+
+# --- the shader's refinement below the vertices, in numpy ---------------------------------------
+# The meta JSON lists the cracks a view labels by sampling each segment's path and looking for
+# labels beside it (glsynth.data.visible_cracks); on a rough crack the labels follow the path
+# the shader draws, up to CRACK_REACH_M off the chord, so the samples must follow it too. These
+# functions are shaders/cracks.glsl's crack_hash, crack_draw and crack_offset, operation for
+# operation (tests/test_crack_shader.py runs both on the same inputs).
+_GOLDEN, _MIX = 0x9E3779B9, 0x85EBCA6B
+"""crack_draw's multipliers of the level and the interval's index."""
+
+
+def crack_hash(x: np.ndarray) -> np.ndarray:
+    """lowbias32 (Wellons), the shader's crack_hash: uint32 in, uint32 out."""
+    x = np.asarray(x, np.uint32).copy()
+    x ^= x >> np.uint32(16)
+    x *= np.uint32(0x7FEB352D)
+    x ^= x >> np.uint32(15)
+    x *= np.uint32(0x846CA68B)
+    x ^= x >> np.uint32(16)
+    return x
+
+
+def segment_seeds(widths_m: np.ndarray) -> np.ndarray:
+    """(N,) uint32: the seed of each segment's path, hashed from the bits of its end widths as
+    the renderer uploads them (float32 millimetres; glsynth.render.cracks_index)."""
+    bits = (np.asarray(widths_m, np.float64) * 1000.0).astype(np.float32).view(np.uint32)
+    return crack_hash(bits[:, 0] ^ crack_hash(bits[:, 1]))
+
+
+def _draw(seed: np.ndarray, level: int, index: np.ndarray) -> np.ndarray:
+    """The shader's crack_draw: mean 0, variance 1, keyed by seed, level and index."""
+    key = (seed.astype(np.uint64) + level * _GOLDEN + index.astype(np.uint64) * _MIX)
+    h1 = crack_hash((key & 0xFFFFFFFF).astype(np.uint32))
+    h2 = crack_hash(h1)
+    root6 = np.sqrt(6.0)
+    return ((h1 >> np.uint32(8)).astype(np.float64) + (h2 >> np.uint32(8)) + 1.0) \
+        / 16777216.0 * root6 - root6
+
+
+def shader_offsets(t: np.ndarray, length_m: np.ndarray, seed: np.ndarray,
+                   finest_m: np.ndarray) -> np.ndarray:
+    """The lateral offsets (m) of segments' paths at chord parameters ``t``, as the shader's
+    crack_offset draws them for pixels whose footprint is ``finest_m``: random midpoint
+    displacement from 0 at both ends, halving while the new points lie at least ``finest_m``
+    apart (at most CRACK_LEVELS times), then linear; clamped to CRACK_REACH_M. All arguments
+    broadcast to one shape."""
+    c = SHADER_CONSTANTS
+    t, length, seed, finest = np.broadcast_arrays(np.asarray(t, np.float64), length_m,
+                                                  np.asarray(seed, np.uint32), finest_m)
+    finest = np.maximum(finest, length * 2.0 ** -c["CRACK_LEVELS"])
+    n_levels = np.floor(np.log2(length / finest))
+    lo, hi = np.zeros(t.shape), np.zeros(t.shape)
+    a, b = np.zeros(t.shape), np.ones(t.shape)
+    interval, index = length.astype(np.float64), np.zeros(t.shape, np.uint64)
+    for level in range(int(c["CRACK_LEVELS"])):
+        active = level < n_levels
+        if not active.any():
+            break
+        mid = (lo + hi) / 2 + midpoint_sd(interval) * _draw(seed, level, index)
+        right = active & (t >= (a + b) / 2)
+        left = active & ~right
+        lo, hi = np.where(right, mid, lo), np.where(left, mid, hi)
+        a, b = np.where(right, (a + b) / 2, a), np.where(left, (a + b) / 2, b)
+        index = np.where(active, 2 * index + right, index)
+        interval = np.where(active, interval / 2, interval)
+    reach = c["CRACK_REACH_M"]
+    return np.clip(lo + (hi - lo) * (t - a) / (b - a), -reach, reach)

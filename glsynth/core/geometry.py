@@ -1,6 +1,7 @@
-"""Small geometry every layer uses: points under a 4x4 transform, and the distance from points
-to line segments. It sits in core so that world, appearance, render and data share one copy
-(shaders/cracks.glsl keeps its own in GLSL; tests/test_crack_shader.py compares the two)."""
+"""Small geometry every layer uses: points under a 4x4 transform, the distance from points
+to line segments, and the triangle of a mesh that a point on its surface lies on. It sits in
+core so that world, appearance, render and data share one copy (shaders/cracks.glsl keeps
+its own segment distance in GLSL; tests/test_crack_shader.py compares the two)."""
 
 import functools
 import operator
@@ -41,3 +42,27 @@ def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.nd
     axes = range(p.shape[-1])
     return segment_distance_axes([p[..., q] for q in axes], [a[..., q] for q in axes],
                                  [b[..., q] - a[..., q] for q in axes])
+
+
+def nearest_triangles(triangles: np.ndarray, points: np.ndarray, chunk: int = 256
+                      ) -> np.ndarray:
+    """(M,) the index of the triangle of ``triangles`` (T, 3, 3) that each of ``points``
+    (M, 3) lies on or nearest to, judged by the distance to the triangle's plane and to the
+    farthest edge line it lies outside: a lower bound of the distance that is zero only on the
+    triangle, so a point on a mesh's surface finds its own triangle (trimesh's exact
+    nearest-point query needs rtree, a compiled dependency, for this one question)."""
+    v0, v1, v2 = (triangles[:, k] for k in range(3))
+    normal = np.cross(v1 - v0, v2 - v0)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    corners = np.stack([v0, v1, v2], 1)
+    edges = np.roll(corners, -1, axis=1) - corners
+    inward = np.cross(normal[:, None], edges)
+    inward /= np.maximum(np.linalg.norm(inward, axis=2, keepdims=True), 1e-300)
+    out = np.empty(len(points), np.int64)
+    for start in range(0, len(points), chunk):
+        p = points[start:start + chunk, None]
+        plane = np.abs(np.sum((p - v0) * normal, -1))
+        side = np.einsum("mtkd,tkd->mtk", p[:, :, None] - corners, inward)
+        outside = np.maximum(-side.min(-1), 0.0)
+        out[start:start + chunk] = np.argmin(np.hypot(plane, outside), axis=1)
+    return out

@@ -1,20 +1,22 @@
 """The cracks a rendered view shows, for its meta JSON (docs/design.md, "Crack ground truth").
 
 The renderer labels crack pixels and their widths but not which crack a pixel belongs to, so
-each crack's centreline is sampled here, every half pixel or finer, and projected into the
-view. A sample is labelled when it lands in the image in front of the near plane, the render's
-crack widths inside the RRDR (those the written map keeps) hold a crack within one pixel of it
-(a surface in front without cracks hides it, and cracks outside the RRDR are unlabelled), and
-the rendered depth there is the sample's own (a cracked surface in front hides it too). A crack
-is listed when at least one of its samples is labelled, with the length its labelled samples
-stand for and the number of pixels of the written 640x360 crack-width map that they mark.
-Pure numpy.
+each crack's centreline is sampled here, every half pixel or finer (on a rough crack along
+the path the shader draws below the vertices, glsynth.appearance.crack_paths), and projected
+into the view. A sample is labelled when it lands in the image in front of the near plane,
+the render's crack widths inside the RRDR (those the written map keeps) hold a crack within
+one pixel of it (a surface in front without cracks hides it, and cracks outside the RRDR are
+unlabelled), and the rendered depth there is the sample's own (a cracked surface in front
+hides it too). A crack is listed when at least one of its samples is labelled, with the
+length of chord its labelled samples stand for and the number of pixels of the written
+640x360 crack-width map that they mark. Pure numpy.
 """
 
 import numpy as np
 
+from glsynth.appearance import crack_paths
 from glsynth.appearance.cracks import CrackNetwork
-from glsynth.core.geometry import transform_points
+from glsynth.core.geometry import nearest_triangles, transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
 from glsynth.world.visibility import in_frustum, part_corners, seen_by
@@ -30,14 +32,16 @@ on a face seen at 85 degrees the surface under a pixel spans about 1 % of the de
 occluding surface stands farther off than that."""
 
 
-def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera
+def centreline_samples(net: CrackNetwork, part: Part, camera: Camera
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points along every segment that can show in the view, in world coordinates (M, 3), the
-    segment each lies on (M,) and the length in metres each stands for (M,). A segment is cut
-    into equal pieces at most SAMPLE_STEP_PX long in the image (taken at its nearer end) and
-    sampled at their middles; a segment outside the frustum (``in_frustum``) gets none."""
-    a = transform_points(pose, net.points[:, 0])
-    b = transform_points(pose, net.points[:, 1])
+    """Points along every segment of ``part``'s network that can show in the view, in world
+    coordinates (M, 3), the segment each lies on (M,) and the length in metres of chord each
+    stands for (M,). A segment is cut into equal pieces at most SAMPLE_STEP_PX long in the
+    image (taken at its nearer end) and sampled at their middles; a segment outside the frustum
+    (``in_frustum``) gets none. On a rough network the samples lie on the path the shader draws
+    (path_offsets), not on the chord."""
+    a = transform_points(part.pose, net.points[:, 0])
+    b = transform_points(part.pose, net.points[:, 1])
     view = camera.view()
     depth = -np.minimum(a @ view[2, :3], b @ view[2, :3]) - view[2, 3]
     step_m = SAMPLE_STEP_PX * np.maximum(depth, camera.znear) / camera.fx
@@ -47,7 +51,32 @@ def centreline_samples(net: CrackNetwork, pose: np.ndarray, camera: Camera
     segment = np.repeat(np.arange(len(n)), n)
     t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[segment]
     points = a[segment] + t[:, None] * (b - a)[segment]
+    if net.rough and len(segment):
+        points += path_offsets(net, part, segment, t, points, camera)
     return points, segment, (length / np.maximum(n, 1))[segment]
+
+
+def path_offsets(net: CrackNetwork, part: Part, segment: np.ndarray, t: np.ndarray,
+                 points: np.ndarray, camera: Camera) -> np.ndarray:
+    """(M, 3) world vectors from chord points (``points``, at parameters ``t`` of their
+    ``segment``) to the rough path the shader draws through them: crack_paths.shader_offsets
+    along the shader's across direction, the surface's normal (sign fixed as crack_normal
+    fixes it) crossed with the chord, in the mesh frame. The shader refines down to the pixel's
+    footprint; here, the footprint of a fronto-parallel pixel at the point's depth (the levels
+    below it move a path by a tenth of a pixel at most)."""
+    used, back = np.unique(segment, return_inverse=True)
+    a, b = net.points[used, 0], net.points[used, 1]
+    faces = nearest_triangles(part.mesh.triangles, (a + b) / 2)
+    normal = part.mesh.face_normals[faces]
+    lead = normal[np.arange(len(used)), np.argmax(np.abs(normal), axis=1)]
+    across = np.cross(np.where(lead[:, None] < 0, -normal, normal), b - a)
+    size = np.linalg.norm(across, axis=1, keepdims=True)
+    across = np.where(size > 0, across / np.where(size > 0, size, 1.0), 0.0)
+    depth = -(points @ camera.view()[2, :3]) - camera.view()[2, 3]
+    offset = crack_paths.shader_offsets(
+        t, np.linalg.norm(b - a, axis=1)[back], crack_paths.segment_seeds(net.widths_m[used])[back],
+        np.maximum(depth, camera.znear) / camera.fx)
+    return (across @ part.pose[:3, :3].T)[back] * offset[:, None]
 
 
 def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -67,12 +96,12 @@ def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray,
             np.where(inside, row, -1).astype(np.int64), depth)
 
 
-def on_surface(net: CrackNetwork, pose: np.ndarray, camera: Camera, depth_m: np.ndarray
+def on_surface(net: CrackNetwork, part: Part, camera: Camera, depth_m: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The network's centreline samples (centreline_samples) in the view: each one's pixel
     row and column (-1 outside the image), segment and length, and whether it lies on the
     rendered surface (within DEPTH_TOLERANCE of ``depth_m`` there, not hidden)."""
-    points, segment, weight = centreline_samples(net, pose, camera)
+    points, segment, weight = centreline_samples(net, part, camera)
     col, row, depth = project(points, camera)
     on = col >= 0
     rel, ab = DEPTH_TOLERANCE
@@ -97,7 +126,7 @@ def member_cracks(records: list[dict], net: CrackNetwork, part: Part, camera: Ca
     """The labelled cracks of one member: its dressing records (id, member, type, length and
     widths) with ``labelled_length_m`` and ``pixels`` (of the written crack-width map, whose
     pixels span ``stride`` x ``stride`` render pixels)."""
-    row, col, segment, weight, on = on_surface(net, part.pose, camera, depth_m)
+    row, col, segment, weight, on = on_surface(net, part, camera, depth_m)
     on[on] = near[row[on], col[on]]
     crack = net.crack[segment]
     listed = []
