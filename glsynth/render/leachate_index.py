@@ -17,7 +17,7 @@ import numpy as np
 from glsynth.appearance import crack_paths
 from glsynth.appearance.crack_leachate import EFFLORESCENCE, NONE, reach_m
 from glsynth.appearance.cracks import CrackNetwork
-from glsynth.render.cracks_index import _rows
+from glsynth.render.cracks_index import _cell_offsets, _rows
 
 CELL_M = 0.05
 """The grid's smallest cell edge (as the crack grid's): a cell lists the few segments above it
@@ -69,6 +69,21 @@ def _regions(points: np.ndarray, table: np.ndarray, ends: np.ndarray
     return low, high
 
 
+def _box_keys(first: np.ndarray, last: np.ndarray, dims: np.ndarray) -> np.ndarray:
+    """Sorted keys cell id x n + segment of every cell of each of n segments' boxes
+    first..last (cells, inclusive); boxes of one shape together, as cracks_index._near_pairs
+    takes them (a loop over segments cost 0.5 s of a demo environment's 1.5 s opening)."""
+    n = len(first)
+    shapes, group = np.unique(last - first + 1, axis=0, return_inverse=True)
+    keys = []
+    for g, shape in enumerate(shapes):
+        offsets = _cell_offsets(shape)
+        members = np.flatnonzero(group.ravel() == g)
+        x, y, z = (first[members, q][:, None] + offsets[q] for q in range(3))
+        keys.append(((x + dims[0] * (y + dims[1] * z)) * n + members[:, None]).ravel())
+    return np.sort(np.concatenate(keys))
+
+
 def pack_leachate(network: CrackNetwork, crack_origin: np.ndarray) -> LeachateIndex | None:
     """The leaching segments of ``network`` and their grid; None where none leaches."""
     if network.leachate is None:
@@ -89,12 +104,7 @@ def pack_leachate(network: CrackNetwork, crack_origin: np.ndarray) -> LeachateIn
         cell *= 1.25
     first = np.floor((low - origin) / cell).astype(np.int64)
     last = np.minimum(np.floor((high - origin) / cell).astype(np.int64), dims - 1)
-    keys = []
-    for i in range(len(points)):
-        ranges = [np.arange(first[i, q], last[i, q] + 1) for q in range(3)]
-        k, j, x = np.meshgrid(ranges[2], ranges[1], ranges[0], indexing="ij")
-        keys.append((x + dims[0] * (j + dims[1] * k)).ravel() * len(points) + i)
-    keys = np.sort(np.concatenate(keys))
+    keys = _box_keys(first, last, dims)
     counts = np.bincount(keys // len(points), minlength=int(np.prod(dims)))
     starts = np.cumsum(counts) - counts
     signed = np.where(table[:, 0] == EFFLORESCENCE, table[:, 1], -table[:, 1])
