@@ -126,14 +126,43 @@ vec3 crack_normal(vec3 dpdx, vec3 dpdy) {
 }
 
 // The darkening a crack gives a pixel, as a share of the interior's (CRACK_CONTRAST): the
-// band it covers, and on a rough crack its lips, rounded and chipped edges min(w,
-// CRACK_LIP_M) wide each side, which turn from the light and darken by CRACK_LIP_SHARE of the
-// interior's. The lips are surface, not crack: they label nothing.
-float crack_coverage(float d, float w, float f) {
+// band it covers; on a rough crack a chip ``chip`` m deep out of the lip on the pixel's side
+// (crack_chip), darkened by CRACK_CHIP_SHARE of the interior's; beyond it the lips, rounded
+// edges min(w, CRACK_LIP_M) wide each side, which turn from the light and darken by
+// CRACK_LIP_SHARE of the interior's. The lips are surface, not crack: they label nothing.
+float crack_coverage(float d, float w, float chip, float f) {
     float inside = band_coverage(d, w, f);
     if (!u_crack_rough) return inside;
-    float lips = band_coverage(d, w + 2.0 * min(w, CRACK_LIP_M), f) - inside;
-    return inside + CRACK_LIP_SHARE * lips;
+    float broken = band_coverage(d, w + 2.0 * chip, f);
+    float lips = band_coverage(d, w + 2.0 * (chip + min(w, CRACK_LIP_M)), f) - broken;
+    return inside + CRACK_CHIP_SHARE * (broken - inside) + CRACK_LIP_SHARE * lips;
+}
+
+// How deep (m) a chip breaks out of one lip (``side`` 0 or 1) of a crack w m wide, u m along
+// its segment (``seed``'s), at one scale: each cell along the crack, ``scale`` times
+// CRACK_CHIP_CELL_WIDTHS widths + CRACK_CHIP_CELL_M long, holds one with chance ``chance``, a
+// half-ellipse inside the cell, a quarter to a half of it long, ``scale`` times CRACK_CHIP_MIN
+// to CRACK_CHIP_MAX widths deep.
+float crack_chip_at(float u, uint side, uint seed, float w, float scale, float chance) {
+    float x = u / (scale * (CRACK_CHIP_CELL_WIDTHS * w + CRACK_CHIP_CELL_M));
+    uint h = crack_hash(seed ^ (side * 0x27d4eb2du) ^ crack_hash(uint(max(x, 0.0))
+                                                                 + floatBitsToUint(scale)));
+    if (float(h & 0xffffu) >= chance * 65536.0) return 0.0;
+    float centre = 0.25 + 0.5 * float((h >> 16u) & 0xffu) / 255.0;
+    float half_length = 0.125 + 0.125 * float(h >> 24u) / 255.0;
+    float q = (fract(x) - centre) / half_length;
+    float depth = mix(CRACK_CHIP_MIN, CRACK_CHIP_MAX, float(crack_hash(h) >> 8u) / 16777216.0);
+    return q * q < 1.0 ? scale * depth * w * sqrt(1.0 - q * q) : 0.0;
+}
+
+// How deep (m) the lip on one side is broken: chips (crack_chip_at) at two scales, the finer
+// a quarter of the coarser and twice as common, so that an edge is ragged at the width and at
+// the pixel. Real lips break where the crack's faces grind as it opens and closes; the chips
+// scale with the crack, so a hairline one has none a pixel could show. A chip is surface,
+// not the opening: it darkens and labels nothing (crack_apply), as the lips.
+float crack_chip(float u, uint side, uint seed, float w) {
+    return max(crack_chip_at(u, side, seed, w, 1.0, CRACK_CHIP_CHANCE),
+               crack_chip_at(u, side, seed, w, 0.25, 2.0 * CRACK_CHIP_CHANCE));
 }
 
 struct CrackHit {
@@ -143,10 +172,11 @@ struct CrackHit {
 };
 
 // One crack's share in ``hit``: at distance d from its centreline, width w (m, width_mm in
-// mm) there, the pixel's footprint f across it.
-void crack_apply(float d, float w, float width_mm, float f, inout CrackHit hit,
+// mm) there, a chip ``chip`` m deep out of the lip on the pixel's side (surface, like the
+// lips: it darkens and labels nothing), the pixel's footprint f across it.
+void crack_apply(float d, float w, float chip, float width_mm, float f, inout CrackHit hit,
                  inout float nearest) {
-    hit.coverage = max(hit.coverage, crack_coverage(d, w, f));
+    hit.coverage = max(hit.coverage, crack_coverage(d, w, chip, f));
     bool labels = d <= 0.5 * max(w, f) && w > 0.0;  // closed at a tip: no crack to label
     hit.width_mm = labels && d < nearest ? width_mm : hit.width_mm;
     nearest = labels ? min(d, nearest) : nearest;
@@ -185,11 +215,11 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
         float width_mm = crack_width_at(a.w, b.w, t);
         float w = 0.001 * width_mm;
         if (u_crack_rough && t > 0.0 && t < 1.0
-            && d < CRACK_REACH_M + 0.5 * size + 0.5 * w + CRACK_LIP_M)
+            && d < CRACK_REACH_M + 0.5 * size + (0.5 + CRACK_CHIP_MAX) * w + CRACK_LIP_M)
             crack_defer(s, d, near, near_d);
         else
-            crack_apply(d, w, width_mm, footprint_across(dpdx, dpdy, b.xyz - a.xyz), hit,
-                        nearest);
+            crack_apply(d, w, 0.0, width_mm,
+                        footprint_across(dpdx, dpdy, b.xyz - a.xyz), hit, nearest);
     }
 }
 
@@ -199,7 +229,7 @@ void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout 
     vec4 b = texelFetch(u_crack_segments, crack_texel(2 * s + 1), 0);
     float t = segment_param(p, a.xyz, b.xyz);
     vec3 ab = b.xyz - a.xyz, r = p - (a.xyz + ab * t), along = ab;
-    float d = length(r), width_mm = crack_width_at(a.w, b.w, t);
+    float d = length(r), width_mm = crack_width_at(a.w, b.w, t), chip = 0.0;
     vec3 across = cross(crack_normal(dpdx, dpdy), ab);
     if (dot(across, across) > 0.0) {
         across = normalize(across);
@@ -208,8 +238,9 @@ void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout 
         float ra = dot(r, across);
         d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y) + max(dot(r, r) - ra * ra, 0.0));
         along = normalize(ab) + o.y * across;
+        chip = crack_chip(t * length(ab), uint(ra >= o.x), seed, 0.001 * width_mm);
     }
-    crack_apply(d, 0.001 * width_mm, width_mm, footprint_across(dpdx, dpdy, along), hit,
+    crack_apply(d, 0.001 * width_mm, chip, width_mm, footprint_across(dpdx, dpdy, along), hit,
                 nearest);
 }
 

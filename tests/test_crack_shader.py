@@ -127,6 +127,55 @@ def test_the_paths_offsets_match_their_numpy_twin(glsl):
     assert np.array_equal(ref[finest >= length], np.zeros((finest >= length).sum()))
 
 
+def test_chips_break_a_share_of_each_lip_inside_their_cells(glsl):
+    """crack_chip_at at the coarse scale along 2,000 cells of a 1 mm crack, both lips: a chip
+    in CRACK_CHIP_CHANCE of the cells, each lip on its own; none reaches past its cell; each
+    CRACK_CHIP_MIN to CRACK_CHIP_MAX widths deep at its middle. The two scales together
+    (crack_chip) are the deeper of the two."""
+    c = crack_paths.SHADER_CONSTANTS
+    w, cells, per = 1e-3, 2000, 32
+    cell = c["CRACK_CHIP_CELL_WIDTHS"] * w + c["CRACK_CHIP_CELL_M"]
+    u = np.tile(np.arange(cells * per) / per * cell, 2)  # each cell from its start
+    side = np.repeat([0, 1], cells * per)
+    rows = _rows(u, side, np.full(len(u), 4321), np.full(len(u), w))
+    out = glsl.run("crack_chip_at(in0.x, uint(in0.y), uint(in0.z), in0.w, 1.0, "
+                   "CRACK_CHIP_CHANCE), crack_chip(in0.x, uint(in0.y), uint(in0.z), in0.w), "
+                   "crack_chip_at(in0.x, uint(in0.y), uint(in0.z), in0.w, 0.25, "
+                   "2.0 * CRACK_CHIP_CHANCE), 0.0", rows)
+    depth = out[:, 0].reshape(2, cells, per)
+    chipped = depth.max(-1) > 0
+    assert chipped.mean() == pytest.approx(c["CRACK_CHIP_CHANCE"], abs=0.03)
+    assert (chipped[0] & chipped[1]).mean() == pytest.approx(c["CRACK_CHIP_CHANCE"] ** 2,
+                                                              abs=0.03)
+    assert np.all(depth[..., 0] < 0.02 * w)  # where one cell meets the next
+    deepest = depth.max(-1)[chipped] / w
+    # Samples 1/32 of a cell apart come within 3 % of a chip's middle depth.
+    assert deepest.min() >= 0.97 * c["CRACK_CHIP_MIN"]
+    assert deepest.max() <= c["CRACK_CHIP_MAX"] * (1 + 1e-5)
+    assert deepest.max() >= 0.95 * c["CRACK_CHIP_MAX"]
+    assert np.array_equal(out[:, 1], np.maximum(out[:, 0], out[:, 2]))
+    assert 0 < out[:, 2].max() <= 0.25 * c["CRACK_CHIP_MAX"] * w * (1 + 1e-5)
+
+
+def test_a_chip_darkens_less_than_the_opening_and_the_lip_beyond_it(glsl):
+    """crack_coverage across a 1 mm rough crack with a 0.5 mm chip on the pixel's side, at a
+    footprint of 1 um: the opening darkens fully, the chip by CRACK_CHIP_SHARE, the rounded lip
+    beyond it by CRACK_LIP_SHARE, then nothing; on a straight crack (u_crack_rough false) only
+    the opening."""
+    c = crack_paths.SHADER_CONSTANTS
+    w, chip, lip = 1e-3, 5e-4, c["CRACK_LIP_M"]
+    d = np.array([0.0, 0.45 * w, 0.5 * w + 0.5 * chip, 0.5 * w + chip + 0.5 * lip,
+                  0.5 * w + chip + 1.5 * lip])
+    rows = _rows(d, np.full(5, w), np.full(5, chip), np.full(5, 1e-6))
+    expression = "crack_coverage(in0.x, in0.y, in0.z, in0.w), 0.0, 0.0, 0.0"
+    for rough, want in ((True, [1.0, 1.0, c["CRACK_CHIP_SHARE"], c["CRACK_LIP_SHARE"], 0.0]),
+                        (False, [1.0, 1.0, 0.0, 0.0, 0.0])):
+        def setup(prog, rough=rough):
+            prog["u_crack_rough"].value = rough
+        out = glsl.run(expression, rows, setup=setup)[:, 0]
+        assert out == pytest.approx(want, abs=1e-4), rough
+
+
 def test_footprint_across_the_crack_matches_numpy(glsl):
     rng = make_rng(3, 0, Stream.DAMAGE)
     n = 2048

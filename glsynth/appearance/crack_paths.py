@@ -32,6 +32,16 @@ SHADER_CONSTANTS: dict[str, float | int] = {
     "CRACK_LEVELS": 12,  # halvings at most in the shader: 7 cm segments to 17 um
     "CRACK_LIP_M": 3e-4,  # a rough crack's lips: at most this wide each side,
     "CRACK_LIP_SHARE": 0.35,  # darkened by this share of the interior's darkening
+    # Chips: small spalls broken out of a rough crack's lips, one chance per side in each
+    # cell along the crack (CELL_WIDTHS widths + CELL_M long), a half-ellipse at most half the
+    # cell long and MIN..MAX widths deep, darkened by SHARE of the interior's darkening and
+    # labelled as the crack (an annotator's mask follows the broken edge).
+    "CRACK_CHIP_CELL_WIDTHS": 3.0,
+    "CRACK_CHIP_CELL_M": 3e-4,
+    "CRACK_CHIP_CHANCE": 0.3,
+    "CRACK_CHIP_MIN": 0.3,
+    "CRACK_CHIP_MAX": 1.2,
+    "CRACK_CHIP_SHARE": 0.6,
 }
 """The crack paths' constants, shared with shaders/cracks.glsl (each a #define there)."""
 
