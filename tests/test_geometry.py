@@ -80,3 +80,7 @@ def test_nearest_triangles_finds_the_triangle_a_surface_point_lies_on():
     assert same.mean() > 0.99
     closest = trimesh.triangles.closest_point(mesh.triangles[found], points)
     assert np.abs(closest - points).max() < 1e-9
+    # A zero-area triangle (no plane, no edges) is never the nearest.
+    sliver = np.zeros((1, 3, 3))
+    assert np.array_equal(nearest_triangles(np.concatenate([sliver, mesh.triangles]), points),
+                          found + 1)

@@ -34,8 +34,8 @@ SHADER_CONSTANTS: dict[str, float | int] = {
     "CRACK_LIP_SHARE": 0.35,  # darkened by this share of the interior's darkening
     # Chips: small spalls broken out of a rough crack's lips, one chance per side in each
     # cell along the crack (CELL_WIDTHS widths + CELL_M long), a half-ellipse at most half the
-    # cell long and MIN..MAX widths deep, darkened by SHARE of the interior's darkening and
-    # labelled as the crack (an annotator's mask follows the broken edge).
+    # cell long and MIN..MAX widths deep, darkened by SHARE of the interior's darkening;
+    # surface like the lips, so they label nothing (docs/design.md, "Chipped lips").
     "CRACK_CHIP_CELL_WIDTHS": 3.0,
     "CRACK_CHIP_CELL_M": 3e-4,
     "CRACK_CHIP_CHANCE": 0.3,

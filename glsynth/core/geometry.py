@@ -53,7 +53,9 @@ def nearest_triangles(triangles: np.ndarray, points: np.ndarray, chunk: int = 25
     nearest-point query needs rtree, a compiled dependency, for this one question)."""
     v0, v1, v2 = (triangles[:, k] for k in range(3))
     normal = np.cross(v1 - v0, v2 - v0)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    size = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal /= np.maximum(size, 1e-300)
+    degenerate = size[:, 0] == 0  # no plane, no edges: it would score 0 everywhere
     corners = np.stack([v0, v1, v2], 1)
     edges = np.roll(corners, -1, axis=1) - corners
     inward = np.cross(normal[:, None], edges)
@@ -64,5 +66,6 @@ def nearest_triangles(triangles: np.ndarray, points: np.ndarray, chunk: int = 25
         plane = np.abs(np.sum((p - v0) * normal, -1))
         side = np.einsum("mtkd,tkd->mtk", p[:, :, None] - corners, inward)
         outside = np.maximum(-side.min(-1), 0.0)
-        out[start:start + chunk] = np.argmin(np.hypot(plane, outside), axis=1)
+        score = np.where(degenerate, np.inf, np.hypot(plane, outside))
+        out[start:start + chunk] = np.argmin(score, axis=1)
     return out
