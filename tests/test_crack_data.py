@@ -350,3 +350,24 @@ def test_stats_and_oracle_assessment_of_a_mechanics_dataset(mechanics_dataset, t
     # Measured skeleton pixels without a true width lie on spalled regions elongated enough
     # to pass for cracks (docs/design.md, "Crack widths in the assessment"): a few only.
     assert truth["skeleton_pixels_without_truth"] <= 0.05 * truth["all"]["pixels"]
+
+
+def test_a_rough_segment_just_outside_the_image_is_sampled_where_its_path_may_enter():
+    """A segment 1 cm beyond the image's right edge at 5 m (4 px): its chord cannot show, so a
+    straight crack gets no samples; a rough one's path strays up to CRACK_REACH_M (3 cm), so
+    it is sampled."""
+    from glsynth.appearance import crack_paths
+    from glsynth.data.visible_cracks import centreline_samples
+    from glsynth.world.meshes import box
+
+    camera = Camera(210, 99, 36.0, 36.0, np.eye(4), 0.1, 100.0)  # fx = 210 px
+    x = (210 - 0.5 - 104.5) * 5 / 210 + 0.01 + 2.5 * 5 / 210  # past the 2.5 px margin
+    assert 0.01 < crack_paths.SHADER_CONSTANTS["CRACK_REACH_M"]
+    wall = box((20.0, 20.0, 0.2)).apply_translation((0.0, 0.0, -5.1))  # its face at z = -5
+    part = Part("column_0_0_0", PartKind.COLUMN, 0, wall, np.eye(4))
+    points = np.array([[[x, -0.5, -5.0], [x, 0.5, -5.0]]])
+    for rough in (False, True):
+        net = CrackNetwork(points, np.array([[2e-4, 2e-4]]), np.zeros(1, np.int32),
+                           ("flexural",), rough=rough)
+        sampled, _, _ = centreline_samples(net, part, camera)
+        assert (len(sampled) > 0) == rough

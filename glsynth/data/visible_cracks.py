@@ -12,6 +12,8 @@ length of chord its labelled samples stand for and the number of pixels of the w
 640x360 crack-width map that they mark. Pure numpy.
 """
 
+import itertools
+
 import numpy as np
 
 from glsynth.appearance import crack_paths
@@ -37,8 +39,8 @@ def centreline_samples(net: CrackNetwork, part: Part, camera: Camera
     """Points along every segment of ``part``'s network that can show in the view, in world
     coordinates (M, 3), the segment each lies on (M,) and the length in metres of chord each
     stands for (M,). A segment is cut into equal pieces at most SAMPLE_STEP_PX long in the
-    image (taken at its nearer end) and sampled at their middles; a segment outside the frustum
-    (``in_frustum``) gets none. On a rough network the samples lie on the path the shader draws
+    image (taken at its nearer end) and sampled at their middles; a segment that cannot show
+    (``_may_show``) gets none. On a rough network the samples lie on the path the shader draws
     (path_offsets), not on the chord."""
     a = transform_points(part.pose, net.points[:, 0])
     b = transform_points(part.pose, net.points[:, 1])
@@ -47,13 +49,25 @@ def centreline_samples(net: CrackNetwork, part: Part, camera: Camera
     step_m = SAMPLE_STEP_PX * np.maximum(depth, camera.znear) / camera.fx
     length = np.linalg.norm(b - a, axis=1)
     n = np.clip(np.ceil(length / step_m), 1, MAX_SAMPLES_PER_SEGMENT).astype(np.int64)
-    n = np.where(in_frustum(a, b, camera), n, 0)
+    n = np.where(_may_show(a, b, net.rough, camera), n, 0)
     segment = np.repeat(np.arange(len(n)), n)
     t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[segment]
     points = a[segment] + t[:, None] * (b - a)[segment]
     if net.rough and len(segment):
         points += path_offsets(net, part, segment, t, points, camera)
     return points, segment, (length / np.maximum(n, 1))[segment]
+
+
+def _may_show(a: np.ndarray, b: np.ndarray, rough: bool, camera: Camera) -> np.ndarray:
+    """(N,) whether segments a-b (world) may show in the view (in_frustum); a rough one's
+    path strays up to CRACK_REACH_M from its chord, so its box grown by that much is tested."""
+    if not rough:
+        return in_frustum(a, b, camera)
+    reach = crack_paths.SHADER_CONSTANTS["CRACK_REACH_M"]
+    lo, hi = np.minimum(a, b) - reach, np.maximum(a, b) + reach
+    corners = np.stack([np.where(np.array(bits, bool), hi, lo)
+                        for bits in itertools.product((0, 1), repeat=3)], axis=1)
+    return seen_by(corners, camera, margin_px=2.5)
 
 
 def path_offsets(net: CrackNetwork, part: Part, segment: np.ndarray, t: np.ndarray,
