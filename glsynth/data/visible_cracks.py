@@ -12,8 +12,6 @@ length of chord its labelled samples stand for and the number of pixels of the w
 640x360 crack-width map that they mark. Pure numpy.
 """
 
-import itertools
-
 import numpy as np
 
 from glsynth.appearance import crack_paths
@@ -40,8 +38,8 @@ def centreline_samples(net: CrackNetwork, part: Part, camera: Camera
     coordinates (M, 3), the segment each lies on (M,) and the length in metres of chord each
     stands for (M,). A segment is cut into equal pieces at most SAMPLE_STEP_PX long in the
     image (taken at its nearer end) and sampled at their middles; a segment that cannot show
-    (``_may_show``) gets none. On a rough network the samples lie on the path the shader draws
-    (path_offsets), not on the chord."""
+    (``in_frustum``, grown by a rough path's reach) gets none. On a rough network the samples
+    lie on the path the shader draws (path_offsets), not on the chord."""
     a = transform_points(part.pose, net.points[:, 0])
     b = transform_points(part.pose, net.points[:, 1])
     view = camera.view()
@@ -49,25 +47,15 @@ def centreline_samples(net: CrackNetwork, part: Part, camera: Camera
     step_m = SAMPLE_STEP_PX * np.maximum(depth, camera.znear) / camera.fx
     length = np.linalg.norm(b - a, axis=1)
     n = np.clip(np.ceil(length / step_m), 1, MAX_SAMPLES_PER_SEGMENT).astype(np.int64)
-    n = np.where(_may_show(a, b, net.rough, camera), n, 0)
+    # A rough crack's path strays up to CRACK_REACH_M from its chord, into view from off it.
+    grow = crack_paths.SHADER_CONSTANTS["CRACK_REACH_M"] if net.rough else 0.0
+    n = np.where(in_frustum(a, b, camera, grow), n, 0)
     segment = np.repeat(np.arange(len(n)), n)
     t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / n[segment]
     points = a[segment] + t[:, None] * (b - a)[segment]
     if net.rough and len(segment):
         points += path_offsets(net, part, segment, t, points, camera)
     return points, segment, (length / np.maximum(n, 1))[segment]
-
-
-def _may_show(a: np.ndarray, b: np.ndarray, rough: bool, camera: Camera) -> np.ndarray:
-    """(N,) whether segments a-b (world) may show in the view (in_frustum); a rough one's
-    path strays up to CRACK_REACH_M from its chord, so its box grown by that much is tested."""
-    if not rough:
-        return in_frustum(a, b, camera)
-    reach = crack_paths.SHADER_CONSTANTS["CRACK_REACH_M"]
-    lo, hi = np.minimum(a, b) - reach, np.maximum(a, b) + reach
-    corners = np.stack([np.where(np.array(bits, bool), hi, lo)
-                        for bits in itertools.product((0, 1), repeat=3)], axis=1)
-    return seen_by(corners, camera, margin_px=2.5)
 
 
 def path_offsets(net: CrackNetwork, part: Part, segment: np.ndarray, t: np.ndarray,
@@ -86,7 +74,7 @@ def path_offsets(net: CrackNetwork, part: Part, segment: np.ndarray, t: np.ndarr
     across = np.cross(np.where(lead[:, None] < 0, -normal, normal), b - a)
     size = np.linalg.norm(across, axis=1, keepdims=True)
     across = np.where(size > 0, across / np.where(size > 0, size, 1.0), 0.0)
-    depth = -(points @ camera.view()[2, :3]) - camera.view()[2, 3]
+    depth = -transform_points(camera.view(), points)[:, 2]
     offset = crack_paths.shader_offsets(
         t, np.linalg.norm(b - a, axis=1)[back], crack_paths.segment_seeds(net.widths_m[used])[back],
         np.maximum(depth, camera.znear) / camera.fx)

@@ -168,8 +168,16 @@ def rays_meet_triangles(origin: np.ndarray, dirs: np.ndarray, tri: np.ndarray,
     return met
 
 
-def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera) -> np.ndarray:
+def in_frustum(a: np.ndarray, b: np.ndarray, camera: Camera, grow_m: float = 0.0
+               ) -> np.ndarray:
     """(N,) False for the segments a-b (world, (N, 3) each) that lie wholly beyond one plane of
     the view's frustum (the near plane, or a side grown by 2 pixels): none of their points can
-    land in the image. True for the rest (a conservative test)."""
-    return seen_by(np.stack([a, b], axis=1), camera, margin_px=2.5)
+    land in the image. True for the rest (a conservative test). ``grow_m`` > 0 tests each
+    segment's box grown by that much instead: for what strays from the segment (a rough
+    crack's path)."""
+    if grow_m > 0:
+        lo, hi = np.minimum(a, b) - grow_m, np.maximum(a, b) + grow_m
+        points = lo[:, None] + _CORNERS * (hi - lo)[:, None]
+    else:
+        points = np.stack([a, b], axis=1)
+    return seen_by(points, camera, margin_px=2.5)
