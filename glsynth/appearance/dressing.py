@@ -124,8 +124,26 @@ def _beam_network(env: Environment, cfg: DamageConfig, part: Part, drift: float,
     return beam_cracks(cfg, tuple(float(e) for e in part.mesh.extents), axis, span, drift, rng)
 
 
+KnownCracks = dict[int, tuple[dict, CrackNetwork]]
+"""A built member's record and (leaching) cracks by its part index, found once an opening: the
+cameras that aim at cracks (crack_segments) and the dressing both need them, and a member's
+cracks come from its own generator, so the first finding serves both."""
+
+
+def _remembered(known: KnownCracks | None, ordinal: int,
+                find: Callable[[], tuple[dict, CrackNetwork]]) -> tuple[dict, CrackNetwork]:
+    """``find()``, or what it gave for ``ordinal`` before (a copy of the record)."""
+    if known is None:
+        return find()
+    if ordinal not in known:
+        known[ordinal] = find()
+    record, cracks = known[ordinal]
+    return dict(record), cracks
+
+
 def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
-                 material: Material, seen: bool) -> tuple[dict | None, Material]:
+                 material: Material, seen: bool, known: KnownCracks | None = None
+                 ) -> tuple[dict | None, Material]:
     """A girder's or a cross or tie beam's record and material under model = "mechanics"."""
     if part.kind is not PartKind.GIRDER and beam_span(env, part) is None:
         return None, material
@@ -136,10 +154,15 @@ def _beam_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
     record = {"damaged": True, "severity": severity, "built": seen}
     if not seen:
         return record, material
-    demand = column_demand(cfg, severity, rng)
-    cracks = _beam_network(env, cfg, part, demand.drift, rng)
-    record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4))
-    return record, replace(material, cracks=_leaching(env, cfg, ordinal, cracks))
+
+    def find() -> tuple[dict, CrackNetwork]:
+        demand = column_demand(cfg, severity, rng)
+        cracks = _beam_network(env, cfg, part, demand.drift, rng)
+        return (_with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4)),
+                _leaching(env, cfg, ordinal, cracks))
+
+    record, cracks = _remembered(known, ordinal, find)
+    return record, replace(material, cracks=cracks)
 
 
 def _leaching(env: Environment, cfg: DamageConfig, ordinal: int, cracks: CrackNetwork
@@ -171,28 +194,34 @@ def _with_cracks(record: dict, part: Part, cracks: CrackNetwork, **demand: objec
 
 
 def _mechanics_damage(env: Environment, cfg: DamageConfig, part: Part, ordinal: int,
-                      damage: dict, material: Material) -> tuple[dict, Material]:
+                      damage: dict, material: Material, known: KnownCracks | None = None
+                      ) -> tuple[dict, Material]:
     """A damaged column's record and material under model = "mechanics": its drift and, if
     a camera sees it, its cracks on the concrete material (the record lists them)."""
     record = {"damaged": True, "severity": damage["severity"], "built": damage["built"]}
     if not damage["built"]:
         return record, material
-    rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
-    demand = column_demand(cfg, damage["severity"], rng)
-    section = tuple(float(e) for e in part.mesh.extents[:2])
-    cracks = column_cracks(cfg, section, clear_spans(env, part), demand, rng)
-    record = _with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4),
-                          drift_axis="xy"[demand.axis])
-    return record, replace(material, cracks=_leaching(env, cfg, ordinal, cracks))
+
+    def find() -> tuple[dict, CrackNetwork]:
+        rng = make_rng(env.root_seed, env.env_index, Stream.CRACKS, ordinal)
+        demand = column_demand(cfg, damage["severity"], rng)
+        section = tuple(float(e) for e in part.mesh.extents[:2])
+        cracks = column_cracks(cfg, section, clear_spans(env, part), demand, rng)
+        return (_with_cracks(record, part, cracks, drift_pct=round(demand.drift * 100, 4),
+                             drift_axis="xy"[demand.axis]),
+                _leaching(env, cfg, ordinal, cracks))
+
+    record, cracks = _remembered(known, ordinal, find)
+    return record, replace(material, cracks=cracks)
 
 
-def crack_segments(env: Environment, config: Config
+def crack_segments(env: Environment, config: Config, known: KnownCracks | None = None
                    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Every damaged column's and cross and tie beam's crack segments (the members face
     cameras aim at; not the girders'), seen by a camera or not: end points (N, 2, 3) in
     its mesh frame and widths (N, 2) in metres. They are the networks ``dress`` gives the
     seen members, for cameras that aim at cracks ([cameras] face_crack_share); none under
-    model = "paper"."""
+    model = "paper". ``known``: kept for ``dress`` of the same opening."""
     if config.damage.model != "mechanics":
         return {}
     out = {}
@@ -202,9 +231,10 @@ def crack_segments(env: Environment, config: Config
             if not damage["damaged"]:
                 continue
             _, material = _mechanics_damage(env, config.damage, part, ordinal,
-                                            {**damage, "built": True}, Material())
+                                            {**damage, "built": True}, Material(), known)
         elif part.kind in BOX_BEAMS:  # none aims at a girder
-            _, material = _beam_damage(env, config.damage, part, ordinal, Material(), True)
+            _, material = _beam_damage(env, config.damage, part, ordinal, Material(), True,
+                                       known)
         else:
             continue
         if material.cracks is not None and len(material.cracks.points):
@@ -262,10 +292,14 @@ WARM_GREY = ((1.03, 1.0, 0.95), (1.10, 1.0, 0.84))
 "Weathered concrete": concrete's reflectance rises from blue to red)."""
 
 
-def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray) -> dict:
+def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray,
+            means: dict[int, tuple[np.ndarray, np.ndarray]]) -> dict:
     """The Material fields of a concrete part's detail: its seed from the DETAIL stream and,
     under [materials] weathering, the tint that gives it an albedo and hue drawn from the
-    WEATHERING stream (item = ``ordinal``, the part's index) in place of ``image``'s mean."""
+    WEATHERING stream (item = ``ordinal``, the part's index) in place of ``image``'s mean.
+    ``means``: each image's linear mean by id (the image is kept beside it, so the id stays
+    its own); the repository's dozen images serve hundreds of parts, and decoding one at the
+    inspection preset's size takes 6 ms."""
     detail: dict = {"detail_seed": make_seed(env.root_seed, env.env_index, Stream.DETAIL,
                                              ordinal) % 2**32}
     if config.materials.weathering:
@@ -274,7 +308,9 @@ def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray) -
         warm, cool = np.array(WARM_GREY[1]), np.array(WARM_GREY[0])
         hue = cool + rng.uniform() * (warm - cool)
         target = albedo * hue / float(hue @ LUMINANCE)
-        mean = np.maximum(srgb_decode(image).mean((0, 1)), 1e-3)
+        if id(image) not in means:
+            means[id(image)] = (image, np.maximum(srgb_decode(image).mean((0, 1)), 1e-3))
+        mean = means[id(image)][1]
         detail["weathering_tint"] = tuple(float(v) for v in target / mean)
     return detail
 
@@ -295,12 +331,15 @@ def _image(repository: TextureRepository, config: Config, a: Assignment) -> np.n
 
 
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
-          visible: set[str]) -> Dressing:
+          visible: set[str], known: KnownCracks | None = None) -> Dressing:
+    """Materials and damage of every part; cracks of the members in ``visible`` (``known``:
+    those crack_segments found in this opening)."""
     cfg = config.materials
     root, index = env.root_seed, env.env_index
     materials: dict[str, Material] = {}
     deferred: dict[str, tuple[Material, Callable[[], Material]]] = {}
     assignments = {}
+    means: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     for ordinal, part in enumerate(env.parts):
         kind = part.kind
         if kind is PartKind.SLEEPER:
@@ -327,7 +366,7 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                 if config.damage.model == "mechanics":
                     sampled = damage
                     damage, material = _mechanics_damage(env, config.damage, part, ordinal,
-                                                         sampled, material)
+                                                         sampled, material, known)
                     if damage["built"] and spalls(config.damage, damage["severity"]):
                         damage, deferred[part.name] = _spalling(
                             env, config, bank, repository, part, sampled, damage, material)
@@ -341,11 +380,11 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             a = replace(a, damage=damage)
         elif kind.component is Component.BEAM and config.damage.model == "mechanics":
             damage, material = _beam_damage(env, config.damage, part, ordinal, material,
-                                            part.name in visible)
+                                            part.name in visible, known)
             a = replace(a, damage=damage)
         if cfg.concrete_detail == "on" and a.category == "concrete":
             material = _with_detail(material, deferred, part.name,
-                                    _detail(config, env, ordinal, image))
+                                    _detail(config, env, ordinal, image, means))
         if part.name not in deferred:
             materials[part.name] = material
         assignments[part.name] = a

@@ -11,7 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from glsynth.appearance.damage_bank import DamageBank
-from glsynth.appearance.dressing import Dressing, crack_segments, dress, open_repository
+from glsynth.appearance.dressing import (
+    Dressing,
+    KnownCracks,
+    crack_segments,
+    dress,
+    open_repository,
+)
 from glsynth.appearance.materials import surface_albedo
 from glsynth.appearance.metering import face_albedo, metered
 from glsynth.core.config import Config
@@ -71,8 +77,10 @@ class EnvironmentView:
         report("building the environment", 0.0)
         env = build_environment(config, root_seed, env_index)
         placements = None
+        known: KnownCracks = {}
         if cameras is None:
-            cracks = crack_segments(env, config) if config.cameras.face_crack_share else None
+            cracks = crack_segments(env, config, known) \
+                if config.cameras.face_crack_share else None
             placements = place_cameras(env, config.cameras, config.render,
                                        range(config.cameras.total), cracks)
             chosen = placements if rendering is None else [placements[i] for i in rendering]
@@ -81,7 +89,7 @@ class EnvironmentView:
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)
         dressing = dress(env, config, open_repository(config),
-                         DamageBank(config.damage, root_seed, bank_dir), visible)
+                         DamageBank(config.damage, root_seed, bank_dir), visible, known)
         ground = ground_parts(env.parts)
         lighting = environment_lighting(config.lighting, root_seed, env_index, ground_albedo=(
             surface_albedo(ground, dressing.materials) if ground else None))
