@@ -22,11 +22,18 @@ def env0():
 
 @pytest.fixture(scope="session", autouse=True)
 def isolated_cache(tmp_path_factory):
-    """Texture repository and damage bank caches in a fresh folder for the test session."""
+    """Texture repository, decoded-image and damage bank caches in a fresh folder for the test
+    session, shared by its xdist workers (their base folders share a parent) as a dataset's
+    workers share $GLSYNTH_CACHE: each repository and bank is then made once a run, not once a
+    worker. Its entries are written atomically, so workers that make one together agree."""
     import os
 
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    cache = shared / "glsynth-cache"
+    cache.mkdir(exist_ok=True)
     previous = os.environ.get("GLSYNTH_CACHE")
-    os.environ["GLSYNTH_CACHE"] = str(tmp_path_factory.mktemp("glsynth-cache"))
+    os.environ["GLSYNTH_CACHE"] = str(cache)
     yield
     if previous is None:
         os.environ.pop("GLSYNTH_CACHE", None)

@@ -7,12 +7,15 @@ import multiprocessing
 
 import numpy as np
 import pytest
+from conftest import env_config
 
 from glsynth.core.config import Config
 from glsynth.render.gl.renderer import Renderer
 from glsynth.render.view import EnvironmentView, preview_config
 
 CYCLES = 30
+QUICK_CYCLES = 3
+"""The quick loop's cycles: a buffer or texture kept by a release shows at the first."""
 WARM_UP = 6
 """Loads before the readings count (the first ones fill caches)."""
 MAX_WINDOW_RISE_MB = 8.0
@@ -52,12 +55,21 @@ def _held_mb() -> float:
     return (info.uordblks + info.hblkhd) / 2**20
 
 
+def test_load_render_release_cycles_leave_no_gl_objects_behind():
+    """The exact half of the soak below, in the quick loop: a few cycles of a two-viaduct
+    environment, in this process (GL object counts do not depend on what ran before)."""
+    config = preview_config(env_config(n_viaducts=2, cutoff_factor=1.0), 128)
+    with Renderer(config.render) as renderer:
+        _cycles(EnvironmentView.open(config, 0, 0, renderer), QUICK_CYCLES)
+
+
+@pytest.mark.slow  # a soak: 30 loads of a ten-viaduct environment in a process of its own
 def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
     """In a process of its own, so that the memory held is the cycles' alone: in a worker that
     had run other tests first, the allocator's readings moved between levels as it reused
     their freed blocks, and the slope with them (1.6 MB per load once, nothing leaked)."""
     _gl_function("glIsBuffer"), _held_mb()  # skips here, where the child cannot
-    child = multiprocessing.get_context("spawn").Process(target=_cycles)
+    child = multiprocessing.get_context("spawn").Process(target=_soak)
     child.start()
     child.join(600)
     if child.is_alive():
@@ -66,43 +78,51 @@ def test_load_render_release_cycles_leave_no_buffers_and_flat_memory():
     assert child.exitcode == 0, "the cycles failed in their own process: its traceback is above"
 
 
-def _cycles() -> None:
+def _cycles(view: EnvironmentView, cycles: int) -> list[float]:
+    """Load, render and release ``view``'s scene ``cycles`` times; asserts that each release
+    frees every GL buffer and that as many textures live after each; the memory held after
+    each cycle."""
+    renderer = view.renderer
+    is_buffer, is_texture = _gl_function("glIsBuffer"), _gl_function("glIsTexture")
+    camera = view.camera(0).camera
+    highest = 0
+    held, textures = [], []
+    for cycle in range(cycles):
+        renderer.load(view.scene, view.lighting)
+        renderer.render(camera)
+        probe = renderer.ctx.buffer(reserve=4)  # GL names the newest buffer highest
+        highest = max(highest, probe.glo)
+        probe.release()
+        assert sum(is_buffer(n) for n in range(1, highest + 1)) >= len(renderer._draws) > 0
+        renderer.release_scene()
+        live = sum(is_buffer(n) for n in range(1, highest + 64))
+        assert live == 0, f"cycle {cycle}: {live} GL buffers still alive after release"
+        probe = renderer.ctx.texture((1, 1), 1)
+        textures.append(sum(is_texture(n) for n in range(1, probe.glo)))
+        probe.release()
+        held.append(_held_mb())
+    # Between scenes only the framebuffers' and the repository's textures live.
+    assert len(set(textures)) == 1, f"live textures after release: {textures}"
+    return held
+
+
+def _soak() -> None:
     config = preview_config(Config(), 128)
     with Renderer(config.render) as renderer:
-        view = EnvironmentView.open(config, 0, 0, renderer)
-        is_buffer, is_texture = _gl_function("glIsBuffer"), _gl_function("glIsTexture")
-        camera = view.camera(0).camera
-        highest = 0
-        held, textures = [], []
-        for cycle in range(CYCLES):
-            renderer.load(view.scene, view.lighting)
-            renderer.render(camera)
-            probe = renderer.ctx.buffer(reserve=4)  # GL names the newest buffer highest
-            highest = max(highest, probe.glo)
-            probe.release()
-            assert sum(is_buffer(n) for n in range(1, highest + 1)) >= len(renderer._draws) > 0
-            renderer.release_scene()
-            live = sum(is_buffer(n) for n in range(1, highest + 64))
-            assert live == 0, f"cycle {cycle}: {live} GL buffers still alive after release"
-            probe = renderer.ctx.texture((1, 1), 1)
-            textures.append(sum(is_texture(n) for n in range(1, probe.glo)))
-            probe.release()
-            held.append(_held_mb())
-        # Between scenes only the framebuffers' and the repository's textures live.
-        assert len(set(textures)) == 1, f"live textures after release: {textures}"
-        # After a warm-up, the process holds the same memory however many scenes it loaded
-        # (it grew by 4.5 MB per load when the buffers leaked). On top of it llvmpipe holds
-        # working buffers of 13-60 MB at some readings and not at others, and may keep one
-        # from some load on: the readings jump between a few levels, and the lowest level can
-        # step up once (307 -> 331 MB from the tenth load on, in one run of the whole suite,
-        # which a Theil-Sen slope of 1.24 MB per load took for a leak). A leak raises every
-        # stretch of readings, a step one: the lowest reading of each of three windows of
-        # loads may rise by MAX_WINDOW_RISE_MB from one window to the next at most once. The
-        # old leak raised it by 36 MB at every window.
-        windows = [min(w) for w in np.array_split(np.array(held[WARM_UP:]), 3)]
-        rises = np.diff(windows)
-        assert (rises > MAX_WINDOW_RISE_MB).sum() <= 1, f"held memory rose at every window " \
-            f"({[round(r, 1) for r in rises]} MB): {[round(h, 1) for h in held]}"
+        held = _cycles(EnvironmentView.open(config, 0, 0, renderer), CYCLES)
+    # After a warm-up, the process holds the same memory however many scenes it loaded
+    # (it grew by 4.5 MB per load when the buffers leaked). On top of it llvmpipe holds
+    # working buffers of 13-60 MB at some readings and not at others, and may keep one
+    # from some load on: the readings jump between a few levels, and the lowest level can
+    # step up once (307 -> 331 MB from the tenth load on, in one run of the whole suite,
+    # which a Theil-Sen slope of 1.24 MB per load took for a leak). A leak raises every
+    # stretch of readings, a step one: the lowest reading of each of three windows of
+    # loads may rise by MAX_WINDOW_RISE_MB from one window to the next at most once. The
+    # old leak raised it by 36 MB at every window.
+    windows = [min(w) for w in np.array_split(np.array(held[WARM_UP:]), 3)]
+    rises = np.diff(windows)
+    assert (rises > MAX_WINDOW_RISE_MB).sum() <= 1, f"held memory rose at every window " \
+        f"({[round(r, 1) for r in rises]} MB): {[round(h, 1) for h in held]}"
 
 
 def test_read_only_textures_outlive_their_scene_until_a_scene_stops_drawing_them():
