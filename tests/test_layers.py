@@ -4,6 +4,8 @@ OpenGL only in glsynth.render.gl, torch only in model/, the ray cast independent
 import ast
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 LAYERS = ["core", "world", "appearance", "render", "data", "assess", "measure", "view", "model",
           "cli"]
@@ -34,12 +36,15 @@ def _layer(module: str) -> str:
     return parts[1] if len(parts) > 1 else "cli"
 
 
-MODULES = {name: _imports(path) for name, path in _modules().items()}
+@pytest.fixture(scope="module")
+def modules() -> dict[str, set[str]]:
+    """Each module's imports; parsed when this file runs, not when every worker collects it."""
+    return {name: _imports(path) for name, path in _modules().items()}
 
 
-def test_every_import_points_down_the_layers():
+def test_every_import_points_down_the_layers(modules):
     wrong = []
-    for module, imports in MODULES.items():
+    for module, imports in modules.items():
         if module == "glsynth":
             continue
         own = LAYERS.index(_layer(module))
@@ -49,8 +54,8 @@ def test_every_import_points_down_the_layers():
     assert not wrong, wrong
 
 
-def test_opengl_only_in_render_gl_and_torch_only_in_model():
-    for module, imports in MODULES.items():
+def test_opengl_only_in_render_gl_and_torch_only_in_model(modules):
+    for module, imports in modules.items():
         roots = {name.split(".")[0] for name in imports}
         if roots & {"moderngl", "glcontext", "OpenGL"}:
             assert module.startswith("glsynth.render.gl"), module
@@ -58,14 +63,14 @@ def test_opengl_only_in_render_gl_and_torch_only_in_model():
             assert module.startswith("glsynth.model"), module
 
 
-def test_the_ray_cast_does_not_depend_on_the_renderer_it_checks():
-    imports = MODULES["glsynth.render.raycast"]
+def test_the_ray_cast_does_not_depend_on_the_renderer_it_checks(modules):
+    imports = modules["glsynth.render.raycast"]
     assert not any(name.startswith("glsynth.render.gl") for name in imports)
 
 
-def test_the_model_settings_import_no_torch():
+def test_the_model_settings_import_no_torch(modules):
     """The command line builds its train options from them without loading torch."""
-    assert not {n.split(".")[0] for n in MODULES["glsynth.model.settings"]} & {"torch"}
+    assert not {n.split(".")[0] for n in modules["glsynth.model.settings"]} & {"torch"}
 
 
 def test_the_command_line_starts_without_torch_or_gl():
