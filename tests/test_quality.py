@@ -65,6 +65,7 @@ def test_presets_set_every_knob():
         apply_quality(Config(), "ultra")
 
 
+@pytest.mark.slow  # a whole benchmark: three presets opened, rendered and ray-cast
 def test_bench_quality_on_real_renders(tmp_path, capsys):
     config = tmp_path / "c.toml"
     # The paper's damage: the ray cast has no cracks (their labels are checked against numpy
