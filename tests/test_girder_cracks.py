@@ -51,14 +51,25 @@ def cracks_of(env: Environment, part: Part, seed: int) -> CrackNetwork:
                          d.girder_width_m, d.girder_depth_m, drift, rng)
 
 
+_CENTRE_LINES: dict[int, tuple] = {}
+
+
+def _coarse_centre_line(trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Arc lengths every 15 cm along ``trajectory`` and its centre there, found once per
+    trajectory (kept beside it, so that its id stays its own)."""
+    if id(trajectory) not in _CENTRE_LINES:
+        grid = np.linspace(0, trajectory.centres_s[-1] + 30, 20001)[::10]
+        _CENTRE_LINES[id(trajectory)] = (trajectory, grid, trajectory.frame(grid)[0])
+    return _CENTRE_LINES[id(trajectory)][1:]
+
+
 def local(env: Environment, points: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per point (n, 3): track arc length s, across offset a and height b below the deck top
     (the sweep's coordinates), and the track's unit tangent there."""
     traj = env.trajectory
-    grid = np.linspace(0, traj.centres_s[-1] + 30, 20001)
-    centre, _, _ = traj.frame(grid)
-    near = np.argmin(np.linalg.norm(points[:, None, :2] - centre[None, ::10, :2], axis=2), 1)
-    s = grid[near * 10]
+    grid, centre = _coarse_centre_line(traj)
+    near = np.argmin(np.linalg.norm(points[:, None, :2] - centre[None, :, :2], axis=2), 1)
+    s = grid[near]
     for _ in range(3):  # project onto the centre line: s += (p - P(s)) . t(s)
         p0, t, _ = traj.frame(s)
         s = s + np.sum((points - p0)[:, :2] * t[:, :2], 1)

@@ -171,6 +171,10 @@ def _damage_textures(view) -> int:
                for a in view.dressing.assignments.values())
 
 
+ALONE = (0, 2, 3, 5)
+"""The cameras opened for alone: regular and close-up, each kind's first and last."""
+
+
 def test_an_opening_for_some_cameras_uploads_less_and_renders_them_the_same():
     """glsynth render --camera: culled by the asked cameras alone (their far sky occlusion
     included), the same bytes as an opening for all of the environment's cameras."""
@@ -185,7 +189,7 @@ def test_an_opening_for_some_cameras_uploads_less_and_renders_them_the_same():
         every = EnvironmentView.open(config, 0, 1, renderer)
         expected = [every.render(i)[1] for i in range(6)]
         uploaded, damaged = len(every.scene.parts), _damage_textures(every)
-        for i in range(6):
+        for i in ALONE:
             alone = EnvironmentView.open(config, 0, 1, renderer, rendering=[i])
             assert len(alone.scene.parts) <= uploaded and _damage_textures(alone) <= damaged
             fewer = len(alone.scene.parts) < uploaded or _damage_textures(alone) < damaged
