@@ -24,8 +24,9 @@ def env0():
 def isolated_cache(tmp_path_factory):
     """Texture repository, decoded-image and damage bank caches in a fresh folder for the test
     session, shared by its xdist workers (their base folders share a parent) as a dataset's
-    workers share $GLSYNTH_CACHE: each repository and bank is then made once a run, not once a
-    worker. Its entries are written atomically, so workers that make one together agree."""
+    workers share $GLSYNTH_CACHE: each repository is then made once a run, not once a
+    worker (a repository is made under a lock; two workers may make the same damage bank
+    entry at once, and its atomic writes make that harmless)."""
     import os
 
     base = tmp_path_factory.getbasetemp()

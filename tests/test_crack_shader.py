@@ -226,8 +226,8 @@ def _brute_force(p, dpdx, dpdy, network):
     nearest = np.argmin(np.where(labels, d, np.inf), 1)
     width = np.where(labels.any(1), w[np.arange(len(p)), nearest] * 1000, 0.0)
     nearest_two = np.sort(np.where(labels, d, np.inf), 1)[:, :2]
-    # No second labelling segment: no tie, an infinite gap (inf - inf would be NaN, which
-    # compares false and left such pixels' widths unchecked).
+    # No labelling segment at all: an infinite gap, not inf - inf (NaN, and a RuntimeWarning);
+    # such pixels are not labelled, so their widths are not compared either way.
     gap = np.subtract(nearest_two[:, 1], nearest_two[:, 0], out=np.full(len(p), np.inf),
                       where=np.isfinite(nearest_two[:, 0]))
     return (coverage, width, labels.any(1), np.abs(d - 0.5 * np.maximum(w, f)).min(1), gap)

@@ -377,3 +377,39 @@ def test_dressing_under_mechanics_cracks_girders_and_cross_and_tie_beams(tmp_pat
     paper = dress(env, SMALL, open_repository(SMALL), DamageBank(SMALL.damage, 5,
                                                                  cache_dir=tmp_path), set())
     assert all(paper.assignments[p.name].damage is None for p in beams)
+
+
+def _same_network(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    arrays = all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("points", "widths_m",
+                                                                          "crack"))
+    leach = (a.leachate is None and b.leachate is None) or np.array_equal(a.leachate, b.leachate)
+    return arrays and leach and (a.kinds, a.rough) == (b.kinds, b.rough)
+
+
+def test_the_cracks_found_to_aim_cameras_dress_the_members_as_found_afresh(mechanics_dressing,
+                                                                           tmp_path):
+    """An opening finds every damaged member's cracks once (crack_segments keeps them for
+    dress): the records and the cracks, leaching ones included, of every part are those of a
+    dressing that finds them itself."""
+    from glsynth.appearance.dressing import crack_segments
+    from glsynth.core.fileio import jsonable
+
+    env, seen = mechanics_dressing.env, set(mechanics_dressing.seen)
+    config = dataclasses.replace(mechanics_dressing.config, damage=dataclasses.replace(
+        mechanics_dressing.config.damage, leachate_share=0.5))
+    known: dict = {}
+    assert crack_segments(env, config, known) and known
+    dressings = [dress(env, config, open_repository(config),
+                       DamageBank(config.damage, MECHANICS_SEED, cache_dir=tmp_path / name),
+                       seen, memo)
+                 for name, memo in (("found", known), ("afresh", None))]
+    found, afresh = dressings
+    assert jsonable(found.assignments) == jsonable(afresh.assignments)
+    leaching = 0
+    for name in afresh.assignments:
+        a, b = found.materials.factors(name), afresh.materials.factors(name)
+        assert _same_network(a.cracks, b.cracks), name
+        leaching += a.cracks is not None and a.cracks.leachate is not None
+    assert leaching > 0 and sum(1 for r in known.values() if r[0]["built"]) == len(known)

@@ -15,7 +15,8 @@ from glsynth.render.view import EnvironmentView, preview_config
 
 CYCLES = 30
 QUICK_CYCLES = 3
-"""The quick loop's cycles: a buffer or texture kept by a release shows at the first."""
+"""The quick loop's cycles: a buffer kept by a release shows at the first, a texture kept by
+one at the second (the count of live textures changes)."""
 WARM_UP = 6
 """Loads before the readings count (the first ones fill caches)."""
 MAX_WINDOW_RISE_MB = 8.0

@@ -74,7 +74,7 @@ def test_bench_quality_on_real_renders(tmp_path, capsys):
                       "[environment]\nn_viaducts = 3\ncutoff_factor = 1.5\n")
     out = tmp_path / "q"
     assert main(["bench", "quality", "--preset", "demo", "--config", str(config), "--cameras",
-                 "1", "--presets", "preview,fast,reference", "--reference", "glsynth",
+                 "2", "--presets", "preview,fast,reference", "--reference", "glsynth",
                  "--out", str(out)]) == 0
     result = json.loads((out / "quality.json").read_text())
     rows = result["presets"]

@@ -149,19 +149,51 @@ def _build_builtin(cache: str) -> None:
     builtin_repository(seed=6, per_category=4, size=64)
 
 
-def test_processes_that_ask_for_the_builtin_repository_at_once_get_it_whole(tmp_path):
-    """As a dataset's workers do on a fresh cache: one makes it while the other waits on its
-    lock, and both find every image, with no temporary file left."""
+def test_a_process_waits_for_the_one_making_the_builtin_repository(tmp_path, monkeypatch):
+    """As a dataset's workers do on a fresh cache: while one process holds the repository's
+    lock, another that asks for it waits, making nothing; once the lock is free it finds or
+    makes every image, equal to one made alone, with no temporary file left."""
+    import fcntl
     import multiprocessing
+    import time
 
-    context = multiprocessing.get_context("spawn")
-    children = [context.Process(target=_build_builtin, args=(str(tmp_path / "cache"),))
-                for _ in range(2)]
-    for child in children:
+    from glsynth.appearance.repository import builtin_root
+
+    monkeypatch.setenv("GLSYNTH_CACHE", str(tmp_path / "cache"))
+    root = builtin_root(seed=6, per_category=4, size=64)
+    root.mkdir(parents=True)
+    child = multiprocessing.get_context("spawn").Process(target=_build_builtin,
+                                                         args=(str(tmp_path / "cache"),))
+    with open(root.with_name(root.name + ".lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
         child.start()
-    for child in children:
-        child.join(120)
-    assert [child.exitcode for child in children] == [0, 0]
-    made = next((tmp_path / "cache").glob("textures-*px"))
+        time.sleep(3.0)  # a spawned child is up and at the lock within a second
+        waiting = child.is_alive() and not list(root.rglob("*.png"))
+    child.join(120)
+    if child.is_alive():
+        child.kill()
+        child.join()
+    assert waiting and child.exitcode == 0
     alone = generate_repository(tmp_path / "alone", seed=6, per_category=4, size=64)
-    assert _tree(made) == _tree(alone) and not list(made.rglob("*.tmp"))
+    assert _tree(root) == _tree(alone) and not list(root.rglob("*.tmp"))
+
+
+def test_a_complete_builtin_repository_is_read_without_its_lock(tmp_path, monkeypatch):
+    """A finished repository in a cache this process may not write (another user's, or
+    read-only) is used as it is; one with images missing is a one-line error naming
+    $GLSYNTH_CACHE."""
+    from glsynth.appearance import repository
+    from glsynth.core.errors import UserError
+
+    monkeypatch.setenv("GLSYNTH_CACHE", str(tmp_path / "cache"))
+    root = repository.builtin_repository(seed=6, per_category=2, size=32)
+    root.with_name(root.name + ".lock").unlink()
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr("builtins.open", refused)
+    assert repository.builtin_repository(seed=6, per_category=2, size=32) == root
+    next(root.rglob("*.png")).unlink()
+    with pytest.raises(UserError, match=r"^\$GLSYNTH_CACHE: cannot make .*Permission denied"):
+        repository.builtin_repository(seed=6, per_category=2, size=32)

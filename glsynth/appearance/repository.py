@@ -31,7 +31,7 @@ from PIL import Image, UnidentifiedImageError
 from glsynth.appearance.texgen import CATEGORIES
 from glsynth.core.errors import UserError, named, shown
 from glsynth.core.fileio import atomic_write_bytes, npy_bytes, png_bytes
-from glsynth.core.paths import cache_folder, cache_root
+from glsynth.core.paths import cache_error, cache_folder, cache_root
 from glsynth.core.reading import MAX_IMAGE_BYTES, read_bytes, read_npy, remove_entry
 from glsynth.core.seeding import Stream, make_rng
 
@@ -128,6 +128,15 @@ BUILD_THREADS = 2
 built-in repository in 5.1 s where one takes 9.7 (1024 px, 72 images; the same bytes)."""
 
 
+def _image_path(root: Path, category: str, k: int) -> Path:
+    return root / category / f"{category}_{k:04d}.png"
+
+
+def _complete(root: Path, per_category: int) -> bool:
+    return all(_image_path(root, category, k).exists() for category in CATEGORIES
+               for k in range(per_category))
+
+
 def generate_repository(root: str | Path, seed: int, per_category: int, size: int) -> Path:
     """Fill ``root`` with ``per_category`` procedural images per category (PNG, atomic).
 
@@ -136,18 +145,20 @@ def generate_repository(root: str | Path, seed: int, per_category: int, size: in
     where it was).
     """
     root = Path(root)
-    missing = [(root / category / f"{category}_{k:04d}.png", make,
-                make_rng(seed, 0, Stream.MATERIALS, 10**6 * (c_index + 1) + k))
-               for c_index, (category, make) in enumerate(CATEGORIES.items())
-               for k in range(per_category)]
-    missing = [job for job in missing if not job[0].exists()]
+    jobs = [(_image_path(root, category, k), make,
+             make_rng(seed, 0, Stream.MATERIALS, 10**6 * (c_index + 1) + k))
+            for c_index, (category, make) in enumerate(CATEGORIES.items())
+            for k in range(per_category)]
 
     def write(job: tuple[Path, Callable, np.random.Generator]) -> None:
         path, make, rng = job
         atomic_write_bytes(path, png_bytes(make(size, rng)))
 
-    with ThreadPoolExecutor(BUILD_THREADS, thread_name_prefix="repository") as pool:
-        list(pool.map(write, missing))  # list(): a failed write is raised here
+    pool = ThreadPoolExecutor(BUILD_THREADS, thread_name_prefix="repository")
+    try:
+        list(pool.map(write, [job for job in jobs if not job[0].exists()]))  # raises a failure
+    finally:  # on a failure or Ctrl-C, the images not begun are not made
+        pool.shutdown(cancel_futures=True)
     return root
 
 
@@ -162,6 +173,13 @@ def builtin_repository(seed: int, per_category: int, size: int) -> Path:
     a test run that start together wait for the first one's images instead of making them
     again."""
     root = cache_folder(builtin_root(seed, per_category, size))
-    with open(root.with_name(root.name + ".lock"), "a") as lock:
+    if _complete(root, per_category):  # no lock needed to read it (a read-only cache works)
+        return root
+    lock_path = root.with_name(root.name + ".lock")
+    try:
+        lock = open(lock_path, "a")
+    except OSError as err:
+        raise cache_error(lock_path, err) from None
+    with lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # dropped when closed, or by the kernel at any exit
         return generate_repository(root, seed, per_category, size)

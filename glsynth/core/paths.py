@@ -24,8 +24,14 @@ def cache_folder(folder: Path) -> Path:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        where = "$GLSYNTH_CACHE" if os.environ.get("GLSYNTH_CACHE") else \
-            "the cache folder (default ~/.cache/glsynth; $GLSYNTH_CACHE moves it)"
-        raise UserError(f"{where}: cannot make {named(folder)} ({err.strerror}); remove what "
-                        "is in its way, or point $GLSYNTH_CACHE at a writable folder") from None
+        raise cache_error(folder, err) from None
     return folder
+
+
+def cache_error(path: Path, err: OSError) -> UserError:
+    """The one-line error for ``path`` in the cache that cannot be made, named as the cache's
+    with the fix."""
+    where = "$GLSYNTH_CACHE" if os.environ.get("GLSYNTH_CACHE") else \
+        "the cache folder (default ~/.cache/glsynth; $GLSYNTH_CACHE moves it)"
+    return UserError(f"{where}: cannot make {named(path)} ({err.strerror}); remove what is in "
+                     "its way, or point $GLSYNTH_CACHE at a writable folder")
