@@ -125,7 +125,8 @@ def _unreadable(path: Path, err: Exception) -> None:
 
 BUILD_THREADS = 2
 """Images made at once: numpy's FFTs and zlib release the GIL, so two threads make the
-built-in repository in 5.1 s where one takes 9.7 (1024 px, 72 images; the same bytes)."""
+built-in repository in about half the time of one, with the same bytes (docs/results.md,
+"Making the built-in repository")."""
 
 
 def _image_path(root: Path, category: str, k: int) -> Path:
