@@ -163,8 +163,9 @@ TWO_VIADUCTS = "[environment]\nn_viaducts = 2\ncutoff_factor = 1.0\n"
 def _render_args(tmp_path: Path, *extra: str) -> list[str]:
     config = tmp_path / "c.toml"
     config.write_text("[cameras]\nn_regular = 1\nn_closeup = 1\n[damage]\nresolution = 64\n"
-                      "[materials]\ntexture_size = 32\nimages_per_category = 3\n"
-                      "[render]\nwidth = 64\nheight = 36\n" + TWO_VIADUCTS)
+                      "[materials]\ntexture_size = 32\nbuiltin_size = 64\n"
+                      "images_per_category = 3\n[render]\nwidth = 64\nheight = 36\n"
+                      + TWO_VIADUCTS)
     return ["render", "--preset", "demo", "--config", str(config), "--seed", "0", "--env", "0",
             "--camera", "0", "--renderer", "cycles", *extra, "--out", str(tmp_path / "out")]
 
