@@ -270,3 +270,29 @@ def test_opening_an_environment_frees_the_previous_one_first(monkeypatch):
         monkeypatch.setattr(view_module, "dress", dress_after_release)
         EnvironmentView.open(config, 0, 1, renderer)
         assert renderer._draws
+
+
+@pytest.mark.parametrize("stop_at", [2, 5])
+def test_an_interrupted_opening_leaves_its_renderer_empty_and_usable(stop_at):
+    """``interrupt()`` is asked at each stage of an opening (building, dressing, uploading)
+    and before each part's upload: its first True (here at the dressing stage, or at the
+    second part's upload) raises RenderInterrupted with nothing of the scene left on the
+    renderer given, which then opens and renders as a fresh one does."""
+    from glsynth.render.gl.renderer import RenderInterrupted
+    from glsynth.render.view import EnvironmentView, preview_config
+
+    config = preview_config(two_viaducts(Config()), 96)
+    asked = []
+
+    def interrupt() -> bool:
+        asked.append(True)
+        return len(asked) >= stop_at
+
+    with Renderer(config.render) as renderer, Renderer(config.render) as fresh:
+        with pytest.raises(RenderInterrupted):
+            EnvironmentView.open(config, 0, 0, renderer, interrupt=interrupt)
+        assert len(asked) == stop_at and renderer._draws == []
+        again = EnvironmentView.open(config, 0, 0, renderer).render(0)[1]
+        expected = EnvironmentView.open(config, 0, 0, fresh).render(0)[1]
+        for name in ("color", "component", "damage", "depth"):
+            assert np.array_equal(getattr(again, name), getattr(expected, name)), name

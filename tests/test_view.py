@@ -413,10 +413,10 @@ def test_a_switch_lets_the_old_environment_go_before_it_builds_the_new_one(previ
     old_view, renderer = weakref.ref(worker.scene.view), worker.scene.view.renderer
     seen = []
 
-    def open_scene(*args):
+    def open_scene(*args, **kwargs):
         gc.collect()
         seen.append(old_view() is None)
-        return real_open(*args)
+        return real_open(*args, **kwargs)
 
     real_open = worker_module.open_scene
     monkeypatch.setattr(worker_module, "open_scene", open_scene)

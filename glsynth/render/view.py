@@ -26,13 +26,38 @@ from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.camera_model import photograph
-from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
+from glsynth.render.gl.renderer import PASSES, Renderer, RenderInterrupted, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera, CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts
 from glsynth.world.face_cameras import place_cameras
 from glsynth.world.lighting import Lighting, environment_lighting
 from glsynth.world.visibility import occlusion_extent, shadowing_parts, visible_parts
+
+
+def _stage_report(progress: Callable[[str, float], None] | None,
+                  interrupt: Callable[[], bool] | None) -> Callable[[str, float], None]:
+    """An opening's report of a stage: ``interrupt()`` first (True raises RenderInterrupted),
+    then ``progress``."""
+    def report(stage: str, fraction: float) -> None:
+        if interrupt is not None and interrupt():
+            raise RenderInterrupted(f"the opening was interrupted before {stage}")
+        if progress is not None:
+            progress(stage, fraction)
+    return report
+
+
+def _loaded(renderer: Renderer, own: bool, scene: RenderScene, lighting: Lighting,
+            extent: np.ndarray, interrupt: Callable[[], bool] | None) -> Renderer:
+    """``renderer`` with ``scene`` loaded; if the load fails or is interrupted, a renderer
+    the opening made itself (``own``) is released, since nothing else holds it."""
+    try:
+        renderer.load(scene, lighting, extent, interrupt)
+    except BaseException:
+        if own:
+            renderer.release()
+        raise
+    return renderer
 
 
 @dataclass
@@ -57,7 +82,8 @@ class EnvironmentView:
              progress: Callable[[str, float], None] | None = None,
              cameras: Sequence[Camera] | None = None,
              bank_dir: Path | None = None,
-             rendering: Sequence[int] | None = None) -> "EnvironmentView":
+             rendering: Sequence[int] | None = None,
+             interrupt: Callable[[], bool] | None = None) -> "EnvironmentView":
         """Build, dress and upload environment ``env_index``. Only parts that some camera of
         the environment (all of them, not only those rendered now) can see, or that can shadow
         such a view, are uploaded, and only the seen columns get damage textures, so a camera
@@ -68,8 +94,10 @@ class EnvironmentView:
         ``rendering``: the indices of the only sampled cameras this view will render (glsynth
         render --camera): culled by those alone, the same bytes for a fraction of the upload.
         ``progress(stage, fraction)`` hears of each stage. ``bank_dir``: where the damage
-        bank caches its textures (default: the cache, glsynth.core.paths.cache_root)."""
-        report = progress or (lambda stage, fraction: None)
+        bank caches its textures (default: the cache, glsynth.core.paths.cache_root).
+        ``interrupt()``, asked at each stage and before each part's upload: True raises
+        RenderInterrupted, the renderer given left empty (a viewer stopping mid-opening)."""
+        report = _stage_report(progress, interrupt)
         if renderer is not None:
             # Free the previous environment's textures (and the arrays behind them) before
             # dressing this one: a worker then peaks at one environment, not two.
@@ -97,9 +125,10 @@ class EnvironmentView:
         parts = [p for p in env.parts if p.name in needed] if cull else env.parts
         report("uploading to GL", 0.6)
         scene = build_scene(parts, dressing.materials)
-        renderer = renderer or Renderer(config.render)
-        renderer.load(scene, lighting, occlusion_extent(env.parts))
-        report("ready", 1.0)
+        renderer = _loaded(renderer or Renderer(config.render), renderer is None, scene,
+                           lighting, occlusion_extent(env.parts), interrupt)
+        if progress is not None:
+            progress("ready", 1.0)
         return cls(config, env, dressing, scene, lighting, renderer, placements)
 
     def camera(self, index: int) -> CameraPlacement:

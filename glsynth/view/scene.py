@@ -186,11 +186,12 @@ def _same_targets(renderer: Renderer, config: Config) -> bool:
 
 
 def open_scene(settings: SceneSettings, renderer: Renderer | None,
-               progress: Callable[[str, float], None], bank_dir: Path | None = None) -> Scene:
+               progress: Callable[[str, float], None], bank_dir: Path | None = None,
+               interrupt: Callable[[], bool] | None = None) -> Scene:
     """Open ``settings``' environment on ``renderer`` (a new one if its [render] section
-    differs, the old one released first: one context at a time). A failed opening releases
-    the context it had, so a retry makes one afresh and none is left behind. ``bank_dir``:
-    EnvironmentView.open's."""
+    differs, the old one released first: one context at a time). A failed or interrupted
+    opening releases the context it had, so a retry makes one afresh and none is left
+    behind. ``bank_dir``, ``interrupt``: EnvironmentView.open's."""
     config = scene_config(settings)
     if renderer is not None and not _same_targets(renderer, config):
         renderer.release()
@@ -199,7 +200,8 @@ def open_scene(settings: SceneSettings, renderer: Renderer | None,
     try:
         renderer.resize(config.render.width, config.render.height)
         view = EnvironmentView.open(config, settings.seed, settings.env, renderer, cull=False,
-                                    anywhere=True, progress=progress, bank_dir=bank_dir)
+                                    anywhere=True, progress=progress, bank_dir=bank_dir,
+                                    interrupt=interrupt)
         cameras = [view.camera(i) for i in range(config.cameras.total)]
     except BaseException:
         renderer.release()  # nothing else holds it: the old scene was let go before

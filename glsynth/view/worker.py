@@ -288,8 +288,12 @@ class RenderWorker:
         return_free_memory()
         t0 = time.perf_counter()
         try:
+            # Ctrl-C stops the opening at its next stage or part, not after it.
             scene = open_scene(settings, renderer, self._progress(settings),
-                               self._bank(settings))
+                               self._bank(settings), interrupt=lambda: self._stopping)
+        except RenderInterrupted:  # the server is stopping: there is nothing to show
+            self.loading = None
+            return
         except Exception as err:  # the last good scene opens again, as after a bad config
             self.loading = None
             if fallback is not None and fallback != settings:

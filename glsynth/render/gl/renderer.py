@@ -124,7 +124,8 @@ class RenderOutput:
 
 
 class RenderInterrupted(Exception):
-    """Renderer.render stopped because its ``interrupt()`` said so."""
+    """Renderer.render or Renderer.load (or EnvironmentView.open) stopped because its
+    ``interrupt()`` said so."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -633,10 +634,12 @@ class Renderer:
         return self._upload_texture(base, alpha=metal)
 
     def load(self, render_scene: RenderScene, lighting: Lighting,
-             extent: np.ndarray | None = None) -> None:
+             extent: np.ndarray | None = None,
+             interrupt: Callable[[], bool] | None = None) -> None:
         """Upload the geometry and textures of every mesh node (replacing any earlier scene),
         lit by ``lighting``. The sky-visibility maps are fitted to the points ``extent`` (N, 3)
-        (default: the uploaded meshes' boxes)."""
+        (default: the uploaded meshes' boxes). ``interrupt()``, asked before each part: True
+        frees what was uploaded and raises RenderInterrupted (a viewer stopping mid-upload)."""
         self.make_current()
         self.release_scene()
         self.lighting = lighting
@@ -646,6 +649,10 @@ class Renderer:
         # Deferred materials are built here, the next one while this one uploads.
         built = built_in_order(render_scene.materials, [n.name for n in nodes])
         for node, material in zip(nodes, built, strict=True):
+            if interrupt is not None and interrupt():
+                built.close()  # its builder thread finishes the material it has begun
+                self.release_scene()
+                raise RenderInterrupted("the upload was interrupted")
             info = render_scene.parts[node.name]
             pose = scene.get_pose(node)
             for primitive in node.mesh.primitives:
