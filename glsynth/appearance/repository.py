@@ -126,7 +126,7 @@ def _unreadable(path: Path, err: Exception) -> None:
 BUILD_THREADS = 2
 """Images made at once: numpy's FFTs and zlib release the GIL, so two threads make the
 built-in repository in about half the time of one, with the same bytes (docs/results.md,
-"Making the built-in repository")."""
+"Making the built-in repository"; bench/bench_repository.py)."""
 
 
 def _image_path(root: Path, category: str, k: int) -> Path:
