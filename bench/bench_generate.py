@@ -35,7 +35,7 @@ def cpu_seconds_of_children() -> float:
 def run(out: Path, config: Path, workers: int, quality: str | None) -> tuple[dict, float]:
     """The run's report and the CPU seconds it took."""
     before = cpu_seconds_of_children()
-    subprocess.run([sys.executable, "-m", "glsynth.cli", "generate", "--preset", "paper",
+    subprocess.run([sys.executable, "-m", "glsynth", "generate", "--preset", "paper",
                     "--config", str(config), "--seed", "0", "--out", str(out),
                     "--workers", str(workers), *(["--quality", quality] if quality else [])],
                    check=True, stderr=subprocess.DEVNULL)

@@ -21,7 +21,7 @@ PAPER = {"component_miou": 0.879, "concrete_iou": 0.534, "rebar_iou": 0.506,
 
 
 def glsynth(*args: str) -> None:
-    subprocess.run([sys.executable, "-m", "glsynth.cli", *args], check=True)
+    subprocess.run([sys.executable, "-m", "glsynth", *args], check=True)
 
 
 def main() -> None:

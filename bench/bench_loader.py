@@ -48,7 +48,7 @@ def loop_rate(data: Path, size: str, cache: bool, cache_dir: Path) -> float:
     """images/s of the second epoch of a 2-epoch component run (the first fills the cache)."""
     with tempfile.TemporaryDirectory() as run:
         env = training_env(GLSYNTH_CACHE=str(cache_dir))
-        subprocess.run([sys.executable, "-m", "glsynth.cli", "train", "--task", "component",
+        subprocess.run([sys.executable, "-m", "glsynth", "train", "--task", "component",
                         "--data", str(data), "--out", run, "--image-size", size,
                         "--schedule", "1e-3:2", "--val-count", "0",
                         *(["--cache-inputs"] if cache else [])], check=True, env=env,

@@ -38,7 +38,7 @@ RULES = ("jacket_probability", "brace_probability", "downpipe_probability",
 
 
 def generate(out: Path, config: Path) -> dict:
-    subprocess.run([sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo",
+    subprocess.run([sys.executable, "-m", "glsynth", "generate", "--preset", "demo",
                     "--config", str(config), "--seed", "0", "--out", str(out)],
                    check=True, stderr=subprocess.DEVNULL)
     return json.loads((out / "report.json").read_text())

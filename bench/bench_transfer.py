@@ -38,7 +38,7 @@ TASKS = {"component": ("gl", "cycles", "gl_augment", "gl_fixed_light"), "depth":
 
 
 def glsynth(*args: str, env: dict | None = None) -> None:
-    subprocess.run([sys.executable, "-m", "glsynth.cli", *args], check=True, env=env)
+    subprocess.run([sys.executable, "-m", "glsynth", *args], check=True, env=env)
 
 
 def dataset_configs(args: argparse.Namespace) -> dict[str, tuple[str, list[str]]]:

@@ -76,7 +76,7 @@ def main() -> int:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         server = subprocess.Popen(
-            [sys.executable, "-m", "glsynth.cli", "view", "--preset", "demo", "--seed", "0",
+            [sys.executable, "-m", "glsynth", "view", "--preset", "demo", "--seed", "0",
              "--env", "0", "--port", "0", "--out", str(Path(tmp) / "views")],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         try:

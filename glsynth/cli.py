@@ -25,6 +25,7 @@ from glsynth.core.config import (
     load_config,
 )
 from glsynth.core.errors import UserError, clipped
+from glsynth.core.interrupts import held_interrupt
 from glsynth.core.options import (
     add_options,
     argparse_type,
@@ -380,6 +381,18 @@ def add_view_parser(sub: Commands) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    # Ctrl-C is held until the server takes the signals over (glsynth.core.interrupts): the
+    # imports below (pyrender, pyglet, uvicorn) and the server's start would swallow one.
+    try:
+        with held_interrupt() as noted:
+            _serve_view(args, noted)
+    except KeyboardInterrupt:
+        print("glsynth view: stopped", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _serve_view(args: argparse.Namespace, noted: list[int]) -> None:
     from glsynth.core.reading import MAX_TOML_BYTES, read_bytes
     from glsynth.core.runlock import RunLock
     from glsynth.view.scene import SceneSettings, scene_config
@@ -400,12 +413,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     # 'save view' writes into --out: it is checked and held as generate's and fly's are,
     # before the port is bound.
     with RunLock(args.out):
-        try:
-            serve(settings, args.host, args.port, Path(args.out), ready)
-        except KeyboardInterrupt:
-            print("glsynth view: stopped", file=sys.stderr)
-            return 130
-    return 0
+        serve(settings, args.host, args.port, Path(args.out), ready, noted)
 
 
 def add_generate_parser(sub: Commands) -> None:
@@ -901,6 +909,3 @@ def _refuse_held_outputs(args: argparse.Namespace) -> None:
 def _warning_line(command: str, message: Warning | str, *_: object, **__: object) -> None:
     print(clipped(f"glsynth {command}: warning: {' '.join(str(message).split())}"),
           file=sys.stderr)
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -66,7 +66,7 @@ def test_histograms_png(tmp_path):
 
 
 def test_console_script_entry_point(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "glsynth.cli", "export", "--seed", "-1",
+    proc = subprocess.run([sys.executable, "-m", "glsynth", "export", "--seed", "-1",
                            "--env", "0", "--out", str(tmp_path / "s.glb")],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "must be an integer in [0, 2**63 - 1]" in proc.stderr

@@ -505,7 +505,7 @@ def test_a_complete_flight_is_left_as_it_is(flight, capsys):
 def test_a_killed_flight_resumes_to_the_same_bytes(flight, tmp_path):
     cfg, complete = flight
     out = tmp_path / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "glsynth.cli", *_fly_args(cfg, out)],
+    proc = subprocess.Popen([sys.executable, "-m", "glsynth", *_fly_args(cfg, out)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     progress = out / "progress"
     deadline = time.monotonic() + 120

@@ -141,7 +141,7 @@ def test_engine_arguments_are_checked(small_config, tmp_path, capsys):
 
 def test_resume_after_a_kill_gives_the_same_bytes(quick_config, quick_dataset, tmp_path):
     out = tmp_path / "ds"
-    cmd = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
+    cmd = [sys.executable, "-m", "glsynth", "generate", "--preset", "demo", "--config",
            str(quick_config), "--seed", "5", "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120

@@ -611,7 +611,7 @@ def test_subprocess_errors_are_one_line(dataset, tmp_path, case):
                       tmp_path / "t1"]}[case]
     target = {"label": (label, png(np.ones((*MAPS[::-1], 3), np.uint8))),
               "manifest": (manifest, b"\xff" * 70_000), "train": None}[case]
-    command = [sys.executable, "-m", "glsynth.cli", *map(str, argv)]
+    command = [sys.executable, "-m", "glsynth", *map(str, argv)]
     if target is None:
         done = subprocess.run(command, capture_output=True, text=True)
     else:

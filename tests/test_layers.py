@@ -32,8 +32,9 @@ def _imports(path: Path) -> set[str]:
 
 
 def _layer(module: str) -> str:
+    """The layer of a module; the entry point (glsynth.__main__) is the command line's."""
     parts = module.split(".")
-    return parts[1] if len(parts) > 1 else "cli"
+    return parts[1] if len(parts) > 1 and parts[1] != "__main__" else "cli"
 
 
 @pytest.fixture(scope="module")

@@ -289,7 +289,7 @@ def test_torchrun_two_processes_train_with_distributed_data_parallel(tiny_datase
     run = tmp_path / "ddp"
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     subprocess.run([sys.executable, "-m", "torch.distributed.run", "--standalone",
-                    "--nproc_per_node", "2", "-m", "glsynth.cli", "train", "--task", "depth",
+                    "--nproc_per_node", "2", "-m", "glsynth", "train", "--task", "depth",
                     "--data", str(tiny_dataset), "--out", str(run), "--image-size", "192x108",
                     "--batch-size", "2", "--schedule", "1e-3:1", "--loader-workers", "0"],
                    check=True, env=env, capture_output=True, timeout=300)

@@ -173,7 +173,7 @@ def _render_args(tmp_path: Path, *extra: str) -> list[str]:
 @pytest.mark.slow
 @needs_blender
 def test_a_killed_cycles_driver_leaves_no_blender_and_a_rerun_works(tmp_path):
-    argv = [sys.executable, "-m", "glsynth.cli", *_render_args(tmp_path, "--samples", "1")]
+    argv = [sys.executable, "-m", "glsynth", *_render_args(tmp_path, "--samples", "1")]
     with _session(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as driver:
         blender = _wait(lambda: [p for p in _children(driver.pid)
                                  if "blender_job.py" in _command(p)], 180)
@@ -212,7 +212,7 @@ def test_a_killed_generate_driver_leaves_no_blender_and_its_rerun_is_accepted(tm
                       "n_test_plates = 0\n[render]\nmsaa = 0\nshadow_map_px = 512\n"
                       "sky_visibility_maps = 4\nsky_visibility_px = 256\n" + TWO_VIADUCTS)
     out = tmp_path / "out"
-    argv = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
+    argv = [sys.executable, "-m", "glsynth", "generate", "--preset", "demo", "--config",
             str(config), "--seed", "3", "--renderer", "cycles", "--samples", "1", "--out",
             str(out), "--workers", str(workers)]
     env = {**os.environ, "PATH": f"{fake.parent}{os.pathsep}{os.environ['PATH']}"}
@@ -281,12 +281,12 @@ def test_without_blender_the_message_suggests_what_the_command_accepts(
 def test_training_resumes_at_once_after_a_kill(tiny_dataset, tmp_path):
     """The data loader's forked workers neither keep the run folder nor outlive the driver."""
     pytest.importorskip("torch", reason="needs the [model] extra")
-    argv = [sys.executable, "-m", "glsynth.cli", "train", "--task", "component", "--data",
+    argv = [sys.executable, "-m", "glsynth", "train", "--task", "component", "--data",
             str(tiny_dataset), "--out", str(tmp_path / "run"), "--image-size", "192x108",
             "--batch-size", "2", "--schedule", "1e-3:1", "--loader-workers", "2", "--seed", "1"]
     with _session(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as driver:
         def loader_workers() -> list[int]:
-            found = [p for p in _children(driver.pid) if "glsynth.cli" in _command(p)]
+            found = [p for p in _children(driver.pid) if "-m glsynth train" in _command(p)]
             return found if len(found) == 2 else []
 
         loaders = _wait(loader_workers, 300)

@@ -31,7 +31,7 @@ def one_line_error(capsys, *needles: str) -> str:
 
 def run_cli(*args: str, env: dict | None = None, timeout: float = 240
             ) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "glsynth.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "glsynth", *args], capture_output=True,
                           text=True, timeout=timeout, env={**os.environ, **(env or {})})
 
 
@@ -297,7 +297,7 @@ def test_workers_end_with_a_killed_driver(quick_config, tmp_path):
     """After SIGKILL of the driver its workers stop at once (they would otherwise go on
     writing while a resumed run starts)."""
     out = tmp_path / "ds"
-    driver = subprocess.Popen([sys.executable, "-m", "glsynth.cli", "generate", "--preset",
+    driver = subprocess.Popen([sys.executable, "-m", "glsynth", "generate", "--preset",
                                "demo", "--config", str(quick_config), "--seed", "3", "--out",
                                str(out), "--workers", "2"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -322,7 +322,7 @@ def test_workers_end_with_a_killed_driver(quick_config, tmp_path):
 
 def test_two_runs_started_together_leave_one_writer(quick_config, tmp_path):
     out = tmp_path / "ds"
-    cmd = [sys.executable, "-m", "glsynth.cli", "generate", "--preset", "demo", "--config",
+    cmd = [sys.executable, "-m", "glsynth", "generate", "--preset", "demo", "--config",
            str(quick_config), "--seed", "4", "--out", str(out)]
     runs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             for _ in range(2)]

@@ -4,6 +4,9 @@ real websocket (the browser tests are in test_view_browser.py)."""
 import contextlib
 import dataclasses
 import json
+import os
+import signal
+import time
 import types
 
 import numpy as np
@@ -227,6 +230,45 @@ def test_ctrl_c_stops_the_server_with_130(tmp_path):
     from viewhelpers import ViewServer
 
     assert ViewServer(tmp_path).stop() == 130
+
+
+def test_ctrl_c_while_the_viewer_starts_stops_it_with_130(tmp_path):
+    """Ctrl-C 0.3 s after the start, while the command still imports: held until the server
+    takes the signals over (trimesh's imports swallow a KeyboardInterrupt, and the server then
+    ran on, deaf to it)."""
+    from viewhelpers import view_process
+
+    proc = view_process(tmp_path / "views")
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    try:
+        assert proc.wait(30) == 130, proc.stdout.read()
+    finally:
+        proc.kill()
+
+
+def test_ctrl_c_while_the_viewer_makes_the_texture_repository_stops_it_between_images(
+        tmp_path):
+    """On a fresh cache the render thread first makes the built-in repository (72 images,
+    10 CPU-s): Ctrl-C once the first image is written ends the server within seconds, the
+    repository left unfinished (it carries on at the next start)."""
+    from viewhelpers import view_process
+
+    cache = tmp_path / "cache"
+    proc = view_process(tmp_path / "views", env={**os.environ, "GLSYNTH_CACHE": str(cache)})
+    try:
+        assert "open http" in proc.stdout.readline()
+        deadline = time.monotonic() + 60
+        while not list(cache.glob("textures-*/*/*.png")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        started = time.monotonic()
+        assert proc.wait(30) == 130, proc.stdout.read()
+        assert time.monotonic() - started < 10
+    finally:
+        proc.kill()
+    made = len(list(cache.glob("textures-*/*/*.png")))
+    assert 1 <= made < 72
 
 
 def test_render_refuses_a_bad_camera_json_in_one_line_before_any_work(tmp_path, capsys):

@@ -29,16 +29,22 @@ def _ctrl_c_as_at_a_terminal() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def view_process(out: Path, *extra: str, env: dict | None = None) -> subprocess.Popen:
+    """``glsynth view`` of the tests' scene started, saving into ``out``, its output piped
+    (``env``: the child's environment, default this one's)."""
+    scene = scene_args(out.with_name(out.name + "_scene"))
+    return subprocess.Popen(
+        [sys.executable, "-m", "glsynth", "view", *scene, "--port", "0", "--out", str(out),
+         *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+        preexec_fn=_ctrl_c_as_at_a_terminal)
+
+
 class ViewServer:
     """``glsynth view`` in a child process on a free port; ``stop()`` sends Ctrl-C."""
 
-    def __init__(self, out: Path, *extra: str) -> None:
+    def __init__(self, out: Path, *extra: str, env: dict | None = None) -> None:
         self.out = out
-        scene = scene_args(out.with_name(out.name + "_scene"))
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "glsynth.cli", "view", *scene, "--port", "0", "--out",
-             str(out), *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            preexec_fn=_ctrl_c_as_at_a_terminal)
+        self.proc = view_process(out, *extra, env=env)
         line = self.proc.stdout.readline()
         found = re.search(r"(http://\S+/)", line)
         if not found:
@@ -82,7 +88,7 @@ def render_camera_json(camera: dict, folder: Path, photo: bool = True,
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "camera_in.json").write_text(json.dumps(camera))
     args = scene_args(folder, "" if photo else "[sensor]\nenabled = false\n")
-    subprocess.run([sys.executable, "-m", "glsynth.cli", "render", *args,
+    subprocess.run([sys.executable, "-m", "glsynth", "render", *args,
                     "--camera-json", str(folder / "camera_in.json"), "--out", str(folder),
                     *extra],
                    check=True, capture_output=True, timeout=300)

@@ -71,13 +71,15 @@ class Dressing:
     assignments: dict[str, Assignment]
 
 
-def open_repository(config: Config) -> TextureRepository:
+def open_repository(config: Config,
+                    interrupt: Callable[[], bool] | None = None) -> TextureRepository:
     """The configured repository, one per process: its decoded, resized images (read-only
     arrays) then serve every environment, and the renderer keeps their textures uploaded.
-    Images added to the folder while the process runs are not seen."""
+    Images added to the folder while the process runs are not seen. ``interrupt``: stops the
+    making of a built-in one (builtin_repository)."""
     m = config.materials
     root = m.repository or builtin_repository(m.repository_seed, m.images_per_category,
-                                              m.builtin_size)
+                                              m.builtin_size, interrupt)
     return _repository(str(Path(root).resolve()), m.texture_size)
 
 

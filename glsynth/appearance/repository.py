@@ -31,6 +31,7 @@ from PIL import Image, UnidentifiedImageError
 from glsynth.appearance.texgen import CATEGORIES
 from glsynth.core.errors import UserError, named, shown
 from glsynth.core.fileio import atomic_write_bytes, npy_bytes, png_bytes
+from glsynth.core.interrupts import RenderInterrupted
 from glsynth.core.paths import cache_error, cache_folder, cache_root
 from glsynth.core.reading import MAX_IMAGE_BYTES, read_bytes, read_npy, remove_entry
 from glsynth.core.seeding import Stream, make_rng
@@ -138,8 +139,11 @@ def _complete(root: Path, per_category: int) -> bool:
                for k in range(per_category))
 
 
-def generate_repository(root: str | Path, seed: int, per_category: int, size: int) -> Path:
+def generate_repository(root: str | Path, seed: int, per_category: int, size: int,
+                        interrupt: Callable[[], bool] | None = None) -> Path:
     """Fill ``root`` with ``per_category`` procedural images per category (PNG, atomic).
+    ``interrupt()``, asked before each image: True raises RenderInterrupted once the images
+    begun are written (a viewer stopping while it makes a fresh cache's repository).
 
     Image k of a category comes from its own generator, so it is the same whatever the count
     and whichever thread makes it; existing files are kept (a run that was stopped carries on
@@ -153,6 +157,8 @@ def generate_repository(root: str | Path, seed: int, per_category: int, size: in
 
     def write(job: tuple[Path, Callable, np.random.Generator]) -> None:
         path, make, rng = job
+        if interrupt is not None and interrupt():
+            raise RenderInterrupted("making the texture repository was interrupted")
         atomic_write_bytes(path, png_bytes(make(size, rng)))
 
     pool = ThreadPoolExecutor(BUILD_THREADS, thread_name_prefix="repository")
@@ -168,11 +174,12 @@ def builtin_root(seed: int, per_category: int, size: int) -> Path:
     return cache_root() / f"textures-v{GENERATOR_VERSION}-seed{seed}-n{per_category}-{size}px"
 
 
-def builtin_repository(seed: int, per_category: int, size: int) -> Path:
+def builtin_repository(seed: int, per_category: int, size: int,
+                       interrupt: Callable[[], bool] | None = None) -> Path:
     """The procedural repository for these settings, generated on first use and cached. One
     process makes it at a time (a flock beside it): the dataset's workers and the processes of
     a test run that start together wait for the first one's images instead of making them
-    again."""
+    again. ``interrupt``: generate_repository's."""
     root = cache_folder(builtin_root(seed, per_category, size))
     if _complete(root, per_category):  # no lock needed to read it (a read-only cache works)
         return root
@@ -183,4 +190,4 @@ def builtin_repository(seed: int, per_category: int, size: int) -> Path:
         raise cache_error(lock_path, err) from None
     with lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # dropped when closed, or by the kernel at any exit
-        return generate_repository(root, seed, per_category, size)
+        return generate_repository(root, seed, per_category, size, interrupt)

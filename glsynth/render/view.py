@@ -116,7 +116,7 @@ class EnvironmentView:
         cameras = list(cameras)
         visible = {p.name for p in env.parts} if anywhere else visible_parts(env.parts, cameras)
         report("dressing: materials and damage", 0.3)
-        dressing = dress(env, config, open_repository(config),
+        dressing = dress(env, config, open_repository(config, interrupt),
                          DamageBank(config.damage, root_seed, bank_dir), visible, known)
         ground = ground_parts(env.parts)
         lighting = environment_lighting(config.lighting, root_seed, env_index, ground_albedo=(

@@ -3,8 +3,9 @@ per open page, in front of one RenderWorker. Starlette routes, uvicorn serves, t
 ``websockets`` package frames (docs/design.md, "The viewer", says why these)."""
 
 import asyncio
+import contextlib
 import socket
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from importlib import resources
 from pathlib import Path
 
@@ -96,16 +97,36 @@ def listen(host: str, port: int) -> socket.socket:
     return sock
 
 
+class _Server(uvicorn.Server):
+    """uvicorn's server, told of the Ctrl-C noted while glsynth view started (``noted``, from
+    glsynth.core.interrupts.held_interrupt) as soon as it has taken the signals over: one
+    that came before would otherwise be lost and the server run on. On the way out uvicorn
+    gives the signals back and raises the one it caught, which the hold notes again."""
+
+    def __init__(self, config: uvicorn.Config, noted: list[int]) -> None:
+        super().__init__(config)
+        self.noted = noted
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        with super().capture_signals():
+            for sig in self.noted:
+                self.handle_exit(sig, None)
+            self.noted.clear()
+            yield
+
+
 def serve(settings: SceneSettings, host: str, port: int, out_dir: Path,
-          ready: Callable[[str], None]) -> None:
-    """Serve until interrupted (KeyboardInterrupt comes out after a clean shutdown). The port
-    is bound before anything starts, so a taken one fails at once (UserError), and ``ready``
-    hears the page's address only once it is bound."""
+          ready: Callable[[str], None], noted: list[int]) -> None:
+    """Serve until interrupted, called inside held_interrupt() (``noted``: its list; the
+    KeyboardInterrupt comes out of the hold after a clean shutdown). The port is bound before
+    anything starts, so a taken one fails at once (UserError), and ``ready`` hears the page's
+    address only once it is bound."""
     sock = listen(host, port)
     worker = RenderWorker(settings, out_dir)
-    server = uvicorn.Server(uvicorn.Config(
+    server = _Server(uvicorn.Config(
         make_app(worker), log_level="warning", ws_max_size=WS_MAX_BYTES,
-        timeout_graceful_shutdown=3))
+        timeout_graceful_shutdown=3), noted)
     worker.start()
     try:
         bound = sock.getsockname()[1]

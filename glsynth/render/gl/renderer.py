@@ -55,6 +55,7 @@ from glsynth.appearance.cracks import CrackNetwork
 from glsynth.appearance.materials import MAX_ZONES, Material, built_in_order, srgb_decode
 from glsynth.core.config import RenderConfig
 from glsynth.core.errors import UserError
+from glsynth.core.interrupts import RenderInterrupted
 from glsynth.core.labels import Component, Damage
 from glsynth.core.memory import available_bytes
 from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
@@ -121,11 +122,6 @@ class RenderOutput:
     """(H, W) float32 millimetres, with ``damage``: at each pixel a crack labels (concrete
     damage by the crack rule of docs/design.md), the width of the nearest such crack there;
     0 elsewhere, and everywhere in a view without cracks."""
-
-
-class RenderInterrupted(Exception):
-    """Renderer.render or Renderer.load (or EnvironmentView.open) stopped because its
-    ``interrupt()`` said so."""
 
 
 @dataclass(frozen=True, eq=False)
