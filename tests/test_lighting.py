@@ -302,8 +302,8 @@ def test_no_lighting_knob_changes_labels_or_depth():
     # that do not exclude each other share a variant: a change in labels shows in any mix.
     base = config_from_dict({"environment": {"n_viaducts": 2, "cutoff_factor": 1.0}},
                             preview_config(load_config("demo"), 96))
-    variants = [{}, {"render": {"ao": "off", "sky_visibility_maps": 0}},
-                {"lighting": {"sky": "uniform", "sun_elevation_deg": [-20.0, -20.0]}},
+    variants = [{}, {"render": {"ao": "off", "sky_visibility_maps": 0},
+                     "lighting": {"sky": "uniform", "sun_elevation_deg": [-20.0, -20.0]}},
                 {"lighting": {"sun_elevation_deg": [1.0, 1.0], "exposure": 4.0,
                               "turbidity": [9.0, 10.0]}}]
     reference = None
