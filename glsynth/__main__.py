@@ -7,13 +7,15 @@ from glsynth.core.interrupts import held_interrupt
 
 
 def main() -> int:
+    """Run the command line; exit code 130 for a Ctrl-C before its command has begun (a
+    command that can be resumed says so itself)."""
     try:
         with held_interrupt():
             from glsynth import cli
+        return cli.main()
     except KeyboardInterrupt:
         print("glsynth: interrupted while starting", file=sys.stderr)
         return 130
-    return cli.main()
 
 
 if __name__ == "__main__":

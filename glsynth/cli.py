@@ -381,8 +381,8 @@ def add_view_parser(sub: Commands) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    # Ctrl-C is held until the server takes the signals over (glsynth.core.interrupts): the
-    # imports below (pyrender, pyglet, uvicorn) and the server's start would swallow one.
+    # Ctrl-C is held until the server takes the signals over (glsynth.core.interrupts says
+    # why): the imports below and the server's start are not safe for it.
     try:
         with held_interrupt() as noted:
             _serve_view(args, noted)
@@ -909,3 +909,7 @@ def _refuse_held_outputs(args: argparse.Namespace) -> None:
 def _warning_line(command: str, message: Warning | str, *_: object, **__: object) -> None:
     print(clipped(f"glsynth {command}: warning: {' '.join(str(message).split())}"),
           file=sys.stderr)
+
+
+if __name__ == "__main__":  # the entry point is glsynth.__main__ (it holds Ctrl-C while loading)
+    sys.exit("glsynth: run `python -m glsynth` or `glsynth`, not `python -m glsynth.cli`")

@@ -233,9 +233,8 @@ def test_ctrl_c_stops_the_server_with_130(tmp_path):
 
 
 def test_ctrl_c_while_the_viewer_starts_stops_it_with_130(tmp_path):
-    """Ctrl-C 0.3 s after the start, while the command still imports: held until the server
-    takes the signals over (trimesh's imports swallow a KeyboardInterrupt, and the server then
-    ran on, deaf to it)."""
+    """Ctrl-C 0.3 s after the start, while the command line still loads (glsynth.core.
+    interrupts: lost there, the server ran on)."""
     from viewhelpers import view_process
 
     proc = view_process(tmp_path / "views")
@@ -245,6 +244,34 @@ def test_ctrl_c_while_the_viewer_starts_stops_it_with_130(tmp_path):
         assert proc.wait(30) == 130, proc.stdout.read()
     finally:
         proc.kill()
+        proc.communicate()
+
+
+def test_a_ctrl_c_noted_before_the_server_took_the_signals_stops_it_at_once(tmp_path):
+    """The hand-over to uvicorn, in this process: a server started with a Ctrl-C already noted
+    stops by itself and the hold raises it (a second SIGINT after 20 s stands in for a hang)."""
+    import threading
+
+    import uvicorn
+    from starlette.applications import Starlette
+
+    from glsynth.core.interrupts import held_interrupt
+    from glsynth.view.server import _Server, listen
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    backstop = threading.Timer(20.0, os.kill, (os.getpid(), signal.SIGINT))
+    sock = listen("127.0.0.1", 0)
+    try:
+        started = time.monotonic()
+        with pytest.raises(KeyboardInterrupt), held_interrupt() as noted:
+            signal.raise_signal(signal.SIGINT)
+            backstop.start()
+            _Server(uvicorn.Config(Starlette(), log_level="warning"), noted).run(sockets=[sock])
+        assert time.monotonic() - started < 10
+    finally:
+        backstop.cancel()
+        sock.close()
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_ctrl_c_while_the_viewer_makes_the_texture_repository_stops_it_between_images(
@@ -267,6 +294,7 @@ def test_ctrl_c_while_the_viewer_makes_the_texture_repository_stops_it_between_i
         assert time.monotonic() - started < 10
     finally:
         proc.kill()
+        proc.communicate()
     made = len(list(cache.glob("textures-*/*/*.png")))
     assert 1 <= made < 72
 
@@ -346,7 +374,7 @@ def test_a_banded_interruptible_render_is_the_same_bytes_and_stops_at_a_checkpoi
     """Renderer.render with ``interrupt`` and the colour pass in bands: the same bytes as one
     go; an interrupt raises RenderInterrupted at the next checkpoint, and leaves no state
     (scissor, depth mask) that changes the next render."""
-    from glsynth.render.gl.renderer import RenderInterrupted
+    from glsynth.core.interrupts import RenderInterrupted
     from glsynth.view.scene import open_scene
 
     scene = open_scene(PREVIEW, None, lambda *_: None)

@@ -5,9 +5,9 @@ Libraries glsynth imports catch every exception around their own optional import
 wraps each in ``except BaseException`` (to raise it when the feature is used), pyglet and
 networkx have bare ``except:``. A KeyboardInterrupt raised inside one of those is lost: the
 command goes on as if Ctrl-C had not been pressed, with a half-imported module left behind
-(``glsynth view`` then served on, deaf to that Ctrl-C, and its render thread later failed on
-a networkx missing a function). While held, SIGINT is noted instead of raised, and raised as
-KeyboardInterrupt where the hold ends, a point where it propagates."""
+(docs/design.md, "A Ctrl-C is never lost", tells what it did to ``glsynth view``). While
+held, SIGINT is noted instead of raised, and raised as KeyboardInterrupt where the hold ends,
+a point where it propagates."""
 
 import contextlib
 import signal
@@ -16,8 +16,8 @@ from collections.abc import Iterator
 
 
 class RenderInterrupted(Exception):
-    """Renderer.render or Renderer.load, EnvironmentView.open, or the making of the built-in
-    texture repository it may start, stopped because its ``interrupt()`` said so."""
+    """Work that takes an ``interrupt()`` (a render, a load, an opening) stopped because it
+    said so."""
 
 
 @contextlib.contextmanager

@@ -22,11 +22,12 @@ from glsynth.appearance.materials import surface_albedo
 from glsynth.appearance.metering import face_albedo, metered
 from glsynth.core.config import Config
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
+from glsynth.core.interrupts import RenderInterrupted
 from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.camera_model import photograph
-from glsynth.render.gl.renderer import PASSES, Renderer, RenderInterrupted, RenderOutput
+from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
 from glsynth.world.cameras import Camera, CameraPlacement
 from glsynth.world.environment import Environment, build_environment, ground_parts

@@ -26,9 +26,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from glsynth.core.errors import UserError, shown
+from glsynth.core.interrupts import RenderInterrupted
 from glsynth.core.labels import Component, Damage
 from glsynth.data.quality import QUALITY
-from glsynth.render.gl.renderer import RenderInterrupted, RenderOutput
+from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import write_render
 from glsynth.view.camera import camera_json
 from glsynth.view.frames import available_passes, encode, legend, pass_image
