@@ -300,9 +300,8 @@ def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray,
     under [materials] weathering, the tint that gives it an albedo and hue drawn from the
     WEATHERING stream (item = ``ordinal``, the part's index) in place of ``image``'s mean.
     ``means``: each image's linear mean by id (the image is kept beside it, so the id stays
-    its own); the repository's dozen images serve hundreds of parts, and decoding each part's
-    whole image took about a third of an inspection opening's dressing (docs/results.md,
-    "Cracks found once an opening")."""
+    its own): the repository's dozen images serve hundreds of parts, so each is decoded once
+    (docs/results.md, "Cracks found once an opening", has the measurement)."""
     detail: dict = {"detail_seed": make_seed(env.root_seed, env.env_index, Stream.DETAIL,
                                              ordinal) % 2**32}
     if config.materials.weathering:
