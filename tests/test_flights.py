@@ -77,6 +77,15 @@ def _config(**flight):
     return config_from_dict({"flight": flight, "environment": NO_OTHERS}, load_config("demo"))
 
 
+@pytest.fixture(scope="module")
+def demo_env():
+    """Environments 0 and 1 of seed 0 under _config(), by index, built once for the plan
+    tests: [flight] settings do not change what is built (a flight plan reads them from its
+    config, not from the environment), and a build took 0.6 CPU-s, a dozen of them the file.
+    The plans do not change an environment."""
+    return {index: build_environment(_config(), 0, index) for index in (0, 1)}
+
+
 def _forward(pose):
     return -pose[:3, 2]
 
@@ -86,10 +95,10 @@ def _part_distance(env, points, names):
                                     points) for p in env.parts if p.name in names], axis=0)
 
 
-def test_orbit_rings_stand_off_spacing_and_heights():
+def test_orbit_rings_stand_off_spacing_and_heights(demo_env):
     config = _config(plan="orbit", column=3, heights_m=[1.5, 3.0], standoff_m=2.0,
                      focal_mm=24.0, forward_overlap_pct=80.0)
-    env = build_environment(config, 0, 0)
+    env = demo_env[0]
     col = environment_columns(env)[3]
     plan = plan_flight(env, config)
     spacing = 0.2 * 2.0 * 36 / 24  # (1 - overlap) x stand-off x sensor / focal
@@ -115,10 +124,10 @@ def test_orbit_rings_stand_off_spacing_and_heights():
     assert plan.times_s[1] == pytest.approx(steps[0] / config.flight.speed_mps)
 
 
-def test_facade_rows_cover_the_side_at_the_stand_off():
+def test_facade_rows_cover_the_side_at_the_stand_off(demo_env):
     config = _config(plan="facade", standoff_m=3.0, side="left", forward_overlap_pct=70.0,
                      side_overlap_pct=50.0)
-    env = build_environment(config, 0, 1)
+    env = demo_env[1]
     plan = plan_flight(env, config)
     validate_flight(env, plan, config.flight.clearance_m)
     pos = plan.poses[:, :3, 3]
@@ -147,13 +156,13 @@ def test_facade_rows_cover_the_side_at_the_stand_off():
     assert np.allclose(forward[:, 2], 0.0)  # gimbal pitch 0
 
 
-def test_the_right_facade_mirrors_the_left_across_the_track():
+def test_the_right_facade_mirrors_the_left_across_the_track(demo_env):
     """Flown on the right, the rows stand as far to the right of the centre line as the left
     side's to its left, looking back across the track."""
     sides = {}
     for side in ("left", "right"):
         config = _config(plan="facade", standoff_m=3.0, side=side, length_m=12.0)
-        env = build_environment(config, 0, 1)
+        env = demo_env[1]
         plan = plan_flight(env, config)
         validate_flight(env, plan, config.flight.clearance_m)
         s0 = env.viaducts[0].start_s_m
@@ -164,9 +173,8 @@ def test_the_right_facade_mirrors_the_left_across_the_track():
     assert sides["left"][1] == pytest.approx(-1.0) and sides["right"][1] == pytest.approx(1.0)
 
 
-def test_a_waypoint_beyond_the_grounds_edge_is_refused():
-    config = _config(plan="orbit")
-    env = build_environment(config, 0, 0)
+def test_a_waypoint_beyond_the_grounds_edge_is_refused(demo_env):
+    env = demo_env[0]
     far = FlightPlan("orbit", look_pose(np.array([1e5, 1e5, 2.0]), 0.0, 0.0)[None],
                      np.zeros(1), 1.0, 24.0)
     with pytest.raises(UserError, match=r"waypoint 0 is beyond the ground's edge \(no ground "
@@ -174,9 +182,9 @@ def test_a_waypoint_beyond_the_grounds_edge_is_refused():
         validate_flight(env, far, 1.0)
 
 
-def test_underdeck_flies_the_stand_off_under_the_slab():
+def test_underdeck_flies_the_stand_off_under_the_slab(demo_env):
     config = _config(plan="underdeck", standoff_m=2.0, gimbal_pitch_deg=90.0)
-    env = build_environment(config, 0, 0)
+    env = demo_env[0]
     plan = plan_flight(env, config)
     validate_flight(env, plan, config.flight.clearance_m)
     pos = plan.poses[:, :3, 3]
@@ -184,9 +192,8 @@ def test_underdeck_flies_the_stand_off_under_the_slab():
     assert np.allclose([_forward(p) for p in plan.poses], [0.0, 0.0, 1.0])
 
 
-def test_a_plan_through_a_column_is_refused_in_one_line():
-    config = _config(plan="orbit")
-    env = build_environment(config, 0, 0)
+def test_a_plan_through_a_column_is_refused_in_one_line(demo_env):
+    env = demo_env[0]
     col = environment_columns(env)[0]
     centre = np.array([*col.center_xy, col.bottom_z + 2.0])
     poses = np.stack([look_pose(centre + [dx, 4.0, 0.0], -math.pi / 2, 0.0)
@@ -219,9 +226,9 @@ def test_the_command_refuses_a_colliding_plan_before_rendering(tmp_path, capsys)
                                                                    ".glsynth.workers.lock"}
 
 
-def test_zero_length_flights_have_one_frame_per_row_or_ring():
+def test_zero_length_flights_have_one_frame_per_row_or_ring(demo_env):
     orbit = _config(plan="orbit", arc_deg=0.0, heights_m=[1.5, 2.5, 3.5])
-    env = build_environment(orbit, 0, 0)
+    env = demo_env[0]
     plan = plan_flight(env, orbit)
     assert len(plan) == 3 and np.allclose(plan.poses[:, :2, 3], plan.poses[0, :2, 3])
     facade = _config(plan="facade", length_m=0.0, standoff_m=3.0)
@@ -238,29 +245,29 @@ def test_an_orbits_rings_report_their_overlap():
     assert ring_overlap_pct(config.flight, 36.0 * 1080 / 1920) == [70.4, 0.0]
 
 
-def test_too_fast_for_the_frame_rate_is_refused():
+def test_too_fast_for_the_frame_rate_is_refused(demo_env):
     config = _config(speed_mps=30.0, frame_rate_hz=10.0)
     with pytest.raises(UserError, match="fly at most 6.000 m/s"):
-        plan_flight(build_environment(config, 0, 0), config)
+        plan_flight(demo_env[0], config)
 
 
-def test_frames_nearer_than_the_frame_rate_allows_are_refused():
+def test_frames_nearer_than_the_frame_rate_allows_are_refused(demo_env):
     """An orbit's chords are shorter than its arc spacing: at a speed the spacing allows
     exactly, its frames would still come too fast."""
     config = _config(frame_rate_hz=10.0)
     speed = frame_spacing_m(config.flight, config.cameras.sensor_mm) * 10.0
     config = _config(frame_rate_hz=10.0, speed_mps=speed)
     with pytest.raises(UserError, match=r"waypoints \d+ and \d+ are 0\.\d+ m apart"):
-        plan_flight(build_environment(config, 0, 0), config)
+        plan_flight(demo_env[0], config)
     slower = _config(frame_rate_hz=10.0, speed_mps=0.9 * speed)
-    assert len(plan_flight(build_environment(slower, 0, 0), slower)) > 1
+    assert len(plan_flight(demo_env[0], slower)) > 1
 
 
-def test_coinciding_waypoints_are_refused_naming_the_heights():
+def test_coinciding_waypoints_are_refused_naming_the_heights(demo_env):
     config = _config(arc_deg=0.0, heights_m=[1.5, 1.5])
     with pytest.raises(UserError, match=r"flight.heights_m = \[1.5, 1.5\]: waypoints 0 and 1 "
                                         "coincide"):
-        plan_flight(build_environment(config, 0, 0), config)
+        plan_flight(demo_env[0], config)
 
 
 def test_quaternion_matches_scipy_on_every_branch():
