@@ -7,12 +7,17 @@ networkx have bare ``except:``. A KeyboardInterrupt raised inside one of those i
 command goes on as if Ctrl-C had not been pressed, with a half-imported module left behind
 (docs/design.md, "A Ctrl-C is never lost", tells what it did to ``glsynth view``). While
 held, SIGINT is noted instead of raised, and raised as KeyboardInterrupt where the hold ends,
-a point where it propagates."""
+a point where it propagates. The command line holds it through every import of those
+packages, wherever a command makes it (``hold_while_importing``)."""
 
 import contextlib
+import importlib.abc
+import importlib.machinery
 import signal
+import sys
 import threading
-from collections.abc import Iterator
+import types
+from collections.abc import Iterator, Sequence
 
 
 class RenderInterrupted(Exception):
@@ -46,3 +51,52 @@ def held_interrupt() -> Iterator[list[int]]:
         signal.signal(signal.SIGINT, previous)
     if noted:
         raise KeyboardInterrupt
+
+
+SWALLOWING = frozenset({"trimesh", "pyglet", "networkx"})
+"""The packages whose imports catch every exception round their optional imports."""
+
+
+class _HeldLoader(importlib.abc.Loader):
+    """A package's own loader, run with Ctrl-C held; everything else (its resources, its
+    source) is the loader's."""
+
+    def __init__(self, loader: importlib.abc.Loader) -> None:
+        self._loader = loader
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType | None:
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module: types.ModuleType) -> None:
+        with held_interrupt():  # the package's own imports run inside: all held, once
+            self._loader.exec_module(module)
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._loader, name)
+
+
+class _HoldingFinder(importlib.abc.MetaPathFinder):
+    """Finds SWALLOWING packages as the finders after it do, with a _HeldLoader."""
+
+    def find_spec(self, name: str, path: Sequence[str] | None,
+                  target: types.ModuleType | None = None
+                  ) -> importlib.machinery.ModuleSpec | None:
+        if name not in SWALLOWING:
+            return None
+        for finder in sys.meta_path:
+            if finder is self or not hasattr(finder, "find_spec"):
+                continue
+            spec = finder.find_spec(name, path, target)
+            if spec is not None:
+                if spec.loader is not None:
+                    spec.loader = _HeldLoader(spec.loader)
+                return spec
+        return None
+
+
+def hold_while_importing() -> None:
+    """From now on, SWALLOWING packages are imported with Ctrl-C held, whichever module
+    imports them first and when: the command line imports what a command needs as it runs
+    (its own start stays light), so a hold round its own import alone would miss them."""
+    if not any(isinstance(f, _HoldingFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _HoldingFinder())

@@ -6,6 +6,8 @@ depend on the engine, the worker count or the order units finish in. The driver 
 markers into the manifests (glsynth/data/dataset.py).
 """
 
+from __future__ import annotations
+
 import logging
 import os
 import re
@@ -13,12 +15,17 @@ from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from glsynth.core.children import die_with_parent
 from glsynth.core.config import Config
 from glsynth.core.errors import UserError, shown
 from glsynth.core.runlock import RunLock
-from glsynth.data.dataset import Task, check_run_folder, pending_tasks, run_task
+
+if TYPE_CHECKING:
+    from glsynth.data.dataset import Task
+# dataset (and with it trimesh, scipy and networkx, 0.5 s) is imported where units are found
+# or run, not here: the command line reads ENGINES, and every command would start 0.5 s later.
 
 ENGINES = ("local", "ray")
 
@@ -30,6 +37,7 @@ class GenerationWorker:
 
     def __init__(self, config: Config, root_seed: int, out: str, separate: bool = False
                  ) -> None:
+        from glsynth.data.dataset import check_run_folder
         from glsynth.render.gl.renderer import Renderer
 
         self.config, self.root_seed, self.out = config, root_seed, Path(out)
@@ -38,6 +46,8 @@ class GenerationWorker:
         self.renderer = Renderer(config.render)
 
     def run(self, task: Task) -> dict:
+        from glsynth.data.dataset import run_task
+
         return run_task(self.config, self.root_seed, task, self.out, self.renderer)
 
     def release(self) -> None:
@@ -66,6 +76,8 @@ RAY_ADDRESS = re.compile(r"auto|(ray://)?[A-Za-z0-9_.\-]+:(6553[0-5]|655[0-2]\d|
 def execute(config: Config, root_seed: int, out: Path, workers: int, engine: str = "local",
             address: str | None = None) -> Iterator[dict]:
     """Run the units that have no marker yet; yields each finished unit's result."""
+    from glsynth.data.dataset import pending_tasks
+
     check_engine(engine, workers, address)
     pending = pending_tasks(config, out)
     if not pending:
