@@ -16,6 +16,7 @@ import numpy as np
 
 from glsynth.appearance import crack_paths
 from glsynth.appearance.cracks import CrackNetwork
+from glsynth.core.arrays import unique_ints
 from glsynth.core.geometry import nearest_triangles, transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.environment import Part
@@ -136,7 +137,7 @@ def member_cracks(records: list[dict], net: CrackNetwork, part: Part, camera: Ca
         mine = on & (crack == record["id"])
         if not mine.any():
             continue
-        cells = np.unique((row[mine] // stride) * written_code.shape[1] + col[mine] // stride)
+        cells = unique_ints((row[mine] // stride) * written_code.shape[1] + col[mine] // stride)
         pixels = int(np.count_nonzero(written_code.ravel()[cells]))
         listed.append({**record, "labelled_length_m": round(float(weight[mine].sum()), 4),
                        "pixels": pixels})

@@ -30,6 +30,7 @@ import numpy as np
 import trimesh
 
 from glsynth.appearance.cracks import CrackNetwork
+from glsynth.core.arrays import unique_ints
 from glsynth.core.geometry import segment_distance, transform_points
 from glsynth.world.cameras import Camera
 from glsynth.world.visibility import in_frustum
@@ -249,7 +250,7 @@ def _candidates(uv: np.ndarray, widths: np.ndarray, texel_m: float, lo: np.ndarr
     pts = uv[owner, 0] + s[:, None] * t_hat[owner] + q[:, None] * n_hat[owner]
     texel = np.floor((pts - lo) / texel_m).astype(np.int64)
     inside = np.all((texel >= 0) & (texel < [shape[1], shape[0]]), axis=1)
-    key = np.unique((owner[inside] << 42) | (texel[inside, 1] << 21) | texel[inside, 0])
+    key = unique_ints((owner[inside] << 42) | (texel[inside, 1] << 21) | texel[inside, 0])
     return key >> 42, np.stack([key & (2**21 - 1), (key >> 21) & (2**21 - 1)], 1)
 
 
@@ -257,7 +258,7 @@ def _chunks(uv: np.ndarray, widths: np.ndarray, texel_m: float) -> list[np.ndarr
     """Segments in runs of about _CHUNK lattice points (a longer segment alone)."""
     _, _, _, n_along, n_across = _lattice(uv, widths, texel_m)
     run = np.cumsum(n_along * n_across) // _CHUNK
-    return [np.flatnonzero(run == r) for r in np.unique(run)]
+    return [np.flatnonzero(run == r) for r in unique_ints(run)]
 
 
 def _rasterise(plane: _PlaneCracks, texel_m: float, lo: np.ndarray, shape: tuple[int, int]
@@ -348,7 +349,7 @@ def _estimate(network: CrackNetwork, mesh: trimesh.Trimesh, texel_m: float) -> i
         q = np.minimum((local % n_across[owner]) * size / 2 - reach[owner], reach[owner])
         pts = plane.uv[owner, 0] + s[:, None] * t_hat[owner] + q[:, None] * n_hat[owner]
         block = np.floor((pts - lo) / size).astype(np.int64)
-        total += len(np.unique(block[:, 1] * (nu + 1) + block[:, 0])) * BLOCK ** 2
+        total += len(unique_ints(block[:, 1] * (nu + 1) + block[:, 0])) * BLOCK ** 2
         total += (nu + 1) * nv
     return total + BLOCK ** 2  # the empty block
 
