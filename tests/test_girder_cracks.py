@@ -55,7 +55,7 @@ def cracks_of(env: Environment, part: Part, seed: int) -> CrackNetwork:
 _CENTRE_LINES: dict[int, tuple] = {}
 
 
-def _coarse_centre_line(trajectory) -> tuple[np.ndarray, np.ndarray]:
+def _coarse_centre_line(trajectory) -> tuple[np.ndarray, cKDTree]:
     """Arc lengths every 15 cm along ``trajectory`` and a k-d tree of its centre there in
     plan, found once per trajectory (kept beside it, so that its id stays its own)."""
     if id(trajectory) not in _CENTRE_LINES:

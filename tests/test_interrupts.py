@@ -85,11 +85,13 @@ def test_a_swallowing_packages_import_is_held_wherever_it_is_made(tmp_path, monk
     hold_while_importing()
     hold_while_importing()  # installed once however often it is asked
     assert sum(isinstance(f, interrupts._HoldingFinder) for f in sys.meta_path) == 1
-    for name in ("swallower", "swallower_unheld", "swallower.part"):
-        monkeypatch.delitem(sys.modules, name, raising=False)
-    import swallower_unheld  # noqa: F401 - not named in SWALLOWING: the Ctrl-C is lost
-    with pytest.raises(KeyboardInterrupt):
-        import swallower  # noqa: F401
+    try:
+        import swallower_unheld  # noqa: F401 - not named in SWALLOWING: the Ctrl-C is lost
+        with pytest.raises(KeyboardInterrupt):
+            import swallower  # noqa: F401
+    finally:
+        for name in ("swallower", "swallower.part", "swallower_unheld", "swallower_unheld.part"):
+            sys.modules.pop(name, None)
     assert (tmp_path / "swallower" / "ran_to_its_end").exists()
     assert (tmp_path / "swallower_unheld" / "ran_to_its_end").exists()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -7,8 +7,9 @@ networkx have bare ``except:``. A KeyboardInterrupt raised inside one of those i
 command goes on as if Ctrl-C had not been pressed, with a half-imported module left behind
 (docs/design.md, "A Ctrl-C is never lost", tells what it did to ``glsynth view``). While
 held, SIGINT is noted instead of raised, and raised as KeyboardInterrupt where the hold ends,
-a point where it propagates. The command line holds it through every import of those
-packages, wherever a command makes it (``hold_while_importing``)."""
+a point where it propagates. A process started through the command line (glsynth.__main__)
+holds it through the first import of those packages, wherever a command makes it
+(``hold_while_importing``)."""
 
 import contextlib
 import importlib.abc
@@ -72,6 +73,8 @@ class _HeldLoader(importlib.abc.Loader):
             self._loader.exec_module(module)
 
     def __getattr__(self, name: str) -> object:
+        if name == "_loader":  # not set yet (a copy being made): no loader to ask
+            raise AttributeError(name)
         return getattr(self._loader, name)
 
 
@@ -88,15 +91,21 @@ class _HoldingFinder(importlib.abc.MetaPathFinder):
                 continue
             spec = finder.find_spec(name, path, target)
             if spec is not None:
-                if spec.loader is not None:
+                if hasattr(spec.loader, "exec_module"):  # not a namespace package
                     spec.loader = _HeldLoader(spec.loader)
                 return spec
         return None
 
 
 def hold_while_importing() -> None:
-    """From now on, SWALLOWING packages are imported with Ctrl-C held, whichever module
-    imports them first and when: the command line imports what a command needs as it runs
-    (its own start stays light), so a hold round its own import alone would miss them."""
+    """From now on, SWALLOWING packages are imported with Ctrl-C held (in the main thread,
+    where SIGINT is Python's default), whichever module imports them first and when: the
+    command line imports what a command needs as it runs (its own start stays light), so a
+    hold round its own import alone would miss them. Once the noted Ctrl-C is raised the
+    import has failed and the process is meant to end (every command exits with 130): the
+    package's submodules stay loaded, and importing it again would give a package without
+    them. Worker processes a run spawns start without it; a package's own lazy import inside
+    its own ``except BaseException`` later on (trimesh's viewer importing pyglet, which
+    glsynth never uses) is not held either."""
     if not any(isinstance(f, _HoldingFinder) for f in sys.meta_path):
         sys.meta_path.insert(0, _HoldingFinder())

@@ -45,7 +45,7 @@ class RunLock:
         """Whether this lock made the folder: a run refused inside it leaves none behind."""
 
     def _open(self, name: str) -> int:
-        _check_place(self.folder)
+        check_out(self.folder)
         try:
             if not self.worker and not self.folder.exists():
                 self.folder.mkdir(parents=True)
@@ -245,24 +245,19 @@ def held_by_another(path: Path) -> Path | None:
     return None
 
 
-def _check_place(folder: Path) -> None:
-    """Refuse an --out that is a file or lies in the kernel's file systems."""
+def check_out(folder: str | Path) -> None:
+    """Refuse, writing nothing, an --out that is a file or lies in the kernel's file systems:
+    what RunLock refuses before it makes anything, for a command whose own checks come before
+    the lock and take time (a flight builds its environment to check its plan), so that a
+    wrong --out is told at once. (A folder another run holds is refused for every command by
+    the command line before the command runs: refuse_held.)"""
+    folder = Path(folder)
     resolved(folder)  # a symbolic-link loop is one line, before any other test
     if folder.exists() and not folder.is_dir():
         raise UserError(f"--out {named(folder)} is a file; give a folder")
     if folder.resolve().parts[1:2] in (("proc",), ("sys",), ("dev",)):
         raise UserError(f"--out {named(folder)} is in the kernel's /proc, /sys or /dev; give "
                         "a folder on a disk")
-
-
-def check_out(folder: str | Path) -> None:
-    """Refuse, writing nothing, an --out that RunLock would refuse before it makes anything
-    (a file, a folder in /proc, one another run holds): for a command whose own checks come
-    before the lock and take time (a flight builds its environment to check the plan), so
-    that a wrong --out is told at once. The lock still checks again: another run may take
-    the folder meanwhile."""
-    _check_place(Path(folder))
-    refuse_held(Path(folder))
 
 
 def refuse_held(path: Path) -> None:
