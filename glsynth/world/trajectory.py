@@ -12,6 +12,7 @@ that straight track (curvature 0) needs no special case. Ground and deck-top ele
 piecewise linear in arc length through the values at the viaduct centres.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,14 +108,19 @@ class Trajectory:
     def centres_s(self) -> np.ndarray:
         return (np.arange(self.n) + 0.5) * self.length_m
 
+    @functools.cached_property
     def _segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Start arc length, heading, xy and curvature of each arc, plus a straight lead-out."""
+        """Start arc length, heading, xy and curvature of each arc, plus a straight lead-out;
+        found once (the fields are frozen and read-only): frame() is called tens of
+        thousands of times an environment, and remaking them was a fifth of its time."""
         kappa = np.append(self.curvature, 0.0)
         s0 = np.arange(self.n + 1) * self.length_m
         theta0 = np.concatenate([[0.0], np.cumsum(self.curvature * self.length_m)])
         xy0 = np.zeros((self.n + 1, 2))
         for i in range(self.n):
             xy0[i + 1] = xy0[i] + _arc_offset(theta0[i], kappa[i], self.length_m)
+        for array in (s0, theta0, xy0, kappa):
+            array.setflags(write=False)
         return s0, theta0, xy0, kappa
 
     def frame(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -123,7 +129,7 @@ class Trajectory:
         Before s = 0 and after the last viaduct the centre line runs on straight.
         """
         s = np.asarray(s, dtype=float)
-        s0, theta0, xy0, kappa = self._segments()
+        s0, theta0, xy0, kappa = self._segments
         seg = np.clip(np.searchsorted(s0, s, side="right") - 1, 0, self.n)
         ds = s - s0[seg]
         k = np.where(ds < 0, 0.0, kappa[seg])  # before s = 0: straight on the initial heading
