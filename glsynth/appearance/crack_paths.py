@@ -13,6 +13,8 @@ the same refinement on inside each segment down to the pixel, with the same cons
 are written here once and compiled into the shaders as macros (glsynth.render.gl.programs).
 """
 
+import math
+
 import numpy as np
 
 WIDTH_COV = 0.4
@@ -46,19 +48,34 @@ SHADER_CONSTANTS: dict[str, float | int] = {
 """The crack paths' constants, shared with shaders/cracks.glsl (each a #define there)."""
 
 
-def structure(x: np.ndarray | float) -> np.ndarray:
+# structure and midpoint_sd take an array (the shader's twin below, per pixel) or one float
+# (the generators, per level of a crack: 800,000 calls in the test suite). A float skips the
+# 0-d arrays, 6x faster, and keeps their bits: np.power on Python floats runs the same loop
+# as on a 0-d array (math.pow, the C library's, differed in the last bit for 3 % of lengths),
+# and a square root is correctly rounded everywhere. numpy's pow over a longer array is
+# vectorised and may differ in the last bit, so the generators never pass one.
+
+
+def structure(x: np.ndarray | float) -> np.ndarray | float:
     """S(x): the variance (m^2) of the lateral offset between two points x metres apart."""
     c = SHADER_CONSTANTS
     xi, amplitude = c["CRACK_AGGREGATE_M"], c["CRACK_ROUGHNESS"]
-    x = np.asarray(x, np.float64)
-    hurst = np.where(x < xi, c["CRACK_HURST_FINE"], c["CRACK_HURST_COARSE"])
-    return (amplitude * xi) ** 2 * (x / xi) ** (2 * hurst)
+    fine, coarse = c["CRACK_HURST_FINE"], c["CRACK_HURST_COARSE"]
+    if isinstance(x, float):
+        hurst = fine if x < xi else coarse
+    else:
+        x = np.asarray(x, np.float64)
+        hurst = np.where(x < xi, fine, coarse)
+    return (amplitude * xi) ** 2 * np.power(x / xi, 2 * hurst)
 
 
-def midpoint_sd(interval_m: np.ndarray | float) -> np.ndarray:
+def midpoint_sd(interval_m: np.ndarray | float) -> np.ndarray | float:
     """The standard deviation of the midpoint's draw when an interval of this length is split."""
-    x = np.asarray(interval_m, np.float64)
-    return np.sqrt(np.maximum(structure(x / 2) - structure(x) / 4, 0.0))
+    if isinstance(interval_m, float):
+        x, sqrt, maximum = interval_m, math.sqrt, max
+    else:
+        x, sqrt, maximum = np.asarray(interval_m, np.float64), np.sqrt, np.maximum
+    return sqrt(maximum(structure(x / 2) - structure(x) / 4, 0.0))
 
 
 def levels(length_m: float, step_m: float) -> int:
