@@ -79,25 +79,18 @@ def sweep(profile: np.ndarray, path: np.ndarray, across: np.ndarray, up: np.ndar
     k, m = len(path), len(ring)
     points = (path[:, None, :] + ring[None, :, :1] * across[:, None, :]
               + ring[None, :, 1:] * up[:, None, :])  # (K, M, 3)
-    verts, faces, uvs = [], [], []
-
-    def strip(cols: np.ndarray) -> None:
-        """Quads between path samples for the profile columns ``cols`` (consecutive pairs)."""
-        base = sum(len(x) for x in verts)
-        verts.append(points[:, cols].reshape(-1, 3))
-        uvs.append(np.stack(np.broadcast_arrays(u[:, None], v[None, cols]), -1).reshape(-1, 2))
-        c = len(cols)
-        i, j = np.meshgrid(np.arange(k - 1), np.arange(c - 1), indexing="ij")
-        a = base + i * c + j
-        b, cc, d = a + 1, a + c + 1, a + c
-        faces.append(np.stack([np.stack([a, b, cc], -1), np.stack([a, cc, d], -1)], -2)
-                     .reshape(-1, 3))
-
-    if smooth:
-        strip(np.arange(m))
-    else:
-        for j in range(m - 1):
-            strip(np.array([j, j + 1]))
+    # Strips of quads between path samples, one per row of ``cols`` (its profile columns, in
+    # consecutive pairs): one strip round a smooth profile, or one per edge of a flat-sided
+    # one, all made at once (a strip at a time was a fifth of an environment's build).
+    cols = np.arange(m)[None] if smooth else np.stack([np.arange(m - 1), np.arange(1, m)], -1)
+    g, c = cols.shape
+    verts = [points[:, cols].transpose(1, 0, 2, 3).reshape(-1, 3)]
+    uvs = [np.stack(np.broadcast_arrays(u[None, :, None], v[cols][:, None, :]), -1)
+           .reshape(-1, 2)]
+    i, j = np.meshgrid(np.arange(k - 1), np.arange(c - 1), indexing="ij")
+    a = np.arange(g)[:, None, None] * (k * c) + i * c + j
+    b, cc, d = a + 1, a + c + 1, a + c
+    faces = [np.stack([np.stack([a, b, cc], -1), np.stack([a, cc, d], -1)], -2).reshape(-1, 3)]
     if caps:
         if not closed:
             raise ValueError("caps need a closed profile")
