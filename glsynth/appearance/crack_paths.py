@@ -87,14 +87,14 @@ def lateral_offsets(length_m: float, n_levels: int, rng: np.random.Generator) ->
     """(2^n_levels + 1,) offsets across a crack of this length at equally spaced points, 0 at
     both ends (the mechanics fix where a crack runs; the roughness is how it wanders about
     that)."""
-    offsets = np.zeros(2)
+    offsets = np.zeros(2 ** n_levels + 1)
+    draws = rng.standard_normal(2 ** n_levels - 1)  # as drawn level by level: 1, 2, 4, ...
     for level in range(n_levels):
-        interval = length_m / 2 ** level
-        middle = (offsets[:-1] + offsets[1:]) / 2
-        middle = middle + midpoint_sd(interval) * rng.standard_normal(len(middle))
-        out = np.empty(2 * len(offsets) - 1)
-        out[0::2], out[1::2] = offsets, middle
-        offsets = out
+        step = 2 ** (n_levels - level)  # between the points placed so far
+        placed = offsets[::step]
+        middle = (placed[:-1] + placed[1:]) / 2
+        spread = midpoint_sd(length_m / 2 ** level)
+        offsets[step // 2::step] = middle + spread * draws[2 ** level - 1:2 ** (level + 1) - 1]
     return offsets
 
 
