@@ -503,12 +503,13 @@ def add_fly_parser(sub: Commands) -> None:
 
 def cmd_fly(args: argparse.Namespace) -> None:
     from glsynth.core.runlock import RunLock, check_out
-    from glsynth.data.flight import check_flight, run_flight
 
     config = _config(args)
     if args.plan:
         config = config_from_dict({"flight": {"plan": args.plan}}, config)
     check_out(args.out)  # at once, not after the environment is built
+    from glsynth.data.flight import check_flight, run_flight  # trimesh and the GL: 0.5 s
+
     checked = check_flight(config, args.seed, args.env)  # before --out is made or locked
     with RunLock(args.out):
         done = run_flight(config, args.seed, args.env, Path(args.out), checked)
