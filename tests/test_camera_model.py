@@ -22,7 +22,8 @@ CAMERA = 3
 @pytest.fixture(scope="module")
 def view():
     config = preview_config(load_config("inspection"), WIDTH)
-    # Culled for CAMERA alone: the same bytes as an opening for all (test_render_viaduct).
+    # Culled for CAMERA alone (what culling keeps: tests/test_render_viaduct.py); the tests
+    # compare this view with itself.
     return EnvironmentView.open(config, 0, 0, rendering=[CAMERA])
 
 
