@@ -252,10 +252,10 @@ def check_out(folder: str | Path) -> None:
     wrong --out is told at once. (A folder another run holds is refused for every command by
     the command line before the command runs: refuse_held.)"""
     folder = Path(folder)
-    resolved(folder)  # a symbolic-link loop is one line, before any other test
+    where = resolved(folder)  # a symbolic-link loop is one line, before any other test
     if folder.exists() and not folder.is_dir():
         raise UserError(f"--out {named(folder)} is a file; give a folder")
-    if folder.resolve().parts[1:2] in (("proc",), ("sys",), ("dev",)):
+    if where.parts[1:2] in (("proc",), ("sys",), ("dev",)):
         raise UserError(f"--out {named(folder)} is in the kernel's /proc, /sys or /dev; give "
                         "a folder on a disk")
 

@@ -111,8 +111,8 @@ class Trajectory:
     @functools.cached_property
     def _segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Start arc length, heading, xy and curvature of each arc, plus a straight lead-out;
-        found once (the fields are frozen and read-only): frame() is called tens of
-        thousands of times an environment, and remaking them was a fifth of its time."""
+        found once (the fields are frozen and read-only): frame() is called hundreds of
+        times an environment, and remaking them at each call was a sixth of a build."""
         kappa = np.append(self.curvature, 0.0)
         s0 = np.arange(self.n + 1) * self.length_m
         theta0 = np.concatenate([[0.0], np.cumsum(self.curvature * self.length_m)])
