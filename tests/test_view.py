@@ -34,8 +34,8 @@ POSE[:3, 3] = (10.0, -4.0, 6.0)
 
 
 PREVIEW = SceneSettings("demo", 0, 0, quality="preview", config_toml=SCENE_TOML)
-"""The in-process scene tests' scene: the viewer tests' two viaducts (tests/viewhelpers.py),
-as their plumbing needs no more; ten took 5 CPU-s an opening, nine openings a file."""
+"""The in-process scene tests' scene: the viewer tests' one viaduct (tests/viewhelpers.py),
+as their plumbing needs no more; nine openings a file."""
 
 
 def camera_message(**change) -> str:
