@@ -31,6 +31,7 @@ from glsynth.world.cameras import sample_camera
 from glsynth.world.environment import BOX_BEAMS, OPEN_KINDS, PartKind
 from glsynth.world.face_cameras import (
     GROUND_CLEARANCE_M,
+    crack_aims,
     member_faces,
     place_camera,
     place_cameras,
@@ -139,6 +140,23 @@ def test_crack_aimed_cameras_look_at_a_crack_from_where_they_resolve_it(env0):
     # At 9 px (3 in the labels) most slight cracks need the near end; the widest may stand
     # farther: the rule's span is met, or the camera could come no nearer.
     assert any(p.face.distance_m == cameras.face_distance_m[0] for p in aimed)
+
+
+def test_crack_aims_are_drawn_by_the_area_the_cracks_open(env0):
+    """A crack-aimed camera's point is drawn by length x width: the widths drawn average the
+    area-weighted width of the environment's cracks on inspected faces, well above the
+    length-weighted one (the hairlines that an inspector's photographs pass over)."""
+    aims = crack_aims(env0.parts, member_faces(env0.parts), cracks_of(env0))
+    lengths = np.linalg.norm(aims.segments[:, 1] - aims.segments[:, 0], axis=1)
+    wa, wb = aims.widths_m.T
+    at_end = np.where((wa > 0) & (wb > 0), (wa + wb) / 2, np.maximum(wa, wb))  # tips: not aimed
+    area = lengths * aims.widths_m.mean(axis=1)
+    by_area, by_length = area @ at_end / area.sum(), lengths @ at_end / lengths.sum()
+    rng = np.random.default_rng(5)
+    drawn = np.array([aims.draw(rng)[2] for _ in range(4000)])
+    assert drawn.mean() == pytest.approx(by_area, rel=0.06)
+    assert by_area > 1.5 * by_length
+    assert drawn.min() > 0
 
 
 def test_a_crack_aimed_camera_labels_its_centre_pixel_with_the_crack(tmp_path):
