@@ -152,7 +152,7 @@ def test_crack_aims_are_drawn_by_the_area_the_cracks_open(env0):
     at_end = np.where((wa > 0) & (wb > 0), (wa + wb) / 2, np.maximum(wa, wb))  # tips: not aimed
     area = lengths * aims.widths_m.mean(axis=1)
     by_area, by_length = area @ at_end / area.sum(), lengths @ at_end / lengths.sum()
-    rng = np.random.default_rng(5)
+    rng = make_rng(5, 0, Stream.CAMERAS)
     drawn = np.array([aims.draw(rng)[2] for _ in range(4000)])
     assert drawn.mean() == pytest.approx(by_area, rel=0.06)
     assert by_area > 1.5 * by_length
