@@ -805,6 +805,10 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
                    help="share of the real folder held out for testing; 1 tests on all of "
                         "it and trains no network on it (a folder too small to split)")
     p.add_argument("--seed", type=non_negative_int, default=0)
+    p.add_argument("--repeats", type=positive_int, default=1,
+                   help="networks trained per training set, each from its own draws; the one "
+                        "of median F1 is reported with the range (one run can scatter by a "
+                        "tenth of F1)")
     p.add_argument("--out", required=True, help="folder for sim2real.json and predictions.png")
     p.set_defaults(func=cmd_bench_sim2real)
 
@@ -813,7 +817,7 @@ def cmd_bench_sim2real(args: argparse.Namespace) -> None:
     from glsynth.model.sim2real import Sim2RealSettings, run_sim2real, summary
 
     settings = Sim2RealSettings(args.steps, args.crop, args.batch, args.width,
-                                args.learning_rate, args.test_share, args.seed)
+                                args.learning_rate, args.test_share, args.seed, args.repeats)
     result = run_sim2real(args.synthetic, args.real, args.out, settings, args.other_real)
     print(summary(result))
     print(f"-> {args.out}/sim2real.json, predictions.png")

@@ -1,6 +1,7 @@
 """The sim-to-real benchmark: the tolerant crack scores against hand-made masks, the real
 folder reader's refusals, and a tiny end-to-end run of glsynth bench sim2real."""
 
+import dataclasses
 import json
 
 import cv2
@@ -9,6 +10,7 @@ import pytest
 
 from glsynth.cli import main
 from glsynth.core.errors import UserError
+from glsynth.core.seeding import Stream, make_rng
 from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
 from glsynth.measure.crack_scores import best_threshold, count, scores
 
@@ -287,3 +289,48 @@ def test_a_stopped_run_keeps_the_networks_it_finished(tmp_path, monkeypatch):
     whole = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "o", settings, [other])
     assert list(whole["networks"]) == ["ds", "pavement"] and whole["complete"] is True
     assert json.loads((tmp_path / "o" / "sim2real.json").read_text()) == whole
+
+
+def striped_crack(i: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """A 40x32 noisy grey image with a dark 3 px band (the crack) at a row set by ``i``."""
+    crack = np.zeros((32, 40), bool)
+    crack[4 + 3 * i:7 + 3 * i, 3:36] = True
+    rgb = rng.integers(90, 160, (32, 40, 3)).astype(np.uint8)
+    rgb[crack] //= 3
+    return rgb, crack
+
+
+def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_path,
+                                                                          monkeypatch, capsys):
+    """--repeats 3: each training set trains three networks from their own draws; the scores
+    given are those of the median F1, with the range and every repeat's scores beside them,
+    and the first repeat is the run of --repeats 1."""
+    from glsynth.model import sim2real
+
+    rng = make_rng(3, 0, Stream.TRAINING)
+    rendered = [CrackImage(f"v{i}", *striped_crack(i, rng)) for i in range(3)]
+    monkeypatch.setattr(sim2real, "read_synthetic", lambda path: rendered)
+    real = tmp_path / "photos"
+    (real / "images").mkdir(parents=True)
+    (real / "masks").mkdir()
+    for i in range(3, 6):
+        rgb, crack = striped_crack(i, rng)
+        cv2.imwrite(str(real / "images" / f"p{i}.png"), rgb)
+        cv2.imwrite(str(real / "masks" / f"p{i}.png"), crack.astype(np.uint8) * 255)
+    settings = sim2real.Sim2RealSettings(steps=6, crop=16, batch=2, width=4, test_share=1.0)
+    once = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "one", settings)
+    thrice = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "three",
+                                   dataclasses.replace(settings, repeats=3))
+    net = thrice["networks"]["ds"]
+    f1s = [r["f1"] for r in net["repeats"]]
+    assert len(set(f1s)) == 3  # each from its own draws, so the median is a choice
+    assert net["f1"] == sorted(f1s)[1] and net["f1"] != f1s[0]
+    assert net["f1_range"] == [min(f1s), max(f1s)]
+    assert net["repeats"][0]["f1"] == once["networks"]["ds"]["f1"]
+    assert net["repeats"][0]["last_loss"] == once["networks"]["ds"]["last_loss"]
+    assert "repeats" not in once["networks"]["ds"]
+    assert "the median of 3 repeats" in sim2real.summary(thrice)
+    assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
+                 "--out", str(tmp_path / "o"), "--repeats", "101"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--repeats 101: must be an integer in [1, 100]" in err and "\n" not in err
