@@ -807,8 +807,8 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--repeats", type=positive_int, default=1,
                    help="networks trained per training set, each from its own draws; the one "
-                        "of median F1 is reported with the range (one run can scatter by a "
-                        "tenth of F1)")
+                        "of median F1 is reported, with every repeat's scores (single runs "
+                        "scatter: docs/design.md)")
     p.add_argument("--out", required=True, help="folder for sim2real.json and predictions.png")
     p.set_defaults(func=cmd_bench_sim2real)
 

@@ -16,6 +16,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -50,10 +51,9 @@ class Sim2RealSettings:
     tests on all of it and trains no network on it."""
     seed: int = 0
     repeats: int = 1
-    """Networks trained per training set, repeat r from its own generators (item r; repeat 0
-    is the run of repeats = 1). The one of median F1 gives the scores and the picture, and
-    every repeat's scores are kept: one run of the defaults scatters by up to 0.14 F1 with
-    the training seed alone (docs/results.md, "Aimed by area")."""
+    """Networks trained per training set, each from its own generators (repeat_item); the one
+    of median F1 (the lower middle one for an even count) gives the scores and the picture,
+    and every repeat's scores are kept. Why: docs/design.md, "The sim-to-real benchmark"."""
 
     def __post_init__(self) -> None:
         checks = (("steps", 1 <= self.steps <= 10**6, "an integer in [1, 1000000]"),
@@ -139,6 +139,17 @@ def _crop_at(image: CrackImage, crop: int, rng: np.random.Generator
     return _normalised(np.ascontiguousarray(x)), np.ascontiguousarray(y)
 
 
+SPLIT_ITEM = 2
+"""The Stream.TRAINING item that shuffles the real folder before its split."""
+
+
+def repeat_item(repeat: int) -> int:
+    """The Stream.TRAINING item of a repeat's network: 0 for the first (every run before
+    repeats, the same network), then past SPLIT_ITEM, so that no network draws the split's
+    numbers."""
+    return 0 if repeat == 0 else SPLIT_ITEM + repeat
+
+
 def train_network(images: list[CrackImage], settings: Sim2RealSettings, item: int
                   ) -> tuple[CrackUNet, dict]:
     """A CrackUNet trained on ``images``, its initial weights and draws from ``item``'s
@@ -188,7 +199,7 @@ def split_real(images: list[CrackImage], settings: Sim2RealSettings
     if len(images) < 2:
         raise UserError(f"the real folder holds {len(images)} image; give at least 2, one to "
                         "train on and one to test on, or test on all of it with --test-share 1")
-    order = make_rng(settings.seed, 0, Stream.TRAINING, 2).permutation(len(images))
+    order = make_rng(settings.seed, 0, Stream.TRAINING, SPLIT_ITEM).permutation(len(images))
     n_test = min(len(images) - 1, max(1, round(settings.test_share * len(images))))
     test = {int(i) for i in order[:n_test]}
     return ([im for i, im in enumerate(images) if i not in test],
@@ -246,14 +257,34 @@ def _training_sets(synthetic: Sequence[str | Path], other_real: Sequence[str | P
     return [*sets, *others, *([(REAL, real_train)] if real_train else [])]
 
 
+class ScoredRun(NamedTuple):
+    score: dict
+    """best_threshold's scores on the test images."""
+    training: dict
+    """train_network's figures."""
+    examples: list[np.ndarray]
+    """Its predictions of the test images predictions.png shows."""
+
+
 def _scored_run(images: list[CrackImage], test: list[CrackImage], settings: Sim2RealSettings,
-                item: int) -> tuple[dict, dict, list[np.ndarray]]:
+                item: int) -> ScoredRun:
     """A network trained on ``images`` from ``item``'s draws (every training set draws the
-    same crops' randomness and initial weights for one item): its scores on ``test``, its
-    training figures, and its predictions of the test images the picture shows."""
+    same crops' randomness and initial weights for one item), scored on ``test``."""
     net, training = train_network(images, settings, item)
     probs = [predict(net, image.rgb) for image in test]
-    return best_threshold(probs, [image.crack for image in test]), training, probs[:EXAMPLES]
+    return ScoredRun(best_threshold(probs, [image.crack for image in test]), training,
+                     probs[:EXAMPLES])
+
+
+def _network_entry(kind: str, runs: list[ScoredRun], median: int) -> dict:
+    """A network's entry in sim2real.json: its kind and the median run's scores and training
+    figures; with repeats, also which run that is, the F1s' range and every run's figures."""
+    entry = {"trained_on": kind, **runs[median].score, **runs[median].training}
+    if len(runs) > 1:
+        f1s = [run.score["f1"] for run in runs]
+        entry.update(median_repeat=median, f1_range=[min(f1s), max(f1s)],
+                     repeats=[{**run.score, **run.training} for run in runs])
+    return entry
 
 
 def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | Path,
@@ -277,16 +308,14 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
                     "networks": {}, "complete": False}
     predictions, thresholds = {}, {}
     for name, (kind, images) in zip(names, sets):
-        runs = [_scored_run(images, test, settings, item) for item in range(settings.repeats)]
-        score, training, predictions[name] = sorted(runs, key=lambda r: r[0]["f1"])[
-            (len(runs) - 1) // 2]
-        thresholds[name] = score["threshold"]
-        result["networks"][name] = {"trained_on": kind, **score, **training}
-        if settings.repeats > 1:
-            f1s = [run[0]["f1"] for run in runs]
-            result["networks"][name].update(f1_range=[min(f1s), max(f1s)],
-                                            repeats=[{**r[0], **r[1]} for r in runs])
-        # Each network takes minutes on a CPU: a run stopped early keeps those finished.
+        runs = [_scored_run(images, test, settings, repeat_item(r))
+                for r in range(settings.repeats)]
+        median = sorted(range(len(runs)), key=lambda r: runs[r].score["f1"])[(len(runs) - 1) // 2]
+        predictions[name] = runs[median].examples
+        thresholds[name] = runs[median].score["threshold"]
+        result["networks"][name] = _network_entry(kind, runs, median)
+        # Each network takes minutes on a CPU: a run stopped early keeps those finished (a
+        # network with repeats once all its repeats are in).
         result["complete"] = len(result["networks"]) == len(sets)
         atomic_write_json(out / "sim2real.json", result)
     atomic_write_bytes(out / "predictions.png", png_bytes(_picture(test, predictions,

@@ -317,7 +317,8 @@ def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_pa
         rgb, crack = striped_crack(i, rng)
         cv2.imwrite(str(real / "images" / f"p{i}.png"), rgb)
         cv2.imwrite(str(real / "masks" / f"p{i}.png"), crack.astype(np.uint8) * 255)
-    settings = sim2real.Sim2RealSettings(steps=6, crop=16, batch=2, width=4, test_share=1.0)
+    settings = sim2real.Sim2RealSettings(steps=12, crop=16, batch=2, width=4, learning_rate=1e-2,
+                                         test_share=1.0)
     once = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "one", settings)
     thrice = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "three",
                                    dataclasses.replace(settings, repeats=3))
@@ -325,10 +326,14 @@ def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_pa
     f1s = [r["f1"] for r in net["repeats"]]
     assert len(set(f1s)) == 3  # each from its own draws, so the median is a choice
     assert net["f1"] == sorted(f1s)[1] and net["f1"] != f1s[0]
+    median = net["repeats"][net["median_repeat"]]
+    assert {k: net[k] for k in median} == median  # every figure the median run's
     assert net["f1_range"] == [min(f1s), max(f1s)]
-    assert net["repeats"][0]["f1"] == once["networks"]["ds"]["f1"]
-    assert net["repeats"][0]["last_loss"] == once["networks"]["ds"]["last_loss"]
-    assert "repeats" not in once["networks"]["ds"]
+    first, alone = net["repeats"][0], once["networks"]["ds"]
+    assert {k: first[k] for k in first if k != "train_s"} == \
+        {k: alone[k] for k in first if k != "train_s"}  # repeat 0 is the run without repeats
+    assert set(alone) == set(first) | {"trained_on"}
+    assert sim2real.repeat_item(2) != sim2real.SPLIT_ITEM
     assert "the median of 3 repeats" in sim2real.summary(thrice)
     assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
                  "--out", str(tmp_path / "o"), "--repeats", "101"]) == 2

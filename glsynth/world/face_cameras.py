@@ -244,11 +244,9 @@ class CrackAims:
     faces: np.ndarray
     """(N,) int: the face (index into FaceTargets.faces) that holds each segment."""
     weights: np.ndarray
-    """(N,) each segment's share of the area the cracks open (length x mean width). Drawn by
-    length alone, three aims in four fell on hairlines under 0.4 mm, which even at the near
-    end of the preset's range show a label pixel wide, where the masks of public crack
-    photographs are a median 3-7 px wide; an inspector's eye and camera go to the cracks
-    that show (docs/results.md, "Cracks against real photographs")."""
+    """(N,) each segment's share of the area the cracks open (length x mean width): an
+    inspector's eye and camera go to the cracks that show (why not by length: docs/design.md,
+    "Inspection preset")."""
 
     def draw(self, rng: np.random.Generator) -> tuple[int, np.ndarray, float]:
         """A face, an open end of a segment drawn by its area (the cracks' vertices: a rough
@@ -294,7 +292,7 @@ def crack_aims(parts: Sequence[Part], faces: list[MemberFace], cracks: Cracks
         kept.append(world[on])
         widths.append(width[on])
         owners.append(np.array(mine)[best[on]])
-    if not kept or not sum(len(k) for k in kept):
+    if not kept:
         return None
     segments = np.concatenate(kept)
     widths = np.concatenate(widths)
