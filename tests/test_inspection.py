@@ -154,8 +154,10 @@ def test_crack_aims_are_drawn_by_the_area_the_cracks_open(env0):
     wa, wb = aims.widths_m.T
     at_end = np.where((wa > 0) & (wb > 0), (wa + wb) / 2, np.maximum(wa, wb))  # tips: not aimed
     by_area, by_length = area @ at_end / area.sum(), lengths @ at_end / lengths.sum()
-    # 4,000 draws: the mean's standard error is under 2 % of it for these widths.
-    drawn = np.array([aims.draw(make_rng(5, 0, Stream.CAMERAS, k))[2] for k in range(4000)])
+    # 1,500 draws (a millisecond each): the mean's standard error is 2.3 % of it for these
+    # widths, and the length-weighted mean lies 40 % under it.
+    rng = make_rng(5, 0, Stream.CAMERAS)
+    drawn = np.array([aims.draw(rng)[2] for _ in range(1500)])
     assert drawn.mean() == pytest.approx(by_area, rel=0.06)
     assert by_area > 1.5 * by_length and drawn.min() > 0
     # Cracks that open nothing (every width 0) give no aims: the cameras aim at faces.
