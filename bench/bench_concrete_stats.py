@@ -26,7 +26,7 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import RESULTS, write_results  # noqa: E402
+from common import LUMA, RESULTS, write_results  # noqa: E402
 
 from glsynth.core.config import Config, load_config  # noqa: E402
 from glsynth.core.fileio import atomic_write_bytes  # noqa: E402
@@ -34,10 +34,6 @@ from glsynth.render.view import EnvironmentView  # noqa: E402
 
 FIGURE_VIEWS, THUMB = 4, (480, 270)
 """concrete_stats.jpg: the first views, one row per config, each shrunk to this size."""
-
-LUMA = np.array([0.299, 0.587, 0.114])
-"""Rec. 601 luma weights of sRGB bytes (as JPEG's Y)."""
-
 
 def image_stats(rgb: np.ndarray) -> dict[str, float | list[float]]:
     pixels = rgb[..., :3].reshape(-1, 3).astype(np.float64)

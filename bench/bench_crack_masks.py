@@ -16,12 +16,10 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from common import write_results
+from common import LUMA, write_results
 from skimage.morphology import skeletonize
 
 from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
-
-LUMA = np.array([0.299, 0.587, 0.114])
 
 
 def mask_stats(images: list[CrackImage]) -> dict:

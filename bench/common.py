@@ -11,9 +11,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from glsynth.core.config import Config, load_config
 
 RESULTS = Path(__file__).resolve().parent / "results"
+LUMA = np.array([0.299, 0.587, 0.114])
+"""Rec. 601 luma weights of sRGB bytes (as JPEG's Y): the brightness the image statistics
+report."""
 JEMALLOC = "/usr/lib/x86_64-linux-gnu/libjemalloc.so.2"
 JEMALLOC_CONF = "oversize_threshold:0,background_thread:true,dirty_decay_ms:-1,muzzy_decay_ms:-1"
 
