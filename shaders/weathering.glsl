@@ -8,7 +8,9 @@
 // - efflorescence: white salt blooms where water seeps out of a horizontal formwork joint,
 //   below the joint;
 // - dirt: soiled blotches, more of them on faces that look up (dust settles, water stands);
-// - patch repairs: a rectangle of newer mortar, lighter and smoother, with a dark edge.
+// - patch repairs: a rectangle of newer mortar, lighter and smoother, with a dark edge;
+// - damp: wet concrete, darker, at the foot of a face and below leaking formwork joints, each
+//   behind a sharp drying front.
 // Vertical faces (normal's dominant axis horizontal) get streaks and blooms; every face the
 // rest. Deterministic: a function of the position, the normal and the part's seed alone.
 #include "concrete_detail.glsl"
@@ -101,6 +103,51 @@ float patch_repair(vec2 p, float footprint, uint salt, out float edge) {
     return present * clamp(0.5 - outside / footprint, 0.0, 1.0);
 }
 
+// The share of a pixel of footprint fp inside a region whose boundary lies ``inside_m`` metres
+// away (positive inside): a step at the pixel, as a drying front is a step in wetness.
+float sharp_inside(float inside_m, float fp) {
+    return clamp(inside_m / fp + 0.5, 0.0, 1.0);
+}
+
+// Damp: water in the surface pores takes the place of air, so wet concrete scatters back
+// less light and looks darker until it dries; a drying front stays sharp. Each gives the
+// share of the colour it takes away, on vertical faces. fray: the fronts' raggedness at 2 cm.
+float fray_m(vec2 p, float footprint, uint salt) {
+    return 0.012 * resolved(0.02, footprint) * value_noise(p / 0.02, salt ^ 73u);
+}
+
+// The foot, on 40 % of faces: splash and water drawn up from below, 20-40 % darker up to a
+// front 0.1-0.8 m high that wanders +-30 % along the face over 0.5 m, with a tide line 2-6 mm
+// wide along the front (the dirt and salt the water leaves where it evaporates), darker again.
+float damp_foot(vec2 p, float footprint, uint salt) {
+    uint h = detail_hash(salt ^ 71u);
+    float height = (0.1 + 0.7 * unit_float(detail_hash(h ^ 1u)))
+                   * (1.0 + 0.3 * value_noise(vec2(p.x / 0.5, 0.5), salt ^ 72u));
+    float under = height + fray_m(p, footprint, salt) - p.y;  // metres below the front
+    float tide_half = 0.001 + 0.002 * unit_float(detail_hash(h ^ 3u));
+    float tide = sharp_inside(tide_half - abs(under), footprint)
+                 * min(1.0, 2.0 * tide_half / footprint);
+    float darkness = float(unit_float(h) < 0.4) * float(p.y >= 0.0)
+                     * (0.20 + 0.20 * unit_float(detail_hash(h ^ 2u)));
+    return darkness * max(sharp_inside(under, footprint), 1.5 * tide);
+}
+
+// A leak below 12 % of the 0.8 m stretches of each horizontal formwork joint: a wet tongue
+// 0.1-0.4 m wide running 0.2-1.5 m down, 15-35 % darker, frayed like the foot's front.
+float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
+    float row = floor(p.y / 2.44 + offset.y) + 1.0;  // the joint above p
+    float below = (row - offset.y) * 2.44 - p.y;
+    float cell = floor(p.x / 0.8);
+    uint k = cell_hash(ivec2(int(cell), int(row)), salt ^ 74u);
+    float centre = (cell + 0.25 + 0.5 * unit_float(detail_hash(k))) * 0.8;
+    float half_width = 0.05 + 0.15 * unit_float(detail_hash(k ^ 1u));
+    float length_m = 0.2 + 1.3 * unit_float(detail_hash(k ^ 2u));
+    vec2 d = vec2((p.x - centre) / half_width, below / length_m);
+    float inside_m = (1.0 - length(d)) * half_width + fray_m(p, footprint, salt);
+    return float(unit_float(k) < 0.12) * (0.15 + 0.20 * unit_float(detail_hash(k ^ 3u)))
+           * sharp_inside(inside_m, footprint);
+}
+
 // Weathered concrete's factor on the base colour at mesh-frame position pos (relative to the
 // part's box's lower corner, z up), normal n (mesh frame), for part seed, on a part whose box
 // is top_m high: concrete_detail() times the weathering.
@@ -122,10 +169,13 @@ vec3 weathered_concrete(vec3 pos, vec3 n, uint seed, float top_m) {
     float rain = vertical ? rain_streaks(p, top_m, footprint, salt) : 0.0;
     float rust = vertical ? rust_streaks(p, offset, footprint, salt) : 0.0;
     float bloom = vertical ? efflorescence(p, offset, footprint, salt) : 0.0;
+    float wet = vertical ? max(damp_foot(p, footprint, salt),
+                               damp_leak(p, offset, footprint, salt)) : 0.0;
     float edge;
     float repair = patch_repair(p, footprint, salt, edge);
     vec3 f = vec3(1.0 + mottle + hue, 1.0 + mottle, 1.0 + mottle - hue)
-             * (1.0 - rain) * (1.0 - dirt) * mix(vec3(1.0), vec3(0.80, 0.62, 0.45), 0.6 * rust);
+             * (1.0 - rain) * (1.0 - dirt) * (1.0 - wet)
+             * mix(vec3(1.0), vec3(0.80, 0.62, 0.45), 0.6 * rust);
     f = mix(f * detail, vec3(2.1, 2.1, 2.05), 0.75 * bloom);
     // Newer mortar: lighter and greyer, its paste finer (a third of the detail's contrast).
     vec3 mortar = vec3(1.14, 1.15, 1.17) * (1.0 + 0.33 * (detail - 1.0)) * (1.0 + 0.3 * mottle);

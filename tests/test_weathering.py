@@ -70,6 +70,43 @@ def test_efflorescence_lies_below_its_joint(harness):
     assert under.mean() > 0.01 and np.all(over == 0.0)
 
 
+def test_damp_at_the_foot_reaches_a_sharp_front_on_two_faces_in_five(harness):
+    salts = np.arange(300)
+    x = np.arange(WIDTH) * 0.05  # 3.2 m of each face
+    probe = np.zeros((len(salts) * WIDTH, 4), np.float32)
+    probe[:, 0], probe[:, 2] = np.tile(x, len(salts)), np.repeat(salts, WIDTH)
+    expr = "vec4(damp_foot(in0.xy, 0.001, uint(in0.z)))"
+    foot = harness.run(expr, probe).reshape(len(salts), WIDTH, 4)[..., 0]
+    probe[:, 1] = 1.1  # above the highest front, 0.8 m x 1.3 + its fray
+    high = harness.run(expr, probe)[:, 0]
+    wet = foot.min(1) > 0.0
+    assert np.all(high == 0.0) and np.all(foot[~wet] == 0.0)
+    assert np.all((foot[wet] >= 0.2) & (foot[wet] <= 0.4))
+    assert abs(wet.mean() - 0.4) < 3 * np.sqrt(0.4 * 0.6 / len(salts))
+    # Up a wet face in 1 mm steps: from wet to dry within the tide line and two pixels.
+    salt = int(salts[wet][0])
+    y = np.arange(0.0, 1.1, 0.001)
+    column = face_grid(np.array([0.3]), y)
+    column[:, 2] = salt
+    profile = harness.run(expr, column)[:, 0]
+    last_wet = np.flatnonzero(profile >= 0.2).max()
+    first_dry = last_wet + np.flatnonzero(profile[last_wet:] == 0.0).min()
+    assert 0.07 < y[last_wet] < 1.06 and (first_dry - last_wet) * 0.001 <= 0.008
+    wet_level = profile[:50].max()  # the lowest 5 cm: under every front (0.07 m less fray)
+    assert np.all(profile[:50] == wet_level) and profile.max() > 1.3 * wet_level  # tide line
+
+
+def test_a_leak_wets_only_below_its_joint(harness):
+    offset = 0.37
+    joints = (np.arange(1, 4) - offset) * 2.44
+    x = np.arange(16 * WIDTH) * 0.01
+    expr = f"vec4(damp_leak(in0.xy, vec2(0.0, {offset}), 0.01, 9u))"
+    under = harness.run(expr, face_grid(x, np.concatenate([joints - 0.05, joints - 0.15])))
+    over = harness.run(expr, face_grid(x, joints + 0.02))[:, 0]
+    below = under[:, 0]
+    assert 0.01 < (below > 0).mean() and below.max() <= 0.35 and np.all(over == 0.0)
+
+
 def test_a_box_between_a_point_and_the_sun_blocks_it():
     box = Part("slab", Component.SLAB, None, trimesh.creation.box((2.0, 2.0, 0.2)),
                np.eye(4))
