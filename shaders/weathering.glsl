@@ -11,8 +11,8 @@
 // - patch repairs: a rectangle of newer mortar, lighter and smoother, with a dark edge;
 // - damp: wet concrete, darker, at the foot of a face and below leaking formwork joints, each
 //   behind a sharp drying front.
-// Vertical faces (normal's dominant axis horizontal) get streaks and blooms; every face the
-// rest. Deterministic: a function of the position, the normal and the part's seed alone.
+// Vertical faces (normal's dominant axis horizontal) get streaks, blooms and damp; every face
+// the rest. Deterministic: a function of the position, the normal and the part's seed alone.
 #include "concrete_detail.glsl"
 
 // Value noise over octaves from size_m down, each amp times the last's amplitude, faded to
@@ -110,14 +110,16 @@ float sharp_inside(float inside_m, float fp) {
 }
 
 // Damp: water in the surface pores takes the place of air, so wet concrete scatters back
-// less light and looks darker until it dries; a drying front stays sharp. Each gives the
-// share of the colour it takes away, on vertical faces. fray: the fronts' raggedness at 2 cm.
+// less light and looks darker until it dries; a drying front stays sharp. damp_foot and
+// damp_leak each give the share of the colour they take away, on vertical faces.
+// The damp fronts' raggedness at 2 cm, metres.
 float fray_m(vec2 p, float footprint, uint salt) {
     return 0.012 * resolved(0.02, footprint) * value_noise(p / 0.02, salt ^ 73u);
 }
 
-// The foot, on 40 % of faces: splash and water drawn up from below, 20-40 % darker up to a
-// front 0.1-0.8 m high that wanders +-30 % along the face over 0.5 m, with a tide line 2-6 mm
+// The foot of the part's box, on 40 % of faces: splash and water drawn up from below (on a
+// beam or a slab's edge, water run round from the soffit), 20-40 % darker up to a
+// front 0.1-0.8 m high that wanders up to +-30 % along the face over 0.5 m, with a tide line 2-6 mm
 // wide along the front (the dirt and salt the water leaves where it evaporates), darker again.
 float damp_foot(vec2 p, float footprint, uint salt) {
     uint h = detail_hash(salt ^ 71u);
@@ -133,7 +135,10 @@ float damp_foot(vec2 p, float footprint, uint salt) {
 }
 
 // A leak below 12 % of the 0.8 m stretches of each horizontal formwork joint: a wet tongue
-// 0.1-0.4 m wide running 0.2-1.5 m down, 15-35 % darker, frayed like the foot's front.
+// 0.1-0.4 m wide running 0.2-1.5 m down, 15-35 % darker, frayed like the foot's front. The
+// ellipse's (1 - |d|) x half-width is a distance in metres across the tongue only: towards
+// its tip the step widens and the fray scatters it (at worst over 30 pixels and 0.36 m, for
+// the longest, narrowest tongue). Left so for now: the datasets measured were drawn so.
 float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
     float row = floor(p.y / 2.44 + offset.y) + 1.0;  // the joint above p
     float below = (row - offset.y) * 2.44 - p.y;
