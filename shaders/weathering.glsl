@@ -66,14 +66,22 @@ float rust_streaks(vec2 p, vec2 offset, float footprint, uint salt) {
     return rust;
 }
 
+// The horizontal formwork joint above p (one every 2.44 m), cut into stretches 0.8 m long:
+// how far below it p lies, and p's stretch (its index along the face, and its hash).
+float below_joint(vec2 p, vec2 offset, uint salt, out float cell, out uint h) {
+    float row = floor(p.y / 2.44 + offset.y) + 1.0;
+    cell = floor(p.x / 0.8);
+    h = cell_hash(ivec2(int(cell), int(row)), salt);
+    return (row - offset.y) * 2.44 - p.y;
+}
+
 // Efflorescence below the horizontal joints of formwork() (every 2.44 m): the joint cut into
 // cells 0.8 m long, in 25 % of them a bloom 0.1-0.5 m wide reaching 5-40 cm down, its edge
 // frayed by noise; its whiteness fades downwards.
 float efflorescence(vec2 p, vec2 offset, float footprint, uint salt) {
-    float row = floor(p.y / 2.44 + offset.y) + 1.0;  // the joint above p
-    float below = (row - offset.y) * 2.44 - p.y;
-    float cell = floor(p.x / 0.8);
-    uint h = cell_hash(ivec2(int(cell), int(row)), salt ^ 41u);
+    float cell;
+    uint h;
+    float below = below_joint(p, offset, salt ^ 41u, cell, h);
     float centre = (cell + 0.2 + 0.6 * unit_float(detail_hash(h))) * 0.8;
     float half_width = 0.05 + 0.20 * unit_float(detail_hash(h ^ 1u));
     float depth = 0.05 + 0.35 * unit_float(detail_hash(h ^ 2u));
@@ -140,10 +148,9 @@ float damp_foot(vec2 p, float footprint, uint salt) {
 // its tip the step widens and the fray scatters it (at worst over 30 pixels and 0.36 m, for
 // the longest, narrowest tongue). Left so for now: the datasets measured were drawn so.
 float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
-    float row = floor(p.y / 2.44 + offset.y) + 1.0;  // the joint above p
-    float below = (row - offset.y) * 2.44 - p.y;
-    float cell = floor(p.x / 0.8);
-    uint k = cell_hash(ivec2(int(cell), int(row)), salt ^ 74u);
+    float cell;
+    uint k;
+    float below = below_joint(p, offset, salt ^ 74u, cell, k);
     float centre = (cell + 0.25 + 0.5 * unit_float(detail_hash(k))) * 0.8;
     float half_width = 0.05 + 0.15 * unit_float(detail_hash(k ^ 1u));
     float length_m = 0.2 + 1.3 * unit_float(detail_hash(k ^ 2u));
