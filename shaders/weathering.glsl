@@ -10,7 +10,7 @@
 // - dirt: soiled blotches, more of them on faces that look up (dust settles, water stands);
 // - patch repairs: a rectangle of newer mortar, lighter and smoother, with a dark edge;
 // - damp: wet concrete, darker, at the foot of a face and below leaking formwork joints, each
-//   behind a sharp drying front.
+//   behind a sharp drying front; algae in patches on a share of the damp feet.
 // Vertical faces (normal's dominant axis horizontal) get streaks, blooms and damp; every face
 // the rest. Deterministic: a function of the position, the normal and the part's seed alone.
 #include "concrete_detail.glsl"
@@ -126,14 +126,21 @@ float fray_m(vec2 p, float footprint, uint salt) {
 }
 
 // The foot of the part's box, on 40 % of faces: splash and water drawn up from below (on a
-// beam or a slab's edge, water run round from the soffit), 20-40 % darker up to a
-// front 0.1-0.8 m high that wanders up to +-30 % along the face over 0.5 m, with a tide line 2-6 mm
-// wide along the front (the dirt and salt the water leaves where it evaporates), darker again.
-float damp_foot(vec2 p, float footprint, uint salt) {
-    uint h = detail_hash(salt ^ 71u);
+// beam or a slab's edge, water run round from the soffit), up to a front 0.1-0.8 m high that
+// wanders up to +-30 % along the face over 0.5 m. How far below that front p lies (metres,
+// negative above it), and the foot's hash.
+float below_front(vec2 p, float footprint, uint salt, out uint h) {
+    h = detail_hash(salt ^ 71u);
     float height = (0.1 + 0.7 * unit_float(detail_hash(h ^ 1u)))
                    * (1.0 + 0.3 * value_noise(vec2(p.x / 0.5, 0.5), salt ^ 72u));
-    float under = height + fray_m(p, footprint, salt) - p.y;  // metres below the front
+    return height + fray_m(p, footprint, salt) - p.y;
+}
+
+// A damp foot: 20-40 % darker up to its front, with a tide line 2-6 mm wide along the front
+// (the dirt and salt the water leaves where it evaporates), darker again.
+float damp_foot(vec2 p, float footprint, uint salt) {
+    uint h;
+    float under = below_front(p, footprint, salt, h);
     float tide_half = 0.001 + 0.002 * unit_float(detail_hash(h ^ 3u));
     float tide = sharp_inside(tide_half - abs(under), footprint)
                  * min(1.0, 2.0 * tide_half / footprint);
@@ -142,11 +149,34 @@ float damp_foot(vec2 p, float footprint, uint salt) {
     return darkness * max(sharp_inside(under, footprint), 1.5 * tide);
 }
 
+// Algae: green algae and cyanobacteria colonise concrete that stays wet, so on 60 % of the
+// damp feet a film grows in patches (noise over 0.2 m down to 5 cm passing a threshold),
+// covering most of the concrete at the ground and thinning out to a few specks at the front,
+// its edge soft (a film that thins out, not a front). The share of the pixel it covers, 0-1.
+float algae(vec2 p, float footprint, uint salt) {
+    uint h;
+    float under = below_front(p, footprint, salt, h);
+    // 1 at the ground, 0 at the front.
+    float low = clamp(under / max(under + p.y, 1e-3), 0.0, 1.0);
+    float patches = 0.5 + 0.3 * octaves(p, 0.2, 3, 0.5, footprint, salt ^ 76u);
+    float film = smoothstep(0.75 - 0.5 * low, 0.9 - 0.5 * low, patches);
+    float present = float(unit_float(h) < 0.4) * float(unit_float(detail_hash(h ^ 4u)) < 0.6)
+                    * float(p.y >= 0.0);
+    return present * film * sharp_inside(under, footprint);
+}
+
+// Algae's factor on the colour where its film covers the concrete, drawn per foot between green
+// (chlorophyll absorbs red and blue) and the grey-black of cyanobacteria: 31-56 % darker in
+// luminance.
+vec3 algae_tint(uint salt) {
+    float t = unit_float(detail_hash(detail_hash(salt ^ 71u) ^ 5u));
+    return mix(vec3(0.60, 0.74, 0.48), vec3(0.42, 0.45, 0.40), t);
+}
+
 // A leak below 12 % of the 0.8 m stretches of each horizontal formwork joint: a wet tongue
-// 0.1-0.4 m wide running 0.2-1.5 m down, 15-35 % darker, frayed like the foot's front. The
-// ellipse's (1 - |d|) x half-width is a distance in metres across the tongue only: towards
-// its tip the step widens and the fray scatters it (at worst over 30 pixels and 0.36 m, for
-// the longest, narrowest tongue). Left so for now: the datasets measured were drawn so.
+// 0.1-0.4 m wide running 0.2-1.5 m down, 15-35 % darker, frayed like the foot's front. Its
+// edge is a step at the pixel all round: the distance to the ellipse, in metres, is taken to
+// first order ((1 - r) over r's gradient), true across the tongue and at its tip alike.
 float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
     float cell;
     uint k;
@@ -155,7 +185,9 @@ float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
     float half_width = 0.05 + 0.15 * unit_float(detail_hash(k ^ 1u));
     float length_m = 0.2 + 1.3 * unit_float(detail_hash(k ^ 2u));
     vec2 d = vec2((p.x - centre) / half_width, below / length_m);
-    float inside_m = (1.0 - length(d)) * half_width + fray_m(p, footprint, salt);
+    float r = length(d);
+    vec2 gradient = vec2(d.x / half_width, d.y / length_m) / max(r, 1e-6);  // of r, per metre
+    float inside_m = (1.0 - r) / max(length(gradient), 1e-6) + fray_m(p, footprint, salt);
     return float(unit_float(k) < 0.12) * (0.15 + 0.20 * unit_float(detail_hash(k ^ 3u)))
            * sharp_inside(inside_m, footprint);
 }
@@ -183,11 +215,13 @@ vec3 weathered_concrete(vec3 pos, vec3 n, uint seed, float top_m) {
     float bloom = vertical ? efflorescence(p, offset, footprint, salt) : 0.0;
     float wet = vertical ? max(damp_foot(p, footprint, salt),
                                damp_leak(p, offset, footprint, salt)) : 0.0;
+    float growth = vertical ? algae(p, footprint, salt) : 0.0;
     float edge;
     float repair = patch_repair(p, footprint, salt, edge);
     vec3 f = vec3(1.0 + mottle + hue, 1.0 + mottle, 1.0 + mottle - hue)
              * (1.0 - rain) * (1.0 - dirt) * (1.0 - wet)
-             * mix(vec3(1.0), vec3(0.80, 0.62, 0.45), 0.6 * rust);
+             * mix(vec3(1.0), vec3(0.80, 0.62, 0.45), 0.6 * rust)
+             * mix(vec3(1.0), algae_tint(salt), growth);
     f = mix(f * detail, vec3(2.1, 2.1, 2.05), 0.75 * bloom);
     // Newer mortar: lighter and greyer, its paste finer (a third of the detail's contrast).
     vec3 mortar = vec3(1.14, 1.15, 1.17) * (1.0 + 0.33 * (detail - 1.0)) * (1.0 + 0.3 * mottle);
