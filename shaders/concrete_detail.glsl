@@ -97,6 +97,8 @@ float holes(vec2 p, float footprint, float size_m, float share, float r0, float 
 
 // Formwork: plywood panels 1.22 x 2.44 m (a dark joint line 4 mm wide between them), tie
 // holes every 0.6 m (25 mm, mortar-filled: lighter), and the plywood's grain along the panel.
+// A plywood sheet's size, metres (weathering.glsl's marks below the joints read it too).
+const vec2 FORMWORK_PANEL_M = vec2(1.22, 2.44);
 // The formwork's panel and tie grid offset (in grid units) on the face of salt.
 vec2 formwork_offset(uint salt) {
     return vec2(unit_float(detail_hash(salt ^ 7u)), unit_float(detail_hash(salt ^ 9u)));
@@ -104,8 +106,8 @@ vec2 formwork_offset(uint salt) {
 
 float formwork(vec2 p, float footprint, uint salt) {
     vec2 offset = formwork_offset(salt);
-    vec2 panel = fract(p / vec2(1.22, 2.44) + offset) * vec2(1.22, 2.44);
-    vec2 edge = min(panel, vec2(1.22, 2.44) - panel);
+    vec2 panel = fract(p / FORMWORK_PANEL_M + offset) * FORMWORK_PANEL_M;
+    vec2 edge = min(panel, FORMWORK_PANEL_M - panel);
     float joint = clamp((0.002 + 0.5 * footprint - min(edge.x, edge.y)) / footprint, 0.0, 1.0);
     vec2 tie = fract(p / 0.6 + offset) * 0.6 - 0.3;
     float plug = disk(length(tie), 0.0125, footprint);

@@ -69,10 +69,10 @@ float rust_streaks(vec2 p, vec2 offset, float footprint, uint salt) {
 // The horizontal formwork joint above p (one every 2.44 m), cut into stretches 0.8 m long:
 // how far below it p lies, and p's stretch (its index along the face, and its hash).
 float below_joint(vec2 p, vec2 offset, uint salt, out float cell, out uint h) {
-    float row = floor(p.y / 2.44 + offset.y) + 1.0;
+    float row = floor(p.y / FORMWORK_PANEL_M.y + offset.y) + 1.0;
     cell = floor(p.x / 0.8);
     h = cell_hash(ivec2(int(cell), int(row)), salt);
-    return (row - offset.y) * 2.44 - p.y;
+    return (row - offset.y) * FORMWORK_PANEL_M.y - p.y;
 }
 
 // Efflorescence below the horizontal joints of formwork() (every 2.44 m): the joint cut into
