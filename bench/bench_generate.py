@@ -35,10 +35,13 @@ def cpu_seconds_of_children() -> float:
 def run(out: Path, config: Path, workers: int, quality: str | None) -> tuple[dict, float]:
     """The run's report and the CPU seconds it took."""
     before = cpu_seconds_of_children()
-    subprocess.run([sys.executable, "-m", "glsynth", "generate", "--preset", "paper",
-                    "--config", str(config), "--seed", "0", "--out", str(out),
-                    "--workers", str(workers), *(["--quality", quality] if quality else [])],
-                   check=True, stderr=subprocess.DEVNULL)
+    done = subprocess.run([sys.executable, "-m", "glsynth", "generate", "--preset", "paper",
+                           "--config", str(config), "--seed", "0", "--out", str(out),
+                           "--workers", str(workers),
+                           *(["--quality", quality] if quality else [])],
+                          stderr=subprocess.PIPE, text=True)
+    if done.returncode:  # the progress bar is dropped; a failure's own lines are not
+        sys.exit(f"glsynth generate failed ({done.returncode}):\n{done.stderr[-3000:]}")
     return json.loads((out / "report.json").read_text()), cpu_seconds_of_children() - before
 
 

@@ -57,3 +57,23 @@ def test_compare_reports_label_and_depth_agreement(tmp_path):
     assert result["depth_max_rel"] == pytest.approx(2e-6, rel=0.05)
     same = bench_gpu.compare(tmp_path / "a.npz", tmp_path / "a.npz")
     assert same["labels_identical"] and same["depth_within_rtol"]
+
+
+def test_compare_tells_edge_pixels_from_others_and_refuses_other_views(tmp_path):
+    """A label that differs beside another label is a rasterizer's tie; one inside a region
+    is a wrong label. A reference of other views is refused, not compared."""
+    labels = np.zeros((6, 6), np.uint8)
+    labels[:, 3:] = 2
+    depth = np.full((6, 6), 5.0, np.float32)
+    np.savez(tmp_path / "cpu.npz", component_001=labels, damage_001=labels, depth_001=depth)
+    gpu = labels.copy()
+    gpu[2, 3] = 0  # beside the edge
+    gpu[4, 0] = 7  # inside the region
+    np.savez(tmp_path / "gpu.npz", component_001=gpu, damage_001=labels, depth_001=depth)
+    result = bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "cpu.npz")
+    assert result["labels_differ"] == {"component": 2, "damage": 0}
+    assert result["labels_differ_off_edges"] == {"component": 1, "damage": 0}
+    assert not result["labels_identical_off_edges"]
+    np.savez(tmp_path / "other.npz", component_002=labels, damage_002=labels, depth_002=depth)
+    with pytest.raises(ValueError, match="same --views"):
+        bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "other.npz")
