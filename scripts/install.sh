@@ -47,7 +47,10 @@ if [ -z "${GLSYNTH_NO_CHROMIUM:-}" ] && ! command -v chromedriver >/dev/null; th
 fi
 
 [ -x .venv/bin/python ] || python3 -m venv .venv
-pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
+# --no-compile: Python compiles a module's bytecode when it is first imported, so compiling
+# every file of torch, scipy and ray up front (most never imported) only made the install
+# slower: 20 s of torch's 26, measured.
+pip=(.venv/bin/python -m pip install -q --disable-pip-version-check --no-compile)
 # torch first and pinned: a looser requirement would pull several GB of CUDA packages.
 "${pip[@]}" "torch==2.13.0"
 "${pip[@]}" -e ".[model,test,ray,bench,view,flights]"
