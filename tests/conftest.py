@@ -1,5 +1,6 @@
 import dataclasses
 import gc
+from collections import Counter
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -139,18 +140,33 @@ DATASET_FIXTURES = {"tiny_dataset", "quick_dataset"}
 """Fixtures that generate a dataset: a test that uses one is marked slow."""
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Dataset tests are slow. (Under scripts/test.sh's workers, pytest-xdist's --dist loadfile
-    keeps each file on one worker, so its module fixtures are made once; a session dataset is
-    made once on each worker that runs a file using it.)"""
-    for item in items:
-        if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
-            item.add_marker(pytest.mark.slow)
-
-
 TINY_RUN_FILES = {"test_model.py", "test_assessment.py", "test_augment.py", "test_statistics.py"}
 """Files that train on the tiny dataset or read it most: scripts/test.sh's workers run them as
 one unit, so the dataset is generated and tiny_run's networks trained on one worker only."""
+
+
+def work_unit(nodeid: str) -> str:
+    """What one worker runs whole under --dist loadfile: a file, or TINY_RUN_FILES together."""
+    path = nodeid.split("::", 1)[0]
+    return "tiny_run" if path.rsplit("/", 1)[-1] in TINY_RUN_FILES else path
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Dataset tests are slow. (Under scripts/test.sh's workers, pytest-xdist's --dist loadfile
+    keeps each file on one worker, so its module fixtures are made once; a session dataset is
+    made once on each worker that runs a file using it.)
+
+    Then the work units with the most slow tests come first, each file's tests in their order:
+    scripts/test.sh keeps this order (--no-loadscope-reorder), and the workers take units as
+    they free, so the long ones start early and the short ones fill in at the end. pytest-xdist
+    would order them by their count of tests, which put one-test files of 25-35 s last and
+    left a worker idle for them (12 s of the suite's wall time, simulated from one run's
+    durations)."""
+    for item in items:
+        if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
+    slow = Counter(work_unit(item.nodeid) for item in items if item.get_closest_marker("slow"))
+    items.sort(key=lambda item: -slow[work_unit(item.nodeid)])  # stable
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -163,8 +179,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
 
     class TinyRunTogether(LoadFileScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            path = nodeid.split("::", 1)[0]
-            return "tiny_run" if path.rsplit("/", 1)[-1] in TINY_RUN_FILES else path
+            return work_unit(nodeid)
 
     return TinyRunTogether(config, log)
 
