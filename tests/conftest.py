@@ -151,22 +151,26 @@ def work_unit(nodeid: str) -> str:
     return "tiny_run" if path.rsplit("/", 1)[-1] in TINY_RUN_FILES else path
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+@pytest.hookimpl(wrapper=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]):
     """Dataset tests are slow. (Under scripts/test.sh's workers, pytest-xdist's --dist loadfile
     keeps each file on one worker, so its module fixtures are made once; a session dataset is
     made once on each worker that runs a file using it.)
 
-    Then the work units with the most slow tests come first, each file's tests in their order:
-    scripts/test.sh keeps this order (--no-loadscope-reorder), and the workers take units as
-    they free, so the long ones start early and the short ones fill in at the end. pytest-xdist
-    would order them by their count of tests, which put one-test files of 25-35 s last and
-    left a worker idle for them (12 s of the suite's wall time, simulated from one run's
-    durations)."""
+    Then, once -m has deselected, the work units with the most slow tests come first, and
+    among equals those with the most tests, each file's tests in their order: scripts/test.sh
+    keeps this order (--no-loadscope-reorder), and the workers take units as they free, so the
+    long ones start early and the short ones fill in at the end. pytest-xdist alone orders
+    units by their count of tests, which put one-test files of 25-35 s last in the whole
+    suite and left a worker idle for them (12 s of its wall time, simulated from one run's
+    durations); the quick loop, which has no slow tests, keeps that order."""
     for item in items:
         if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
+    yield
+    units = Counter(work_unit(item.nodeid) for item in items)
     slow = Counter(work_unit(item.nodeid) for item in items if item.get_closest_marker("slow"))
-    items.sort(key=lambda item: -slow[work_unit(item.nodeid)])  # stable
+    items.sort(key=lambda item: (-slow[work_unit(item.nodeid)], -units[work_unit(item.nodeid)]))
 
 
 @pytest.hookimpl(optionalhook=True)
