@@ -6,15 +6,18 @@
 #     bash bench/gpu.sh [OUT] [bench_gpu.py options]   # results in OUT (default out/gpu)
 #
 # OUT gets gpu.json and gpu.log. On a machine that cannot install (no network, no root), set
-# GLSYNTH_PYTHON to an interpreter that already imports glsynth and a CUDA torch: the install
-# is skipped. Where that machine has no Mesa for the CPU render, pass --cpu-reference with a
+# GLSYNTH_PYTHON to an interpreter that already imports glsynth and a CUDA torch (a command on
+# PATH, or a path from the repository root): the install is skipped. Where that machine has no Mesa for the CPU render, pass --cpu-reference with a
 # file that `bench_gpu.py --cpu-only` wrote elsewhere (docs/results.md, "On a GPU").
 #
 # Refuses with one line, before installing anything, where no NVIDIA GPU is found.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-out=${1:-out/gpu}
-shift || true
+out=out/gpu
+if [ $# -gt 0 ] && [ "${1#-}" = "$1" ]; then  # a first argument that is no option is OUT
+    out=$1
+    shift
+fi
 if ! command -v nvidia-smi >/dev/null 2>&1 || ! nvidia-smi -L 2>/dev/null | grep -q '^GPU '; then
     echo "bench/gpu.sh: no NVIDIA GPU found (nvidia-smi lists none); run it on a machine with" \
          "an NVIDIA GPU, its driver and its EGL library" >&2

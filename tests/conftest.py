@@ -1,6 +1,7 @@
 import dataclasses
 import gc
 from collections import Counter
+from collections.abc import Generator
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -152,7 +153,7 @@ def work_unit(nodeid: str) -> str:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_collection_modifyitems(items: list[pytest.Item]):
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> Generator[None, None, None]:
     """Dataset tests are slow. (Under scripts/test.sh's workers, pytest-xdist's --dist loadfile
     keeps each file on one worker, so its module fixtures are made once; a session dataset is
     made once on each worker that runs a file using it.)
@@ -167,10 +168,11 @@ def pytest_collection_modifyitems(items: list[pytest.Item]):
     for item in items:
         if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
-    yield
+    result = yield
     units = Counter(work_unit(item.nodeid) for item in items)
     slow = Counter(work_unit(item.nodeid) for item in items if item.get_closest_marker("slow"))
     items.sort(key=lambda item: (-slow[work_unit(item.nodeid)], -units[work_unit(item.nodeid)]))
+    return result
 
 
 @pytest.hookimpl(optionalhook=True)

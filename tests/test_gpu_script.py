@@ -77,3 +77,41 @@ def test_compare_tells_edge_pixels_from_others_and_refuses_other_views(tmp_path)
     np.savez(tmp_path / "other.npz", component_002=labels, damage_002=labels, depth_002=depth)
     with pytest.raises(ValueError, match="same --views"):
         bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "other.npz")
+
+
+def test_a_dropped_thin_region_or_a_third_label_on_an_edge_is_no_tie():
+    cpu = np.zeros((6, 8), np.uint8)
+    cpu[3, :] = 5  # a crack one pixel wide
+    assert not bench_gpu.edge_ties(np.zeros_like(cpu), cpu)[3].any()  # dropped whole
+    moved = np.roll(cpu, 1, axis=0)  # the same crack a pixel lower: ties all along
+    assert bench_gpu.edge_ties(moved, cpu)[moved != cpu].all()
+    third = cpu.copy()
+    third[3, 2] = 9
+    assert not bench_gpu.edge_ties(third, cpu)[3, 2]
+
+
+def test_a_missing_reference_is_one_line_before_any_render(tmp_path):
+    done = subprocess.run([sys.executable, str(ROOT / "bench" / "bench_gpu.py"), "--out",
+                           str(tmp_path / "gpu"), "--cpu-reference", str(tmp_path / "ref.npz")],
+                          capture_output=True, text=True, timeout=60)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and "--cpu-only" in lines[0]
+    assert not (tmp_path / "gpu").exists()
+
+
+def test_gpu_script_passes_options_to_the_bench_and_skips_the_install(tmp_path):
+    """GLSYNTH_PYTHON, as on a machine that cannot install: no install, and OUT and the
+    options reach bench_gpu.py (a stub that prints its arguments; nvidia-smi a stub too)."""
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "nvidia-smi").write_text("#!/bin/sh\necho 'GPU 0: Stub GPU (UUID: GPU-0)'\n")
+    (bin_dir / "stub-python").write_text("#!/bin/sh\necho \"args: $*\"\n")
+    for name in ("nvidia-smi", "stub-python"):
+        (bin_dir / name).chmod(0o755)
+    out = tmp_path / "gpu"
+    done = subprocess.run(["bash", str(ROOT / "bench" / "gpu.sh"), str(out), "--views", "4"],
+                          env={"PATH": f"{bin_dir}:/usr/bin:/bin", "GLSYNTH_PYTHON": "stub-python"},
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert f"args: bench/bench_gpu.py --out {out} --views 4" in done.stdout
+    assert "install" not in (out / "gpu.log").read_text()

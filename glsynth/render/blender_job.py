@@ -125,8 +125,8 @@ def plane_coordinates(tree: bpy.types.NodeTree, member: dict, mesh_from_object: 
     lies on one of the member's planes with cracks (facing its way), else 0 (u = v = 0).
 
     Each plane's nodes sit in a node group of their own, chained through (u, v, gap): Blender
-    re-checks a whole tree at every node and link added, so a curved girder's 61 planes built
-    in one tree (1,189 nodes) took 13 s each; Cycles inlines groups, so the maths is the same."""
+    re-checks a whole tree at every node and link added, so a curved girder's planes in one
+    tree took seconds (docs/design.md, "Cracks"); Cycles inlines groups, the maths is the same."""
     coords = tree.nodes.new("ShaderNodeTexCoord")
     to_object = mesh_from_object.to_3x3().transposed()
     shift = mesh_from_object.translation
@@ -193,7 +193,7 @@ def _group_socket(group: bpy.types.ShaderNodeTree, name: str, kind: str, in_out:
 
 
 def _choose(tree: bpy.types.NodeTree, pick: bpy.types.NodeSocket, new: bpy.types.NodeSocket,
-            old: bpy.types.NodeSocket | float) -> bpy.types.NodeSocket:
+            old: bpy.types.NodeSocket) -> bpy.types.NodeSocket:
     """``new`` where ``pick`` is 1, ``old`` where it is 0: old + pick (new - old)."""
     return math_node(tree, "MULTIPLY_ADD", pick, math_node(tree, "SUBTRACT", new, old), old)
 
