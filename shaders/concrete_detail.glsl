@@ -95,36 +95,6 @@ float holes(vec2 p, float footprint, float size_m, float share, float r0, float 
     return disk(length(q - centre), r, footprint / size_m) * float(unit_float(h) < share);
 }
 
-// Bug holes (blowholes): air and water trapped against the form, graded on 500 x 500 mm test
-// areas by the share of their area that open voids of 2-15 mm cover (docs/design.md, "Concrete
-// detail"). Each face draws its grade, that share log-uniform in [BUG_HOLE_SHARE_MIN, _MAX]
-// (from a finely finished face to an ordinary one), and it varies 0.25-1.75x within the face
-// over about 0.4 m, as neighbouring test areas do. A hole's radius is log-uniform in
-// [0.5, 6] mm, one at most in a cell of 25 mm: a share of the cells, set at each cell's centre
-// so that a hole is never cut, makes the face's share of voids of 2 mm and more.
-const float BUG_HOLE_SHARE_MIN = 0.001;
-const float BUG_HOLE_SHARE_MAX = 0.02;
-const float BUG_HOLE_CELL_M = 0.025;
-const vec2 BUG_HOLE_RADIUS_M = vec2(0.0005, 0.006);
-
-// The face's grade: the share of its area that voids of 2 mm and more cover, on average.
-float bug_hole_grade(uint salt) {
-    return BUG_HOLE_SHARE_MIN * pow(BUG_HOLE_SHARE_MAX / BUG_HOLE_SHARE_MIN,
-                                    unit_float(detail_hash(salt ^ 21u)));
-}
-
-float bug_holes(vec2 p, float footprint, uint salt) {
-    float grade = bug_hole_grade(salt);
-    vec2 centre = (floor(p / BUG_HOLE_CELL_M) + 0.5) * BUG_HOLE_CELL_M;
-    float local = 1.0 + 0.75 * value_noise(centre / 0.4, salt ^ 22u);
-    // The mean area of a hole of 1 mm radius or more, r log-uniform in the range: pi/2
-    // (r1^2 - 1 mm^2) / ln(r1 / r0).
-    vec2 r = BUG_HOLE_RADIUS_M;
-    float big_area = 1.5707963 * (r.y * r.y - 1e-6) / log(r.y / r.x);
-    float share = grade * local * BUG_HOLE_CELL_M * BUG_HOLE_CELL_M / big_area;
-    return holes(p, footprint, BUG_HOLE_CELL_M, share, r.x, r.y, salt ^ 6u);
-}
-
 // Formwork: plywood panels 1.22 x 2.44 m (a dark joint line 4 mm wide between them), tie
 // holes every 0.6 m (25 mm, mortar-filled: lighter), and the plywood's grain along the panel.
 // A plywood sheet's size, metres (weathering.glsl's marks below the joints read it too).
@@ -173,6 +143,6 @@ float concrete_detail(vec3 pos, vec3 n, uint seed) {
                   + 0.40 * grains(p, footprint, 0.025, 0.5, salt ^ 14u)
                   + formwork(p, footprint, salt);
     float dark = 0.55 * holes(p, footprint, 0.006, 0.40, 0.0002, 0.0008, salt ^ 5u)
-                 + 0.65 * bug_holes(p, footprint, salt);
+                 + 0.65 * holes(p, footprint, 0.025, 0.12, 0.0005, 0.004, salt ^ 6u);
     return max(shade * (1.0 - dark), 0.0);
 }
