@@ -141,14 +141,15 @@ def compare(gpu: Path, cpu: Path) -> dict:
         differ = {kind: 0 for kind in ("component", "damage")}
         off_edge = dict(differ)
         for view in views:
+            # Each access to an npz member reads and inflates it again: once per map.
+            ga, gb = ({kind: z[f"{kind}_{view}"] for kind in ("component", "damage", "depth")}
+                      for z in (a, b))
             for kind in differ:
-                wrong = a[f"{kind}_{view}"] != b[f"{kind}_{view}"]
+                wrong = ga[kind] != gb[kind]
                 differ[kind] += int(wrong.sum())
-                ties = edge_ties(a[f"{kind}_{view}"], b[f"{kind}_{view}"])
-                off_edge[kind] += int((wrong & ~ties).sum())
-            depth_a, depth_b = a[f"depth_{view}"], b[f"depth_{view}"]
-            same = (a[f"component_{view}"] == b[f"component_{view}"]) & np.isfinite(depth_b) \
-                & (depth_b > 0)
+                off_edge[kind] += int((wrong & ~edge_ties(ga[kind], gb[kind])).sum())
+            depth_a, depth_b = ga["depth"], gb["depth"]
+            same = (ga["component"] == gb["component"]) & np.isfinite(depth_b) & (depth_b > 0)
             rel.append(np.abs(depth_a[same] - depth_b[same]) / depth_b[same])
             pixels += depth_b.size
     rel = np.concatenate(rel)
@@ -205,6 +206,11 @@ def _run_child(args: list[str], env: dict[str, str]) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def render_on_cpu(out: Path, common: list[str]) -> dict:
+    """The views rendered on OSMesa (llvmpipe) in a child, their maps written to ``out``."""
+    return _run_child(["_render", "--out", str(out), *common], {"GLSYNTH_GL_PLATFORM": "osmesa"})
+
+
 def check_reference(reference: Path | None) -> None:
     """Before any render: a --cpu-reference must be a --cpu-only output, its maps and figures."""
     if reference is None:
@@ -243,8 +249,7 @@ def main() -> int:
     common = ["--views", str(args.views), "--train-steps", str(args.train_steps)]
     if args.cpu_only:
         args.out.mkdir(parents=True, exist_ok=True)
-        cpu = _run_child(["_render", "--out", str(args.out / "cpu.npz"), *common],
-                         {"GLSYNTH_GL_PLATFORM": "osmesa"})
+        cpu = render_on_cpu(args.out / "cpu.npz", common)
         (args.out / "cpu.json").write_text(json.dumps(cpu, indent=2) + "\n")
         print(json.dumps(cpu, indent=2))
         return 0
@@ -268,8 +273,7 @@ def main() -> int:
         results["cpu"] = json.loads(reference.with_suffix(".json").read_text())
     else:
         reference = args.out / "cpu.npz"
-        results["cpu"] = _run_child(["_render", "--out", str(reference), *common],
-                                    {"GLSYNTH_GL_PLATFORM": "osmesa"})
+        results["cpu"] = render_on_cpu(reference, common)
     try:
         results["agreement"] = compare(args.out / "gpu.npz", reference)
     except ValueError as err:  # a reference of other views

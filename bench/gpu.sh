@@ -7,8 +7,9 @@
 #
 # OUT gets gpu.json and gpu.log. On a machine that cannot install (no network, no root), set
 # GLSYNTH_PYTHON to an interpreter that already imports glsynth and a CUDA torch (a command on
-# PATH, or a path from the repository root): the install is skipped. Where that machine has no Mesa for the CPU render, pass --cpu-reference with a
-# file that `bench_gpu.py --cpu-only` wrote elsewhere (docs/results.md, "On a GPU").
+# PATH, or a path from the repository root): the install is skipped. Where that machine has
+# no Mesa for the CPU render, pass --cpu-reference with a file that `bench_gpu.py --cpu-only`
+# wrote elsewhere (docs/results.md, "On a GPU").
 #
 # Refuses with one line, before installing anything, where no NVIDIA GPU is found.
 set -euo pipefail
