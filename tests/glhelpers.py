@@ -9,7 +9,7 @@ import trimesh
 from trimesh.visual import TextureVisuals
 
 from glsynth.appearance.materials import Material, plain_material
-from glsynth.core.config import RenderConfig
+from glsynth.core.config import Config, RenderConfig, load_config
 from glsynth.core.labels import Component
 from glsynth.render.gl.renderer import PASSES, Renderer, RenderOutput
 from glsynth.render.scene import RenderScene, build_scene
@@ -93,3 +93,18 @@ def loaded_renderer(env: Environment, config: RenderConfig) -> Iterator[Renderer
         r.load(build_scene(env.parts, plain_materials(env)), LIGHT)
         yield r
         assert r.ctx.error == "GL_NO_ERROR"
+
+
+def half_inspection(small_sky: bool = False) -> Config:
+    """The inspection preset at half its image size and half its face_crack_px, which keeps
+    its cameras where they stand (their distance cap is the image's width over face_crack_px),
+    with MSAA off: a quarter of the shading, for tests of what a surface shows rather than of
+    MSAA. ``small_sky``: 4 sky-visibility maps of 256 px, for tests that compare views with
+    each other (the sky's occlusion, and so a shaded face's exposure, is then coarser)."""
+    inspection = load_config("inspection")
+    sky = {"sky_visibility_maps": 4, "sky_visibility_px": 256} if small_sky else {}
+    return dataclasses.replace(
+        inspection, render=dataclasses.replace(inspection.render, width=960, height=540, msaa=0,
+                                               **sky),
+        cameras=dataclasses.replace(inspection.cameras,
+                                    face_crack_px=inspection.cameras.face_crack_px / 2))

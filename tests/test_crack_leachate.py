@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from glhelpers import LIGHT, camera, quad, render_config, scene_of
+from glhelpers import LIGHT, camera, half_inspection, quad, render_config, scene_of
 
 from glsynth.appearance import crack_leachate, crack_paths
 from glsynth.appearance import cracks as cracks_module
@@ -24,7 +24,7 @@ from glsynth.appearance.cracks import (
 )
 from glsynth.appearance.materials import Material
 from glsynth.assess.cracks import Intrinsics, measure_cracks, width_errors
-from glsynth.core.config import DamageConfig, load_config
+from glsynth.core.config import DamageConfig
 from glsynth.core.labels import Component, Damage
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.cracks_index import pack_cracks
@@ -209,16 +209,9 @@ def leaching_views():
     0.12 mm pixels at half the preset's size): without leachate, and with every crack
     leaching efflorescence only, rust only, and only damp (no deposit)."""
     outputs = {}
-    inspection = load_config("inspection")
-    # MSAA off and small sky maps: shading the four views share, not what the leachate adds
-    # (the two took a fifth of the openings' CPU). Half the image's size, and half its
-    # face_crack_px, which keeps the cameras where they stand (their distance cap is the
-    # image's width over face_crack_px): a quarter of the shading.
-    base = dataclasses.replace(
-        inspection, render=dataclasses.replace(inspection.render, width=960, height=540, msaa=0,
-                                               sky_visibility_maps=4, sky_visibility_px=256),
-        cameras=dataclasses.replace(inspection.cameras,
-                                    face_crack_px=inspection.cameras.face_crack_px / 2))
+    # MSAA off and small sky maps (half_inspection): shading the four views share, not what
+    # the leachate adds (the two took a fifth of the openings' CPU).
+    base = half_inspection(small_sky=True)
     settings = {"off": (0.0, None, None), "white": (1.0, (0.0, 0.0), None),
                 "rust": (1.0, (1.0, 1.0), None), "damp": (1.0, None, (0.0, 0.0))}
     # Culled for camera 5 alone (rendering=[5]: the same bytes, tests/test_render_viaduct.py),

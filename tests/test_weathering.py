@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 import trimesh
+from glhelpers import half_inspection
 from shader_harness import WIDTH, GlslHarness
 
 from glsynth.appearance.damage_bank import DamageBank
@@ -217,8 +218,10 @@ exposure")."""
 @pytest.fixture(scope="module")
 def inspection_views():
     """The VIEWED cameras, and the second of them rendered again after the others. The
-    opening is culled for these alone (the same bytes: tests/test_render_viaduct.py)."""
-    view = EnvironmentView.open(load_config("inspection"), 11, 0, rendering=VIEWED)
+    opening is culled for these alone (the same bytes: tests/test_render_viaduct.py); the
+    views are of half size without MSAA (half_inspection): their mean and spread of luma are
+    those of the full size within 0.4 grey levels."""
+    view = EnvironmentView.open(half_inspection(), 11, 0, rendering=VIEWED)
     with view.renderer:
         outputs = [view.render(i, frozenset({"color", "damage"}), photo=False)[1]
                    for i in VIEWED]
