@@ -14,8 +14,11 @@ from glsynth.data.readers import read_crack_width_map
 from glsynth.data.tokaido import crack_width_path, read_manifest
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
-MASK_SUFFIXES = (".png", ".bmp", ".tif", ".tiff")
-"""Lossless formats only: a JPEG mask's ringing would add crack pixels."""
+MASK_SUFFIXES = (".png", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg")
+JPEG_SUFFIXES = (".jpg", ".jpeg")
+"""Masks that JPEG compressed (many public crack datasets ship them so): their ringing beside a
+crack's edge stays far from mid-grey, so a 0/255 mask binarised at 128 keeps its cracks; a 0/1
+mask's cracks drown in it, and such a mask is refused."""
 
 
 @dataclass(frozen=True)
@@ -36,13 +39,19 @@ def _read_rgb(path: Path) -> np.ndarray:
 
 def _read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
     """A crack mask: 0 is background; a 0/1 mask's 1 and a 0/255 mask's values over 127
-    are crack."""
+    are crack (a JPEG mask's always the latter: JPEG_SUFFIXES)."""
     mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if mask is None:
         raise UserError(f"mask {str(path)!r} is not a readable image; replace or remove it")
     if mask.shape != shape:
         raise UserError(f"mask {str(path)!r} is {mask.shape[1]}x{mask.shape[0]} but its image "
                         f"is {shape[1]}x{shape[0]}; give each image a mask of its own size")
+    if path.suffix.lower() in JPEG_SUFFIXES:
+        if 0 < mask.max() <= 127:
+            raise UserError(f"mask {str(path)!r} is a JPEG whose values reach only "
+                            f"{mask.max()}: a 0/1 mask's cracks cannot be told from JPEG's "
+                            "noise; save it as PNG, or with cracks at 255")
+        return mask > 127
     return mask > (0 if mask.max() <= 1 else 127)
 
 
@@ -73,7 +82,7 @@ def read_real_folder(root: str | Path) -> list[CrackImage]:
         missing = sorted(set(stems) - set(other))
         if missing:
             raise UserError(f"{have} {str(stems[missing[0]])!r} has no counterpart in "
-                            f"{lacks}/ (same name{', lossless' if lacks == 'masks' else ''}; "
+                            f"{lacks}/ (same name; "
                             f"{len(missing)} such); add it or remove the {have}")
     out = []
     for stem, path in images.items():
