@@ -790,7 +790,7 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
                         "inspection), one network each")
     p.add_argument("--real", required=True,
                    help="folder of real photographs: images/ and masks/ (same file names; "
-                        "crack pixels > 0 in a 0/1 mask, > 127 in a 0/255 one)")
+                        "crack pixels > 0 in a 0/1 mask, > 127 in a 0/255 or JPEG one)")
     p.add_argument("--other-real", nargs="+", default=[], metavar="FOLDER",
                    help="folders of real photographs of another kind (images/ and masks/), "
                         "one network each trained on the whole folder, tested like the rest")

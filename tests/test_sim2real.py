@@ -89,6 +89,14 @@ def test_real_folder_reads_masks_of_both_conventions(tmp_path):
         assert np.array_equal(images[0].crack, drawn), suffix  # JPEG's ringing binarised away
 
 
+def test_a_crack_free_jpeg_mask_is_all_background(tmp_path):
+    root = write_real(tmp_path / "real", names=("a",))
+    cv2.imwrite(str(root / "images" / "b.jpg"), np.full((32, 40, 3), 90, np.uint8))
+    cv2.imwrite(str(root / "masks" / "b.jpg"), np.zeros((32, 40), np.uint8))
+    a, b = read_real_folder(root)
+    assert a.crack.sum() == 4 * 27 and b.name == "b" and not b.crack.any()
+
+
 @pytest.mark.parametrize("damage, words", [
     ("no folder", "does not exist"),
     ("no masks", "has no masks/ sub-folder"),
@@ -98,6 +106,8 @@ def test_real_folder_reads_masks_of_both_conventions(tmp_path):
     ("mask size", "is 20x16 but its image is 40x32"),
     ("unreadable", "is not a readable image"),
     ("0/1 JPEG mask", "is a JPEG whose values reach only 1"),
+    ("no crack", "marks a crack pixel; mark cracks at 1 or 255"),
+    ("two names", "share a name; keep one of them"),
 ])
 def test_real_folder_refusals_are_one_line(tmp_path, damage, words):
     root = tmp_path / "real"
@@ -105,6 +115,8 @@ def test_real_folder_refusals_are_one_line(tmp_path, damage, words):
         write_real(root, mask_size=(20, 16))
     elif damage == "0/1 JPEG mask":
         write_real(root, mask_values=1, mask_suffix=".jpg")
+    elif damage == "no crack":
+        write_real(root, mask_values=0)
     elif damage != "no folder":
         write_real(root)
     if damage == "no masks":
@@ -120,6 +132,8 @@ def test_real_folder_refusals_are_one_line(tmp_path, damage, words):
         (root / "images" / "a.jpg").unlink()
     elif damage == "unreadable":
         (root / "images" / "a.jpg").write_bytes(b"not a jpeg")
+    elif damage == "two names":
+        (root / "masks" / "a.JPG").write_bytes((root / "masks" / "a.png").read_bytes())
     with pytest.raises(UserError) as err:
         read_real_folder(root)
     assert words in str(err.value) and "\n" not in str(err.value)

@@ -220,7 +220,7 @@ def inspection_views():
     """The VIEWED cameras, and the second of them rendered again after the others. The
     opening is culled for these alone (the same bytes: tests/test_render_viaduct.py); the
     views are of half size without MSAA (half_inspection): their mean and spread of luma are
-    those of the full size within 0.4 grey levels."""
+    those of the full size within 0.5 grey levels."""
     view = EnvironmentView.open(half_inspection(), 11, 0, rendering=VIEWED)
     with view.renderer:
         outputs = [view.render(i, frozenset({"color", "damage"}), photo=False)[1]

@@ -18,7 +18,8 @@ MASK_SUFFIXES = (".png", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg")
 JPEG_SUFFIXES = (".jpg", ".jpeg")
 """Masks that JPEG compressed (many public crack datasets ship them so): their ringing beside a
 crack's edge stays far from mid-grey, so a 0/255 mask binarised at 128 keeps its cracks; a 0/1
-mask's cracks drown in it, and such a mask is refused."""
+mask's cracks drown in it (at quality 75 they decode to 0), and such a mask is refused where
+its 1s survive, a folder of them where none do."""
 
 
 @dataclass(frozen=True)
@@ -56,14 +57,22 @@ def _read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
 
 
 def _listed(folder: Path, suffixes: tuple[str, ...]) -> dict[str, Path]:
-    return {p.stem: p for p in sorted(folder.iterdir())
-            if p.is_file() and p.suffix.lower() in suffixes}
+    """The files of ``folder`` with one of ``suffixes`` (any case), by stem; two files of one
+    stem (a.png and a.jpg) are refused rather than one picked."""
+    listed: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        if path.is_file() and path.suffix.lower() in suffixes:
+            if path.stem in listed:
+                raise UserError(f"{str(listed[path.stem])!r} and {str(path)!r} share a name; "
+                                "keep one of them")
+            listed[path.stem] = path
+    return listed
 
 
 def read_real_folder(root: str | Path) -> list[CrackImage]:
-    """Every image of ``root``/images with its mask ``root``/masks/<stem>.<png|bmp|tif>,
-    sorted by name; an image without a mask, a mask without an image or a mask of another
-    size is refused."""
+    """Every image of ``root``/images with its mask ``root``/masks/<stem>.<MASK_SUFFIXES>,
+    sorted by name; an image without a mask, a mask without an image, a mask of another
+    size, and a folder whose masks mark no crack at all are refused."""
     root = Path(root)
     if not root.is_dir():
         raise UserError(f"real folder {str(root)!r} does not exist or is not a folder; give a "
@@ -88,6 +97,10 @@ def read_real_folder(root: str | Path) -> list[CrackImage]:
     for stem, path in images.items():
         rgb = _read_rgb(path)
         out.append(CrackImage(stem, rgb, _read_mask(masks[stem], rgb.shape[:2])))
+    if not any(image.crack.any() for image in out):
+        # Also what a JPEG of 0/1 masks decodes to: its 1s lost in compression.
+        raise UserError(f"no mask in {str(root / 'masks')!r} marks a crack pixel; mark cracks "
+                        "at 1 or 255 (at 255 in a JPEG mask)")
     return out
 
 
