@@ -149,13 +149,27 @@ def _build_builtin(cache: str) -> None:
     builtin_repository(seed=6, per_category=4, size=64)
 
 
+def _blocked_on_a_lock(pid: int, timeout_s: float = 60.0) -> bool:
+    """Whether process ``pid`` comes to wait for a file lock within ``timeout_s``: Linux lists
+    a blocked request in /proc/locks with "->" before it (a spawned child takes a second or
+    more to import and reach the lock, so no fixed wait would be sure)."""
+    import time
+
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        with open("/proc/locks") as locks:
+            if any(line.split()[1] == "->" and f" {pid} " in line for line in locks):
+                return True
+        time.sleep(0.02)
+    return False
+
+
 def test_a_process_waits_for_the_one_making_the_builtin_repository(tmp_path, monkeypatch):
     """As a dataset's workers do on a fresh cache: while one process holds the repository's
     lock, another that asks for it waits, making nothing; once the lock is free it finds or
     makes every image, equal to one made alone, with no temporary file left."""
     import fcntl
     import multiprocessing
-    import time
 
     from glsynth.appearance.repository import builtin_root
 
@@ -167,8 +181,7 @@ def test_a_process_waits_for_the_one_making_the_builtin_repository(tmp_path, mon
     with open(root.with_name(root.name + ".lock"), "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         child.start()
-        time.sleep(3.0)  # a spawned child is up and at the lock within a second
-        waiting = child.is_alive() and not list(root.rglob("*.png"))
+        waiting = _blocked_on_a_lock(child.pid) and not list(root.rglob("*.png"))
     child.join(120)
     if child.is_alive():
         child.kill()
