@@ -150,19 +150,24 @@ float damp_foot(vec2 p, float footprint, uint salt) {
 }
 
 // Algae: green algae and cyanobacteria colonise concrete that stays wet, so on 60 % of the
-// damp feet a film grows in patches (noise over 0.2 m down to 5 cm passing a threshold),
-// covering most of the concrete at the ground and thinning out to a few specks at the front,
-// its edge soft (a film that thins out, not a front). The share of the pixel it covers, 0-1.
+// damp feet and of the leaks a film grows in patches (noise over 0.2 m down to 5 cm passing a
+// threshold), covering most of the concrete where the water comes from (the ground; the
+// joint) and thinning out to a few specks towards the front or the tip, its edge soft (a film
+// that thins out, not a front). algae_film: the share of the pixel it covers, 0-1, given how
+// near the source p lies (1 at it, 0 at the wet region's far end).
+float algae_film(vec2 p, float near_source, float footprint, uint salt) {
+    float patches = 0.5 + 0.3 * octaves(p, 0.2, 3, 0.5, footprint, salt ^ 76u);
+    return smoothstep(0.75 - 0.5 * near_source, 0.9 - 0.5 * near_source, patches);
+}
+
 float algae(vec2 p, float footprint, uint salt) {
     uint h;
     float under = below_front(p, footprint, salt, h);
     // 1 at the ground, 0 at the front.
     float low = clamp(under / max(under + p.y, 1e-3), 0.0, 1.0);
-    float patches = 0.5 + 0.3 * octaves(p, 0.2, 3, 0.5, footprint, salt ^ 76u);
-    float film = smoothstep(0.75 - 0.5 * low, 0.9 - 0.5 * low, patches);
     float present = float(unit_float(h) < 0.4) * float(unit_float(detail_hash(h ^ 4u)) < 0.6)
                     * float(p.y >= 0.0);
-    return present * film * sharp_inside(under, footprint);
+    return present * algae_film(p, low, footprint, salt) * sharp_inside(under, footprint);
 }
 
 // Algae's factor on the colour where its film covers the concrete, drawn per foot between green
@@ -177,9 +182,10 @@ vec3 algae_tint(uint salt) {
 // 0.1-0.4 m wide running 0.2-1.5 m down, 15-35 % darker, frayed like the foot's front. Its
 // edge is a step at the pixel all round: the distance to the ellipse, in metres, is taken to
 // first order ((1 - r) over r's gradient), true across the tongue and at its tip alike.
-float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
+// leak_inside: that distance (negative outside), how far down the tongue p lies (0 at the
+// joint, 1 at the tip) and the stretch's hash.
+float leak_inside(vec2 p, vec2 offset, float footprint, uint salt, out float down, out uint k) {
     float cell;
-    uint k;
     float below = below_joint(p, offset, salt ^ 74u, cell, k);
     float centre = (cell + 0.25 + 0.5 * unit_float(detail_hash(k))) * 0.8;
     float half_width = 0.05 + 0.15 * unit_float(detail_hash(k ^ 1u));
@@ -187,9 +193,25 @@ float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
     vec2 d = vec2((p.x - centre) / half_width, below / length_m);
     float r = length(d);
     vec2 gradient = vec2(d.x / half_width, d.y / length_m) / max(r, 1e-6);  // of r, per metre
-    float inside_m = (1.0 - r) / max(length(gradient), 1e-6) + fray_m(p, footprint, salt);
+    down = clamp(d.y, 0.0, 1.0);
+    return (1.0 - r) / max(length(gradient), 1e-6) + fray_m(p, footprint, salt);
+}
+
+float damp_leak(vec2 p, vec2 offset, float footprint, uint salt) {
+    float down;
+    uint k;
+    float inside_m = leak_inside(p, offset, footprint, salt, down, k);
     return float(unit_float(k) < 0.12) * (0.15 + 0.20 * unit_float(detail_hash(k ^ 3u)))
            * sharp_inside(inside_m, footprint);
+}
+
+// Algae in a leak's tongue, on 60 % of the leaks (algae).
+float leak_algae(vec2 p, vec2 offset, float footprint, uint salt) {
+    float down;
+    uint k;
+    float inside_m = leak_inside(p, offset, footprint, salt, down, k);
+    float present = float(unit_float(k) < 0.12) * float(unit_float(detail_hash(k ^ 4u)) < 0.6);
+    return present * algae_film(p, 1.0 - down, footprint, salt) * sharp_inside(inside_m, footprint);
 }
 
 // Weathered concrete's factor on the base colour at mesh-frame position pos (relative to the
@@ -215,7 +237,8 @@ vec3 weathered_concrete(vec3 pos, vec3 n, uint seed, float top_m) {
     float bloom = vertical ? efflorescence(p, offset, footprint, salt) : 0.0;
     float wet = vertical ? max(damp_foot(p, footprint, salt),
                                damp_leak(p, offset, footprint, salt)) : 0.0;
-    float growth = vertical ? algae(p, footprint, salt) : 0.0;
+    float growth = vertical ? max(algae(p, footprint, salt),
+                                  leak_algae(p, offset, footprint, salt)) : 0.0;
     float edge;
     float repair = patch_repair(p, footprint, salt, edge);
     vec3 f = vec3(1.0 + mottle + hue, 1.0 + mottle, 1.0 + mottle - hue)
