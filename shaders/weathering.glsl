@@ -10,7 +10,7 @@
 // - dirt: soiled blotches, more of them on faces that look up (dust settles, water stands);
 // - patch repairs: a rectangle of newer mortar, lighter and smoother, with a dark edge;
 // - damp: wet concrete, darker, at the foot of a face and below leaking formwork joints, each
-//   behind a sharp drying front; algae in patches on a share of the damp feet.
+//   behind a sharp drying front; algae in patches on a share of the damp feet and leaks.
 // Vertical faces (normal's dominant axis horizontal) get streaks, blooms and damp; every face
 // the rest. Deterministic: a function of the position, the normal and the part's seed alone.
 #include "concrete_detail.glsl"
@@ -170,9 +170,9 @@ float algae(vec2 p, float footprint, uint salt) {
     return present * algae_film(p, low, footprint, salt) * sharp_inside(under, footprint);
 }
 
-// Algae's factor on the colour where its film covers the concrete, drawn per foot between green
-// (chlorophyll absorbs red and blue) and the grey-black of cyanobacteria: 31-56 % darker in
-// luminance.
+// Algae's factor on the colour where its film covers the concrete, drawn per face (its foot and
+// leaks alike) between green (chlorophyll absorbs red and blue) and the grey-black of
+// cyanobacteria: 31-56 % darker in luminance.
 vec3 algae_tint(uint salt) {
     float t = unit_float(detail_hash(detail_hash(salt ^ 71u) ^ 5u));
     return mix(vec3(0.60, 0.74, 0.48), vec3(0.42, 0.45, 0.40), t);
