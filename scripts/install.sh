@@ -49,9 +49,9 @@ fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 # --no-compile: Python compiles a module's bytecode when it is first imported, so compiling
 # every file of torch, scipy and ray up front (most never imported) only made the install
-# slower: 20 s of torch's 26, measured. Where PYTHONDONTWRITEBYTECODE is set, or the
-# environment is read-only, nothing is cached and each process compiles what it imports
-# (torch's import 1.5 -> 3.1 s); scripts/test.sh unsets it.
+# slower (docs/results.md, "The test suite"). Where PYTHONDONTWRITEBYTECODE is set, or the
+# environment is read-only, nothing is cached and each process compiles what it imports,
+# every time; scripts/test.sh unsets it.
 pip=(.venv/bin/python -m pip install -q --disable-pip-version-check --no-compile)
 # torch first and pinned: a looser requirement would pull several GB of CUDA packages.
 "${pip[@]}" "torch==2.13.0"

@@ -162,9 +162,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> Generator[None, N
     among equals those with the most tests, each file's tests in their order: scripts/test.sh
     keeps this order (--no-loadscope-reorder), and the workers take units as they free, so the
     long ones start early and the short ones fill in at the end. pytest-xdist alone orders
-    units by their count of tests, which put one-test files of 25-35 s last in the whole
-    suite and left a worker idle for them (12 s of its wall time, simulated from one run's
-    durations); the quick loop, which has no slow tests, keeps that order."""
+    units by their count of tests, which put long one-test files last in the whole suite,
+    a worker idle beside them (docs/results.md, "The test suite"); the quick loop, which has
+    no slow tests, keeps that order."""
     for item in items:
         if DATASET_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
