@@ -30,7 +30,10 @@ from glsynth.render.scene import build_scene
 from glsynth.world.cameras import sample_camera
 from glsynth.world.environment import BOX_BEAMS, OPEN_KINDS, PartKind
 from glsynth.world.face_cameras import (
+    FOOT_FRAME,
+    FOOT_GROUND_M,
     GROUND_CLEARANCE_M,
+    FaceTargets,
     crack_aims,
     member_faces,
     place_camera,
@@ -205,6 +208,43 @@ def test_the_centre_pixel_shows_the_member_at_the_aimed_point(env0):
             assert np.isclose(gl.depth[row, col], p.face.distance_m, rtol=1e-3)
 
 
+def test_foot_views_take_in_a_column_foot_and_the_ground_before_it(env0):
+    """Every foot view aims at a column face from level or above, at a point raised above the
+    ground line by FOOT_FRAME of half the view's height; an independent ray cast (Embree)
+    finds the ground at the bottom of the frame, below the aimed column."""
+    cameras = faces_config(face_crack_share=0.0, face_foot_share=1.0)
+    found = placements(env0, cameras, n=12)
+    parts = {q.name: q for q in env0.parts}
+    scene = FaceTargets.of(env0).scene
+    for p in found:
+        check_geometry(env0, p, cameras)
+        assert parts[p.face.member].kind is PartKind.COLUMN
+        point = np.array(p.face.point)
+        assert p.camera.pose[2, 3] >= point[2] - 1e-9  # from level or above
+        axis, sign = "xyz".index(p.face.face[1]), 1 if p.face.face[0] == "+" else -1
+        normal = sign * parts[p.face.member].pose[:3, axis]
+        ground = float(scene.ground_below(point + FOOT_GROUND_M * normal).min())
+        half_view = (p.face.distance_m * cameras.sensor_mm * SMALL.height / SMALL.width
+                     / (2.0 * p.camera.focal_mm))
+        assert FOOT_FRAME[0] * half_view - 1e-9 <= ground <= FOOT_FRAME[1] * half_view + 1e-9
+        truth = ray_cast(env0.parts, plain_materials(env0), p.camera)
+        assert truth.component[-1, (SMALL.width - 1) // 2] == Component.NONBRIDGE
+
+
+def test_foot_views_leave_the_other_cameras_as_they_were(env0):
+    """The foot draw has a generator of its own: cameras that are not foot views stand where
+    they stand without them, and a share of 0 draws no foot view."""
+    without = placements(env0, faces_config(face_foot_share=0.0), n=24)
+    with_feet = placements(env0, faces_config(face_foot_share=0.5), n=24)
+    moved = [a.index for a, b in zip(without, with_feet)
+             if a.camera.pose.tobytes() != b.camera.pose.tobytes()]
+    parts = {q.name: q for q in env0.parts}
+    assert 0 < len(moved) < 24 // 2
+    for i in moved:
+        assert with_feet[i].face.crack_width_mm is None and without[i].face.crack_width_mm is None
+        assert parts[with_feet[i].face.member].kind is PartKind.COLUMN
+
+
 def test_placement_is_deterministic_and_per_camera(env0):
     cameras = faces_config()
     first = placements(env0, cameras, n=6)
@@ -249,6 +289,9 @@ def test_extremes_of_the_ranges(env0, fields):
     ("cameras", {"face_crack_share": 1.5}, "face_crack_share"),
     ("cameras", {"face_crack_share": -0.1}, "face_crack_share"),
     ("cameras", {"face_crack_px": -1.0}, "face_crack_px"),
+    ("cameras", {"face_foot_share": 1.5}, "face_foot_share"),
+    ("cameras", {"placement": "within", "n_regular": 2, "face_crack_share": 0.0,
+                 "face_foot_share": 0.5}, "face_foot_share"),
     ("cameras", {"placement": "within", "n_regular": 2}, "face_crack_share"),
     ("damage", {"severities": ["slight", "slight"]}, "severities"),
     ("damage", {"severities": ["light"]}, "severities"),

@@ -134,6 +134,10 @@ class CameraConfig:
     environment's cracks on inspected faces, as an inspector photographs the damage), the rest
     at a point uniform on a face. Needs [damage] model = "mechanics"; an environment without
     cracks aims every camera at a face point."""
+    face_foot_share: float = bounded(0.0, Number(0.0, 1.0))
+    """placement = "faces": of the cameras not aimed at a crack, the share aimed at a column's
+    foot (glsynth.world.face_cameras): a point where the ground meets a column face, raised so
+    that the ground fills the lower part of the frame, seen from level or above."""
     face_crack_px: float = bounded(0.0, Number(0.0, 100.0))
     """placement = "faces": a camera aimed at a crack stands no farther than makes the crack's
     width at the aimed point span this many pixels (within face_distance_m); 0: anywhere in
@@ -144,6 +148,9 @@ class CameraConfig:
         if self.face_crack_share and self.placement != "faces":
             _reject(self, "face_crack_share",
                     '0 unless placement = "faces" (only face cameras aim at cracks)')
+        if self.face_foot_share and self.placement != "faces":
+            _reject(self, "face_foot_share",
+                    '0 unless placement = "faces" (only face cameras aim at a column\'s foot)')
         if self.placement == "faces" and self.n_regular:
             _reject(self, "n_regular", '0 under placement = "faces" (every camera is a close-up '
                     "at a member face; set n_closeup instead)")

@@ -50,6 +50,10 @@ class Stream(IntEnum):
     """Which of a member's cracks leach, and how (glsynth.appearance.crack_leachate; item =
     the part's index in the environment's part list): drawn apart from the CRACKS stream, so
     the cracks are the same with leachate or without."""
+    FOOT_VIEWS = 17
+    """Whether a face camera not aimed at a crack aims at a column's foot ([cameras]
+    face_foot_share; item = the camera index): drawn apart from CAMERAS, so every other camera
+    draws as it does without foot views."""
 
 
 def _sequence(root_seed: int, env: int, stream: Stream, items: tuple[int, ...]

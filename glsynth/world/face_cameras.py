@@ -29,6 +29,15 @@ The draw is kept when the point is the first surface on the camera's optical axi
 is inside no solid part and stands at least GROUND_CLEARANCE_M above the ground; else steps
 2-4 are drawn again, at most MAX_TRIES times. So the camera never starts inside a part, and
 its centre pixel shows the member.
+
+Where [cameras] face_foot_share is above 0, a camera not aimed at a crack aims at a column's
+foot with that probability, drawn from a generator of its own (Stream.FOOT_VIEWS), so that no
+other camera's draws change. It draws steps 2-3 as a column face, by its width (each column
+has one foot, whatever its height), and a point uniform across it on the line where the ground
+in front of it meets it; in step 4 a direction below level is mirrored to above it, and the
+point is raised up the face by FOOT_FRAME of half the height the view spans there. The view
+takes in the wall's foot and the ground before it, where the soil, growth and debris lie that
+an inspector's photographs of a hinge zone show.
 """
 
 import math
@@ -60,6 +69,11 @@ GROUND_CLEARANCE_M = 0.2
 HIT_TOLERANCE_M = 1e-6
 """A ray's hit this near the aimed point is the point itself."""
 EDGE_MARGIN_M = 0.05
+FOOT_FRAME = (0.2, 0.8)
+"""A foot view's aimed point stands above the ground line by this share (uniform) of half the
+height its view spans at its distance: the ground fills the lower part of the frame."""
+FOOT_GROUND_M = 0.05
+"""The ground under a foot view's point is found this far in front of the face."""
 _UP = np.array([0.0, 0.0, 1.0])
 
 
@@ -153,12 +167,16 @@ class _Scene:
             seen |= i == member and bool(np.any(np.abs(t - distance) <= HIT_TOLERANCE_M))
         return seen
 
+    def ground_below(self, point: np.ndarray) -> np.ndarray:
+        """How far below ``point`` the ground lies, at every crossing (empty where none)."""
+        under = self.ground & np.all((self.lo[:, :2] <= point[:2])
+                                     & (point[:2] <= self.hi[:, :2]), axis=1)
+        heights = [ray_hits(self.parts[i], point, -_UP) for i in np.flatnonzero(under)]
+        return np.concatenate(heights) if heights else np.empty(0)
+
     def above_ground(self, camera: np.ndarray) -> bool:
         """Whether the ground lies at least GROUND_CLEARANCE_M below the camera."""
-        under = self.ground & np.all((self.lo[:, :2] <= camera[:2])
-                                     & (camera[:2] <= self.hi[:, :2]), axis=1)
-        heights = [ray_hits(self.parts[i], camera, -_UP) for i in np.flatnonzero(under)]
-        heights = np.concatenate(heights) if heights else np.empty(0)
+        heights = self.ground_below(camera)
         return heights.size > 0 and float(heights.min()) >= GROUND_CLEARANCE_M
 
 
@@ -167,6 +185,41 @@ def _face_point(face: MemberFace, rng: np.random.Generator) -> np.ndarray:
     offsets = [rng.uniform(-1.0, 1.0) * max(h - min(EDGE_MARGIN_M, h / 2), 0.0)
                for h in face.half_extents]
     return face.centre + offsets[0] * face.tangents[0] + offsets[1] * face.tangents[1]
+
+
+def _up_the_face(face: MemberFace) -> tuple[np.ndarray, float]:
+    """A column face's tangent that points up, and half the face's extent along it."""
+    v = int(abs(face.tangents[1] @ _UP) > abs(face.tangents[0] @ _UP))
+    return face.tangents[v] * np.sign(face.tangents[v] @ _UP), face.half_extents[v]
+
+
+def _foot_point(face: MemberFace, scene: _Scene, rng: np.random.Generator
+                ) -> np.ndarray | None:
+    """A foot view's point on column face ``face`` before it is raised: uniform across the
+    face (EDGE_MARGIN_M from its edges), where the ground in front of it meets it; None where
+    no ground lies under the face's top there or the ground is off the face (a column
+    standing on a beam)."""
+    up, half_up = _up_the_face(face)
+    h = int(abs(face.tangents[1] @ _UP) <= abs(face.tangents[0] @ _UP))
+    half = face.half_extents[h]
+    across = rng.uniform(-1.0, 1.0) * max(half - min(EDGE_MARGIN_M, half / 2), 0.0)
+    top = face.centre + across * face.tangents[h] + half_up * up
+    below = scene.ground_below(top + FOOT_GROUND_M * face.normal)
+    if not below.size:
+        return None
+    along = float(below.min()) / float(up @ _UP)  # down the face from its top
+    return top - along * up if 0.0 <= along <= 2.0 * half_up else None
+
+
+def _raised(face: MemberFace, point: np.ndarray, distance: float, focal_mm: float,
+            cameras: CameraConfig, render: RenderConfig, rng: np.random.Generator
+            ) -> np.ndarray | None:
+    """A foot view's ``point`` raised up the face by FOOT_FRAME of half the height a view
+    from ``distance`` spans; None where that leaves the face."""
+    up, half_up = _up_the_face(face)
+    half_view = distance * cameras.sensor_mm * render.height / render.width / (2.0 * focal_mm)
+    raised = point + float(rng.uniform(*FOOT_FRAME)) * half_view * up
+    return raised if float((raised - face.centre) @ up) <= half_up else None
 
 
 def _view(face: MemberFace, cameras: CameraConfig, far: float, rng: np.random.Generator
@@ -313,6 +366,10 @@ class FaceTargets:
     """Each face's probability: its share of the faces' area."""
     scene: _Scene
     cracks: CrackAims | None = None
+    feet: np.ndarray | None = None
+    """The column faces foot views aim at (indices into ``faces``); None where there are none."""
+    foot_weights: np.ndarray | None = None
+    """Each of ``feet``'s probability: its share of their widths."""
 
     @classmethod
     def of(cls, env: Environment, cracks: Cracks | None = None) -> "FaceTargets":
@@ -324,30 +381,49 @@ class FaceTargets:
                             "cross or tie beam to aim at")
         area = np.array([f.area for f in faces])
         aims = crack_aims(env.parts, faces, cracks) if cracks else None
-        return cls(env, faces, area / area.sum(), _Scene.of(env.parts), aims)
+        feet = np.array([i for i, f in enumerate(faces)
+                         if env.parts[f.part].kind is PartKind.COLUMN], int)
+        width = np.array([min(faces[i].half_extents) for i in feet])
+        return cls(env, faces, area / area.sum(), _Scene.of(env.parts), aims,
+                   feet if feet.size else None, width / width.sum() if feet.size else None)
 
-    def draw(self, on_crack: bool, rng: np.random.Generator
-             ) -> tuple[MemberFace, np.ndarray, float | None]:
-        """Steps 2-3: a face, a point on it, and the crack's width there (None off cracks)."""
+    def draw(self, on_crack: bool, foot: bool, rng: np.random.Generator
+             ) -> tuple[MemberFace, np.ndarray | None, float | None]:
+        """Steps 2-3: a face, a point on it (None where a foot view's draw found no foot), and
+        the crack's width there (None off cracks)."""
         if on_crack and self.cracks is not None:
             face, point, width = self.cracks.draw(rng)
             return self.faces[face], point, width
+        if foot and self.feet is not None:
+            face = self.faces[int(self.feet[rng.choice(len(self.feet), p=self.foot_weights)])]
+            return face, _foot_point(face, self.scene, rng), None
         face = self.faces[int(rng.choice(len(self.faces), p=self.weights))]
         return face, _face_point(face, rng), None
 
 
 def face_camera(targets: FaceTargets, cameras: CameraConfig, render: RenderConfig, index: int,
-                rng: np.random.Generator) -> CameraPlacement:
-    """Camera ``index`` aimed at a member face, drawn from ``rng`` (the module's steps)."""
+                rng: np.random.Generator, foot_rng: np.random.Generator) -> CameraPlacement:
+    """Camera ``index`` aimed at a member face, drawn from ``rng`` (the module's steps), and
+    whether it is a foot view from ``foot_rng``."""
     focal = float(rng.uniform(*cameras.focal_mm))
     on_crack = bool(cameras.face_crack_share) and rng.random() < cameras.face_crack_share
+    foot = (not on_crack and bool(cameras.face_foot_share)
+            and foot_rng.random() < cameras.face_foot_share)
     for tries in range(1, MAX_TRIES + 1):
-        face, point, width = targets.draw(on_crack, rng)
+        face, point, width = targets.draw(on_crack, foot, rng)
+        if point is None:
+            continue
         far = cameras.face_distance_m[1]
         if width is not None and cameras.face_crack_px:
             far = min(far, width * focal / cameras.sensor_mm * render.width
                       / cameras.face_crack_px)
         out, distance, angle, roll = _view(face, cameras, far, rng)
+        if foot:
+            if out[2] < 0.0:  # from level or above: the ground lies before the foot
+                out = out - 2.0 * out[2] * _UP
+            point = _raised(face, point, distance, focal, cameras, render, rng)
+            if point is None:
+                continue
         position = point + distance * out
         if targets.scene.above_ground(position) and targets.scene.clear_view(
                 face.part, position, point, distance):
@@ -379,7 +455,8 @@ def place_cameras(env: Environment, cameras: CameraConfig, render: RenderConfig,
         raise ValueError("face_crack_share > 0: pass the environment's cracks")
     targets = FaceTargets.of(env, cracks if cameras.face_crack_share else None)
     return [face_camera(targets, cameras, render, i,
-                        make_rng(env.root_seed, env.env_index, Stream.CAMERAS, i))
+                        make_rng(env.root_seed, env.env_index, Stream.CAMERAS, i),
+                        make_rng(env.root_seed, env.env_index, Stream.FOOT_VIEWS, i))
             for i in indices]
 
 
