@@ -17,7 +17,8 @@
 // elsewhere: no metal, no relief outside the zones. The detail variant (#define DETAIL)
 // multiplies the base colour by concrete's millimetre-scale detail (concrete_detail.glsl),
 // on the non-metallic share of the surface (not on exposed rebar), weathered (weathering.glsl)
-// where u_weathering is set.
+// where u_weathering is set. The ground's variant (#define GROUND, with DETAIL) draws the
+// ground's centimetre detail (ground_detail.glsl) from the base colour instead.
 in vec3 v_view_pos;
 in vec3 v_normal;
 in vec2 v_uv;
@@ -72,10 +73,14 @@ uniform float u_intact_uv_ratio;  // the intact map's uv_scale over the damage m
 in vec3 v_detail_pos;
 in vec3 v_detail_normal;
 uniform uint u_detail_seed;
+#ifdef GROUND
+#include "ground_detail.glsl"
+#else
 uniform bool u_weathering;    // weathering.glsl on top of the detail
 uniform vec3 u_detail_tint;   // linear factor: the part's weathered albedo over its image's
 uniform float u_detail_top;   // the part's box's height, mesh frame (where rain runs from)
 #include "weathering.glsl"
+#endif
 #endif
 
 #include "tonemap.glsl"
@@ -158,7 +163,9 @@ Surface surface_at_fragment() {
     base.rgb = mix(intact, base.rgb, spalled);
     metallic *= spalled;
 #endif
-#ifdef DETAIL
+#if defined(GROUND)
+    base.rgb = ground_detail(base.rgb, v_detail_pos, u_detail_seed);
+#elif defined(DETAIL)
     if (u_weathering) {
         base.rgb *= mix(weathered_concrete(v_detail_pos, v_detail_normal, u_detail_seed,
                                            u_detail_top) * u_detail_tint, vec3(1.0), metallic);

@@ -39,6 +39,13 @@ def test_each_variant_is_compiled_with_its_flags_as_defines(renderer):
     keys = renderer.programs.keys()
     assert ("color", Variant.CRACKS | Variant.SPALL | Variant.DETAIL) in keys
     assert ("labels", Variant.DETAIL) not in keys  # the labels have no concrete detail
+    # The ground's detail stands in for concrete's, on parts without cracks or zones.
+    assert ("color", Variant.DETAIL | Variant.GROUND) in keys
+    assert not {("color", v | Variant.GROUND) for v in (Variant.NONE, Variant.CRACKS,
+                                                        Variant.DETAIL | Variant.SPALL)} & set(keys)
+    assert Variant.of(cracks=True, detail=True, ground=True) == Variant.DETAIL | Variant.GROUND
+    ground = renderer.programs.get("color", Variant.DETAIL | Variant.GROUND)
+    assert ground.get("u_detail_seed", None) and ground.get("u_weathering", None) is None
     assert len({id(renderer.programs.get(*key)) for key in keys}) == len(keys)
     # A variant's code is there only with its flag: the crack uniforms, the zones'.
     assert renderer.programs.get("color").get("u_crack_contrast", None) is None

@@ -387,6 +387,9 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
         if cfg.concrete_detail == "on" and a.category == "concrete":
             material = _with_detail(material, deferred, part.name,
                                     _detail(config, env, ordinal, image, means))
+        elif cfg.ground_detail and kind is PartKind.GROUND:
+            material = replace(material, ground_detail=True, detail_seed=make_seed(
+                root, index, Stream.DETAIL, ordinal) % 2**32)
         if part.name not in deferred:
             materials[part.name] = material
         assignments[part.name] = a

@@ -88,6 +88,9 @@ class Material:
     """With detail_seed: the detail is weathered (shaders/weathering.glsl), and this linear
     factor on the base colour gives the part its weathered albedo (the drawn albedo over the
     mean of its colour map); None: plain detail."""
+    ground_detail: bool = False
+    """With detail_seed: the detail is the ground's (shaders/ground_detail.glsl: bare soil,
+    clods, stones and leaves), not concrete's."""
 
     def __post_init__(self) -> None:
         if self.zones is not None and (not isinstance(self.zones, DamageZones)
@@ -103,6 +106,9 @@ class Material:
                 or not all(np.isfinite(v) and v > 0 for v in self.weathering_tint)):
             raise ValueError(f"material.weathering_tint = {self.weathering_tint!r}: three "
                              "positive factors, on a material with a detail_seed, or None")
+        if self.ground_detail and (self.detail_seed is None or self.weathering_tint is not None):
+            raise ValueError("material.ground_detail: on a material with a detail_seed and no "
+                             "weathering_tint")
         if self.cracks is not None and not isinstance(self.cracks, CrackNetwork):
             raise ValueError(f"material.cracks: {type(self.cracks).__name__}; must be a "
                              "CrackNetwork or None")

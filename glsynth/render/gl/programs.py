@@ -24,21 +24,32 @@ from glsynth.render.cracks_index import ROW
 class Variant(enum.Flag):
     """The code compiled into a mesh program beyond its plain form, one ``#define`` each (the
     member's name): draws without cracks, damage zones or concrete detail run programs without
-    any of that code."""
+    any of that code. GROUND comes only with DETAIL: the ground's detail in place of
+    concrete's (the ground has no cracks or damage zones)."""
     NONE = 0
     CRACKS = enum.auto()
     SPALL = enum.auto()
     DETAIL = enum.auto()
+    GROUND = enum.auto()
 
     @classmethod
-    def of(cls, cracks: bool = False, spall: bool = False, detail: bool = False) -> "Variant":
-        """The flags of a draw with cracks, damage zones and concrete detail as given."""
+    def of(cls, cracks: bool = False, spall: bool = False, detail: bool = False,
+           ground: bool = False) -> "Variant":
+        """The flags of a draw with cracks, damage zones and concrete or ground detail as
+        given."""
+        if ground:
+            return cls.DETAIL | cls.GROUND
         return ((cls.CRACKS if cracks else cls.NONE) | (cls.SPALL if spall else cls.NONE)
                 | (cls.DETAIL if detail else cls.NONE))
 
+    def compiled(self) -> bool:
+        """Whether a program is compiled with these flags (GROUND only with DETAIL alone)."""
+        return Variant.GROUND not in self or self == Variant.DETAIL | Variant.GROUND
+
 
 PROGRAMS: dict[str, tuple[str, str, Variant]] = {
-    "color": ("mesh.vert", "color.frag", Variant.CRACKS | Variant.SPALL | Variant.DETAIL),
+    "color": ("mesh.vert", "color.frag",
+              Variant.CRACKS | Variant.SPALL | Variant.DETAIL | Variant.GROUND),
     "labels": ("mesh.vert", "labels.frag", Variant.CRACKS | Variant.SPALL),
     "msaa": ("mesh.vert", "msaa.frag", Variant.NONE),
     "msaa_interior": ("fullscreen.vert", "msaa_interior.frag", Variant.NONE),
@@ -49,7 +60,7 @@ PROGRAMS: dict[str, tuple[str, str, Variant]] = {
     "ssao": ("fullscreen.vert", "ssao.frag", Variant.NONE),
     "ssao_blur": ("fullscreen.vert", "ssao_blur.frag", Variant.NONE)}
 """Program name -> (vertex shader file, fragment shader file, the variants it has: every
-combination of these flags is compiled)."""
+combination of these flags that Variant.compiled allows is compiled)."""
 
 ProgramKey = tuple[str, Variant]
 """(program name, variant): one compiled program."""
@@ -70,7 +81,9 @@ def program_keys() -> Iterator[ProgramKey]:
     for name, (_, _, flags) in PROGRAMS.items():
         members = list(flags)
         for bits in range(1 << len(members)):
-            yield name, Variant(sum(m.value for i, m in enumerate(members) if bits >> i & 1))
+            variant = Variant(sum(m.value for i, m in enumerate(members) if bits >> i & 1))
+            if variant.compiled():
+                yield name, variant
 
 
 @cache

@@ -212,10 +212,14 @@ class DetailUniforms:
     """The box's height: weathering's rain runs down from there."""
     tint: tuple[float, float, float] | None
     """Material.weathering_tint; None: the detail is not weathered."""
+    ground: bool = False
+    """Material.ground_detail: the ground's variant, which reads the seed and origin alone."""
 
     def set(self, prog: moderngl.Program) -> None:
         prog["u_detail_seed"].value = self.seed
         prog["u_detail_origin"].value = self.origin
+        if self.ground:
+            return
         prog["u_weathering"].value = self.tint is not None
         prog["u_detail_tint"].value = self.tint or (1.0, 1.0, 1.0)
         prog["u_detail_top"].value = self.top
@@ -254,7 +258,8 @@ class _Draw:
         if base == "labels":
             return base, Variant.of(view_has_cracks, self.zones is not None)
         return base, Variant.of(self.cracks is not None, self.zones is not None,
-                                self.detail is not None)
+                                self.detail is not None,
+                                self.detail is not None and self.detail.ground)
 
 
 @dataclass(frozen=True)
@@ -692,10 +697,11 @@ class Renderer:
         if material.detail_seed is not None:
             low, high = primitive.positions.min(0), primitive.positions.max(0)
             detail = DetailUniforms(material.detail_seed, tuple(float(v) for v in low),
-                                    float(high[2] - low[2]), material.weathering_tint)
+                                    float(high[2] - low[2]), material.weathering_tint,
+                                    material.ground_detail)
         if material.cracks is not None or zones is not None or detail is not None:
             key = ("color", Variant.of(material.cracks is not None, zones is not None,
-                                       detail is not None))
+                                       detail is not None, material.ground_detail))
             vaos[key] = self._vertex_array(key, vbo, reversed_ibo)
         base = self._base_texture(material)
         if base is not None:
