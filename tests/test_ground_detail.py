@@ -11,6 +11,7 @@ from glhelpers import half_inspection
 from shader_harness import GlslHarness
 
 from glsynth.core.labels import Component
+from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.view import EnvironmentView
 from glsynth.world.lighting import LUMINANCE
 
@@ -64,7 +65,7 @@ def test_centimetre_detail_shows_up_close_and_fades_to_its_mean_far_away(harness
         step_near = np.abs(np.diff(near, axis=1)).mean() / near.mean()
         step_far = np.abs(np.diff(far, axis=1)).mean() / far.mean()
         assert step_near > 0.01 and step_far < 0.1 * step_near
-        xy = np.random.default_rng(seed).uniform(0.0, 20.0, (40000, 2))
+        xy = make_rng(seed, 0, Stream.DETAIL).uniform(0.0, 20.0, (40000, 2))
         means = [(ground(harness, xy[:, 0], xy[:, 1], fp, seed, grid=False) @ LUMINANCE).mean()
                  for fp in (0.001, 0.5)]
         assert abs(means[1] / means[0] - 1.0) < 0.03
