@@ -7,19 +7,12 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from glhelpers import half_inspection, quad
+from glhelpers import half_inspection
 from shader_harness import GlslHarness
 
-from glsynth.appearance.materials import (
-    GROUND_DETAIL_COVER,
-    GROUND_DETAIL_SOIL,
-    Material,
-    surface_albedo,
-)
 from glsynth.core.labels import Component
 from glsynth.core.seeding import Stream, make_rng
 from glsynth.render.view import EnvironmentView
-from glsynth.world.environment import Part, PartKind
 from glsynth.world.lighting import LUMINANCE
 
 LUMA = np.array([0.299, 0.587, 0.114])
@@ -128,30 +121,3 @@ def test_a_foot_view_shows_the_grounds_detail_and_nothing_else_changes(foot_view
     column = cv2.erode((component == Component.COLUMN).astype(np.uint8), np.ones((3, 3)))
     assert column.sum() > 1000
     assert np.array_equal(on.color[column > 0], off.color[column > 0])
-
-
-@pytest.mark.parametrize("cover", [(0.0, 0.0, 0.0), GRASS, (0.3, 0.28, 0.25)])
-def test_the_grounds_mean_colour_is_what_the_lighting_reads(harness, cover):
-    """The ground lights the scene from below by its mean colour (surface_albedo): with the
-    detail, GROUND_DETAIL_COVER x its image's + GROUND_DETAIL_SOIL, which must be the shader's
-    area mean over parts (16 of 60 x 60 m) within 5 % of the brightest channel."""
-    means = []
-    for seed in range(16):
-        xy = make_rng(seed, 0, Stream.DETAIL).uniform(0.0, 60.0, (40000, 2))
-        points = np.zeros((len(xy), 4), np.float32)
-        points[:, :2], points[:, 2] = xy, seed
-        expression = f"ground_at(vec3{tuple(cover)}, in0.xy, 0.002, uint(in0.z)), 0.0"
-        means.append(harness.run(expression, points)[:, :3].mean(axis=0))
-    expected = GROUND_DETAIL_COVER * np.array(cover) + np.array(GROUND_DETAIL_SOIL)
-    assert np.abs(np.mean(means, axis=0) - expected).max() < 0.05 * expected.max()
-
-
-def test_surface_albedo_reads_the_grounds_detail():
-    plain = Material(base_color=(0.2, 0.3, 0.1, 1.0))
-    detailed = dataclasses.replace(plain, detail_seed=3, ground_detail=True)
-    ground = Part("ground", PartKind.GROUND, None,
-                  quad([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0], [0.0, 10.0, 0.0]]),
-                  np.eye(4))
-    albedo = [surface_albedo([ground], {"ground": m}) for m in (plain, detailed)]
-    assert albedo[1] == pytest.approx(GROUND_DETAIL_COVER * albedo[0]
-                                      + np.array(GROUND_DETAIL_SOIL), rel=1e-12)

@@ -299,21 +299,12 @@ def srgb_decode(encoded: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
-GROUND_DETAIL_COVER = 0.387
-"""With Material.ground_detail the shader's ground (shaders/ground_detail.glsl) averages, over
-its area, GROUND_DETAIL_COVER times its image's colour plus GROUND_DETAIL_SOIL (linear RGB):
-the cover shows on part of it, bare soil, stones and leaves on the rest. Measured in the
-shader harness over 16 parts; tests/test_ground_detail.py holds the two to 5 %."""
-GROUND_DETAIL_SOIL = (0.0586, 0.0443, 0.0315)
-
-
 def surface_albedo(parts: Sequence[Part], materials: Mapping[str, Material],
                    samples: int = 4096) -> np.ndarray:
     """Mean linear base colour (3,) over the surface of ``parts``: ``samples`` points per part,
     spread evenly by area (systematic over the faces' cumulative area, an R2 low-discrepancy
     sequence inside them: no generator, the same points every time), each reading its texel at
-    the UVs the renderer uses, and the ground's detail's mean where it has one; parts are
-    weighted by their area."""
+    the UVs the renderer uses; parts are weighted by their area."""
     k = np.arange(samples)
     total, area = np.zeros(3), 0.0
     for part in parts:
@@ -333,9 +324,6 @@ def surface_albedo(parts: Sequence[Part], materials: Mapping[str, Material],
             col = np.floor(uv[:, 0] % 1.0 * w).astype(int) % w
             row = (h - 1 - np.floor(uv[:, 1] % 1.0 * h).astype(int)) % h
             colour = srgb_decode(mat.base_color_map[row, col])
-        mean = colour.mean(0) * np.asarray(mat.base_color[:3])
-        if mat.ground_detail:
-            mean = GROUND_DETAIL_COVER * mean + np.asarray(GROUND_DETAIL_SOIL)
-        total += mean * mesh.area
+        total += colour.mean(0) * np.asarray(mat.base_color[:3]) * mesh.area
         area += mesh.area
     return total / area if area > 0 else total
