@@ -5,10 +5,12 @@
 // per fragment in the ground's plane (mesh frame: the ground's z is up), each feature fading to
 // its mean once a pixel's footprint nears its size:
 // - the cover (the image's grass or gravel) worn through to bare soil in patches where noise
-//   over 1 m to 10 cm passes a threshold, more than half of the ground;
-// - the soil's colour, a brown of 6-14 % albedo, mottled over 0.3 m down to 5 mm; damp in
-//   patches (water in its pores takes the place of air, as in concrete: half as bright);
-// - crumbs and clods of 5 mm to 3 cm, lighter on top, and the voids between them, dark;
+//   over 1 m down to 7.5 cm passes a threshold: 61 % of the ground;
+// - the soil's colour, a brown of 6.7-10.9 % albedo (luminance), mottled by noise in six
+//   octaves from 0.3 m down to 9 mm; damp in patches of 0.7 m (34 % of it: water in its pores
+//   takes the place of air, as in concrete: half as bright);
+// - crumbs and clods in cells of 5, 12 and 30 mm, lighter or darker than the soil, and voids
+//   of 1-4 mm between them, dark;
 // - stones of 1-5 cm, lighter or darker than the soil or cover they lie in;
 // - leaf litter: in some cells of 12 cm a leaf 2-6 cm long, brown to ochre, flat on the top.
 // Deterministic: a function of the position and the part's seed alone.
@@ -33,22 +35,47 @@ float leaf(vec2 p, float footprint, float size_m, float share, uint salt, out fl
     return float(unit_float(h) < share) * disk(r, half_len, footprint / size_m);
 }
 
+// Each patchy feature below, once a pixel's footprint outgrows it, blends to its share of the
+// ground's area (measured in the shader harness, tests/test_ground_detail.py): a pixel far
+// away reads the patches' mean rather than whichever patch its centre falls in (that aliased,
+// speckling distant ground soil and cover).
+const float BARE_MEAN = 0.61;    // the bare soil's share of the ground (measured)
+const float DAMP_MEAN = 0.343;   // the damp patches' share of the soil (measured)
+// The voids' share: 0.3 of the 15 mm cells hold a disk of radius log-uniform in 1-4 mm,
+// whose mean r^2 is (4^2 - 1^2) mm^2 / (2 ln 4).
+const float VOID_MEAN = 0.3 * 3.14159265 * 5.4101e-6 / (0.015 * 0.015);
+// The leaves' share: 0.3 of the 12 cm cells hold an ellipse of half-length L uniform in 1-3 cm
+// and a third as wide, of mean area pi E[L^2] / 3, E[L^2] = (3^3 - 1^3) cm^3 / (3 x 2 cm).
+const float LEAF_MEAN = 0.3 * 3.14159265 * 4.3333e-4 / 3.0 / (0.12 * 0.12);
+
+// The bare soil's share of the pixel at p: where noise over 1 m down to 7.5 cm passes a
+// threshold, the cover has worn through (a soft edge of a few centimetres).
+float bare_soil(vec2 p, float footprint, uint salt) {
+    float worn = value_noise(p / 1.0, salt ^ 1u) + 0.5 * octaves(p, 0.3, 3, 0.5, footprint, salt ^ 2u);
+    return mix(BARE_MEAN, smoothstep(-0.25, -0.05, worn), resolved(0.5, footprint));
+}
+
+// The damp patches' share of the pixel at p: where noise at 0.7 m passes a threshold.
+float damp_soil(vec2 p, float footprint, uint salt) {
+    return mix(DAMP_MEAN, smoothstep(0.1, 0.3, value_noise(p / 0.7, salt ^ 4u)),
+               resolved(0.35, footprint));
+}
+
 // The ground's colour at point p of its plane, seen by a pixel of this footprint (metres),
 // from the base colour ``cover`` (linear) of its image there, for part seed.
 vec3 ground_at(vec3 cover, vec2 p, float footprint, uint seed) {
     uint salt = detail_hash(seed ^ 0x5bd1e995u);
-    // Bare soil: where the cover has worn through (a soft edge over a few centimetres).
-    float worn = value_noise(p / 1.0, salt ^ 1u) + 0.5 * octaves(p, 0.3, 3, 0.5, footprint, salt ^ 2u);
-    float bare = smoothstep(-0.25, -0.05, worn);
+    float bare = bare_soil(p, footprint, salt);
     float albedo = 0.8 + 0.5 * unit_float(detail_hash(salt ^ 3u));  // 0.8-1.3 x SOIL_BROWN
-    float damp = smoothstep(0.1, 0.3, value_noise(p / 0.7, salt ^ 4u));
+    float damp = damp_soil(p, footprint, salt);
     vec3 soil = SOIL_BROWN * albedo * (1.0 + 0.35 * octaves(p, 0.3, 6, 0.6, footprint, salt ^ 5u))
                 * (1.0 - 0.5 * damp);
     // Crumbs and clods, and the dark voids between them.
     float crumbs = 0.8 * grains(p, footprint, 0.005, 0.6, salt ^ 6u)
                    + 0.6 * grains(p, footprint, 0.012, 0.4, salt ^ 7u)
                    + 0.5 * grains(p, footprint, 0.03, 0.3, salt ^ 8u);
-    float voids = 0.5 * holes(p, footprint, 0.015, 0.3, 0.001, 0.004, salt ^ 9u);
+    float voids = 0.5 * mix(VOID_MEAN, holes(p, footprint, 0.015, 0.3, 0.001, 0.004, salt ^ 9u),
+                            resolved(0.015, footprint));
     soil *= max((1.0 + crumbs) * (1.0 - voids), 0.0);
     vec3 ground = mix(cover * (1.0 + 0.3 * octaves(p, 0.1, 4, 0.6, footprint, salt ^ 10u)),
                       soil, bare);
@@ -58,8 +85,9 @@ vec3 ground_at(vec3 cover, vec2 p, float footprint, uint seed) {
     ground *= max(1.0 + stones, 0.0);
     // Leaves on top.
     float hue;
-    float cover_leaf = leaf(p, footprint, 0.12, 0.3, salt ^ 12u, hue);
-    return mix(ground, mix(LEAF_BROWN, LEAF_OCHRE, hue), cover_leaf);
+    float shown = resolved(0.12, footprint);
+    float cover_leaf = mix(LEAF_MEAN, leaf(p, footprint, 0.12, 0.3, salt ^ 12u, hue), shown);
+    return mix(ground, mix(LEAF_BROWN, LEAF_OCHRE, mix(0.5, hue, shown)), cover_leaf);
 }
 
 // ground_at at position pos (relative to the part's box's lower corner), its footprint from

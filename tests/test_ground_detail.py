@@ -40,24 +40,43 @@ def ground(harness, x: np.ndarray, y: np.ndarray, footprint: float, seed: int,
 
 
 def test_the_cover_wears_through_to_dark_brown_soil_on_about_half_the_ground(harness):
-    """Over 8 parts of 40 x 40 m: bare soil (redder than green, as no grass is) on 40-80 % of
-    the ground, its luminance the soil's 6-14 % albedo times its clods, and half that damp."""
+    """Over 8 parts of 40 x 40 m: bare soil (redder than green, as no grass is) on 50-70 % of
+    the ground (the shader's 61 %, less where a stone or leaf covers it), its luminance the
+    soil's 6.7-10.9 % albedo times its clods, and half that damp."""
     shares, lum = [], []
     for seed in range(8):
         c = ground(harness, np.arange(0.0, 40.0, 0.5), np.arange(0.0, 40.0, 0.5), 0.01, seed)
         soil = c[..., 0] > c[..., 1]
         shares.append(soil.mean())
         lum.append(c[soil] @ LUMINANCE)
-    assert 0.4 <= np.mean(shares) <= 0.8 and min(shares) > 0.1
+    assert 0.5 <= np.mean(shares) <= 0.7 and min(shares) > 0.1
     lum = np.concatenate(lum)
     assert 0.03 <= np.median(lum) <= 0.14
     assert np.quantile(lum, 0.05) < 0.5 * np.quantile(lum, 0.95)  # damp and dry, clods
 
 
+@pytest.mark.parametrize("name, mean, expression", [
+    ("bare soil", "BARE_MEAN", "bare_soil(in0.xy, 1e-4, uint(in0.z))"),
+    ("damp soil", "DAMP_MEAN", "damp_soil(in0.xy, 1e-4, uint(in0.z))"),
+    ("voids", "VOID_MEAN", "holes(in0.xy, 1e-4, 0.015, 0.3, 0.001, 0.004, uint(in0.z))")])
+def test_each_patchy_feature_fades_to_its_share_of_the_area(harness, name, mean, expression):
+    """The share a feature fades to far away is its share up close (over 16 salts of 100 x
+    100 m, within 0.01): far ground keeps the near ground's mix."""
+    shares = []
+    for salt in range(16):
+        xy = make_rng(salt, 0, Stream.DETAIL).uniform(0.0, 100.0, (40000, 2))
+        points = np.zeros((len(xy), 4), np.float32)
+        points[:, :2], points[:, 2] = xy, salt
+        shares.append(harness.run(f"vec4({expression}, {mean}, 0.0, 0.0)", points)[:, :2])
+    shares = np.concatenate(shares)
+    assert shares[:, 0].mean() == pytest.approx(shares[0, 1], abs=0.01), name
+
+
 def test_centimetre_detail_shows_up_close_and_fades_to_its_mean_far_away(harness):
     """At 1 mm a pixel, samples 2 mm apart differ by 1 % of the luminance or more on average
-    (clods, voids, stones, leaves); at 0.5 m a pixel by a tenth of that at most: the features
-    fade rather than alias. Over 20 x 20 m the mean luminance stays within 3 %."""
+    (clods, voids, stones, leaves); at 0.5 m a pixel by a tenth of that at most; at 1 and 5 m
+    a pixel, samples a pixel apart by under 1 %: the features fade rather than alias. Over
+    200 x 200 m the mean luminance stays within 1 %."""
     x = np.arange(0.0, 0.4, 0.002)
     for seed in range(1, 9):
         near = ground(harness, x + 5.0 * seed, x, 0.001, seed) @ LUMINANCE
@@ -65,10 +84,14 @@ def test_centimetre_detail_shows_up_close_and_fades_to_its_mean_far_away(harness
         step_near = np.abs(np.diff(near, axis=1)).mean() / near.mean()
         step_far = np.abs(np.diff(far, axis=1)).mean() / far.mean()
         assert step_near > 0.01 and step_far < 0.1 * step_near
-        xy = make_rng(seed, 0, Stream.DETAIL).uniform(0.0, 20.0, (40000, 2))
+        for footprint in (1.0, 5.0):  # distant ground: a pixel apart
+            apart = np.arange(0.0, 200.0 * footprint, footprint)
+            row = ground(harness, apart, apart[:1], footprint, seed)[0] @ LUMINANCE
+            assert np.abs(np.diff(row)).mean() / row.mean() < 0.01
+        xy = make_rng(seed, 0, Stream.DETAIL).uniform(0.0, 200.0, (40000, 2))
         means = [(ground(harness, xy[:, 0], xy[:, 1], fp, seed, grid=False) @ LUMINANCE).mean()
                  for fp in (0.001, 0.5)]
-        assert abs(means[1] / means[0] - 1.0) < 0.03
+        assert abs(means[1] / means[0] - 1.0) < 0.01
 
 
 def test_the_detail_is_a_function_of_position_and_seed(harness):

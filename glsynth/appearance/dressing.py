@@ -22,7 +22,8 @@ mapped onto its curved sweep (glsynth.appearance.girder_cracks).
 Under ``[materials] concrete_detail = "on"`` every part of the concrete category gets concrete
 detail (Material.detail_seed) from the DETAIL stream (item = its index), which draws nothing;
 under ``weathering = true`` also its weathered albedo and hue (Material.weathering_tint) from
-the WEATHERING stream (item = its index).
+the WEATHERING stream (item = its index). Under ``ground_detail = true`` the ground's parts get
+the ground's detail (Material.ground_detail), seeded from the DETAIL stream alike.
 """
 
 import functools

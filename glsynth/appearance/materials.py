@@ -106,9 +106,10 @@ class Material:
                 or not all(np.isfinite(v) and v > 0 for v in self.weathering_tint)):
             raise ValueError(f"material.weathering_tint = {self.weathering_tint!r}: three "
                              "positive factors, on a material with a detail_seed, or None")
-        if self.ground_detail and (self.detail_seed is None or self.weathering_tint is not None):
+        if self.ground_detail and (self.detail_seed is None or self.weathering_tint is not None
+                                   or self.cracks is not None or self.zones is not None):
             raise ValueError("material.ground_detail: on a material with a detail_seed and no "
-                             "weathering_tint")
+                             "weathering_tint, cracks or zones (the ground's variant draws none)")
         if self.cracks is not None and not isinstance(self.cracks, CrackNetwork):
             raise ValueError(f"material.cracks: {type(self.cracks).__name__}; must be a "
                              "CrackNetwork or None")

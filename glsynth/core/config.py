@@ -458,9 +458,9 @@ class MaterialsConfig:
     mottling at 0.1-2 m, dirt collecting at the foot of each face, water streaks running down
     from its top edge, the formwork's joints and tie holes, efflorescence and patch repairs."""
     ground_detail: bool = bounded(False, Flag())
-    """The ground's centimetre detail (docs/design.md, "The ground up close"): its cover worn
-    through to bare, partly damp soil in patches, with clods, stones and leaves, where a camera
-    at a column's foot sees it; off, the repository image alone."""
+    """The ground's centimetre detail on the ground's parts (docs/design.md, "The ground up
+    close"): its cover worn through to bare, partly damp soil in patches, with clods, stones
+    and leaves, as a camera near it sees it; off, the repository image alone."""
     concrete_albedo: tuple[float, float] = bounded((0.22, 0.38), Interval(0.02, 0.9))
     """Under weathering, the range a concrete part's mean albedo (Rec. 709 luminance of its
     linear base colour) is drawn from, uniformly: weathered concrete's published visible and

@@ -193,6 +193,11 @@ def _up_the_face(face: MemberFace) -> tuple[np.ndarray, float]:
     return face.tangents[v] * np.sign(face.tangents[v] @ _UP), face.half_extents[v]
 
 
+def _across_the_face(face: MemberFace) -> float:
+    """Half a column face's horizontal extent (its width)."""
+    return face.half_extents[int(abs(face.tangents[1] @ _UP) <= abs(face.tangents[0] @ _UP))]
+
+
 def _foot_point(face: MemberFace, scene: _Scene, rng: np.random.Generator
                 ) -> np.ndarray | None:
     """A foot view's point on column face ``face`` before it is raised: uniform across the
@@ -219,7 +224,8 @@ def _raised(face: MemberFace, point: np.ndarray, distance: float, focal_mm: floa
     up, half_up = _up_the_face(face)
     half_view = distance * cameras.sensor_mm * render.height / render.width / (2.0 * focal_mm)
     raised = point + float(rng.uniform(*FOOT_FRAME)) * half_view * up
-    return raised if float((raised - face.centre) @ up) <= half_up else None
+    inside = half_up - min(EDGE_MARGIN_M, half_up / 2)  # as _face_point keeps off the edges
+    return raised if float((raised - face.centre) @ up) <= inside else None
 
 
 def _view(face: MemberFace, cameras: CameraConfig, far: float, rng: np.random.Generator
@@ -383,7 +389,7 @@ class FaceTargets:
         aims = crack_aims(env.parts, faces, cracks) if cracks else None
         feet = np.array([i for i, f in enumerate(faces)
                          if env.parts[f.part].kind is PartKind.COLUMN], int)
-        width = np.array([min(faces[i].half_extents) for i in feet])
+        width = np.array([_across_the_face(faces[i]) for i in feet])
         return cls(env, faces, area / area.sum(), _Scene.of(env.parts), aims,
                    feet if feet.size else None, width / width.sum() if feet.size else None)
 

@@ -201,8 +201,8 @@ def zone_uniforms(material: Material) -> ZoneUniforms:
 
 @dataclass(frozen=True)
 class DetailUniforms:
-    """A part's concrete detail (Material.detail_seed) as the colour pass's detail variants
-    read it."""
+    """A part's concrete or ground detail (Material.detail_seed) as the colour pass's detail
+    variants read it."""
     seed: int
     origin: tuple[float, float, float]
     """The part's box's lower corner in its mesh frame: shaders/mesh.vert subtracts it, so
@@ -254,7 +254,7 @@ class _Draw:
     def program(self, base: str, view_has_cracks: bool) -> ProgramKey:
         """The variant of ``base`` that draws this part: with crack code in a view with
         cracks (labels) or for a part with cracks (colour), with zone code for a part with
-        zones, and (colour) with detail code for a part with concrete detail."""
+        zones, and (colour) with detail code for a part with concrete or ground detail."""
         if base == "labels":
             return base, Variant.of(view_has_cracks, self.zones is not None)
         return base, Variant.of(self.cracks is not None, self.zones is not None,
