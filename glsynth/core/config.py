@@ -460,7 +460,7 @@ class MaterialsConfig:
     ground_detail: bool = bounded(False, Flag())
     """The ground's centimetre detail on the ground's parts (docs/design.md, "The ground up
     close"): its cover worn through to bare, partly damp soil in patches, with clods, stones
-    and leaves, as a camera near it sees it; off, the repository image alone."""
+    and leaves, as a camera near it sees it; off (every preset), the repository image alone."""
     concrete_albedo: tuple[float, float] = bounded((0.22, 0.38), Interval(0.02, 0.9))
     """Under weathering, the range a concrete part's mean albedo (Rec. 709 luminance of its
     linear base colour) is drawn from, uniformly: weathered concrete's published visible and
@@ -660,9 +660,10 @@ class Config:
                     '0 unless [damage] model = "mechanics" (the paper model makes no cracks)')
 
 
-_WEATHERED = {"concrete_detail": "on", "weathering": True, "ground_detail": True}
-"""Concrete and the ground as a camera at 0.3-3 m sees them (issue 39): every preset but the
-paper's, whose bytes stay those of Section 3.2's repository images."""
+_WEATHERED = {"concrete_detail": "on", "weathering": True}
+"""Concrete as a camera at 0.3-3 m sees it (issue 39): every preset but the paper's, whose
+bytes stay those of Section 3.2's repository images. (The ground's detail is off in every
+preset: docs/results.md, "Foot views on the ground up close".)"""
 
 _SURROUNDINGS = {"world": "town", "fences": "open", "jacket_probability": 0.3,
                  "brace_probability": 0.2, "downpipe_probability": 0.5,
