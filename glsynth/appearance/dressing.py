@@ -295,6 +295,12 @@ WARM_GREY = ((1.03, 1.0, 0.95), (1.10, 1.0, 0.84))
 "Weathered concrete": concrete's reflectance rises from blue to red)."""
 
 
+def _detail_seed(env: Environment, ordinal: int) -> int:
+    """Part ``ordinal``'s 32-bit detail seed (concrete's or the ground's) from the DETAIL
+    stream."""
+    return make_seed(env.root_seed, env.env_index, Stream.DETAIL, ordinal) % 2**32
+
+
 def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray,
             means: dict[int, tuple[np.ndarray, np.ndarray]]) -> dict:
     """The Material fields of a concrete part's detail: its seed from the DETAIL stream and,
@@ -303,8 +309,7 @@ def _detail(config: Config, env: Environment, ordinal: int, image: np.ndarray,
     ``means``: each image's linear mean by id (the image is kept beside it, so the id stays
     its own): the repository's dozen images serve hundreds of parts, so each is decoded once
     (docs/results.md, "Cracks found once an opening", has the measurement)."""
-    detail: dict = {"detail_seed": make_seed(env.root_seed, env.env_index, Stream.DETAIL,
-                                             ordinal) % 2**32}
+    detail: dict = {"detail_seed": _detail_seed(env, ordinal)}
     if config.materials.weathering:
         rng = make_rng(env.root_seed, env.env_index, Stream.WEATHERING, ordinal)
         albedo = rng.uniform(*config.materials.concrete_albedo)
@@ -331,6 +336,35 @@ def _image(repository: TextureRepository, config: Config, a: Assignment) -> np.n
                                    min(repository.size, TOWN_TEXTURE_PX),
                                    config.materials.repository_seed)
     return repository.image(a.category, a.image)
+
+
+def _dress_column(env: Environment, config: Config, bank: DamageBank,
+                  repository: TextureRepository, part: Part, ordinal: int, material: Material,
+                  built: bool, known: KnownCracks | None,
+                  deferred: dict[str, tuple[Material, Callable[[], Material]]]
+                  ) -> tuple[dict, Material]:
+    """A column's damage record and material: its drawn damage, by mechanics (with spalling
+    deferred where it spalls) or from the damage bank (deferred); ``built``: the column is
+    seen, so its damage is made. Deferred builders go into ``deferred``."""
+    damage = _column_damage(config, env.root_seed, env.env_index, ordinal)
+    if not damage["damaged"]:
+        return damage, material
+    damage["built"] = built
+    if config.damage.model == "mechanics":
+        sampled = damage
+        damage, material = _mechanics_damage(env, config.damage, part, ordinal, sampled,
+                                             material, known)
+        if built and spalls(config.damage, damage["severity"]):
+            damage, deferred[part.name] = _spalling(env, config, bank, repository, part,
+                                                    sampled, damage, material)
+    elif built:
+        key = (damage["severity"], damage["bank_index"])
+        params, images = bank.record(*key, repository)
+        damage.update(params=params, images=list(images))
+        deferred[part.name] = (damage_factors(config.damage, damage["scale"]),
+                               functools.partial(bank.material, *key, repository,
+                                                 damage["scale"]))
+    return damage, material
 
 
 def dress(env: Environment, config: Config, repository: TextureRepository, bank: DamageBank,
@@ -363,23 +397,8 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
                                 roughness=a.roughness, uv_scale=a.scale, base_color_map=image,
                                 damage_mask=CONSTANT_MASKS.get(kind))
         if kind is PartKind.COLUMN:
-            damage = _column_damage(config, root, index, ordinal)
-            if damage["damaged"]:
-                damage["built"] = part.name in visible
-                if config.damage.model == "mechanics":
-                    sampled = damage
-                    damage, material = _mechanics_damage(env, config.damage, part, ordinal,
-                                                         sampled, material, known)
-                    if damage["built"] and spalls(config.damage, damage["severity"]):
-                        damage, deferred[part.name] = _spalling(
-                            env, config, bank, repository, part, sampled, damage, material)
-                elif damage["built"]:
-                    key = (damage["severity"], damage["bank_index"])
-                    params, images = bank.record(*key, repository)
-                    damage.update(params=params, images=list(images))
-                    deferred[part.name] = (damage_factors(config.damage, damage["scale"]),
-                                           functools.partial(bank.material, *key,
-                                                             repository, damage["scale"]))
+            damage, material = _dress_column(env, config, bank, repository, part, ordinal,
+                                             material, part.name in visible, known, deferred)
             a = replace(a, damage=damage)
         elif kind.component is Component.BEAM and config.damage.model == "mechanics":
             damage, material = _beam_damage(env, config.damage, part, ordinal, material,
@@ -389,8 +408,8 @@ def dress(env: Environment, config: Config, repository: TextureRepository, bank:
             material = _with_detail(material, deferred, part.name,
                                     _detail(config, env, ordinal, image, means))
         elif cfg.ground_detail and kind is PartKind.GROUND:
-            material = replace(material, ground_detail=True, detail_seed=make_seed(
-                root, index, Stream.DETAIL, ordinal) % 2**32)
+            material = replace(material, ground_detail=True,
+                               detail_seed=_detail_seed(env, ordinal))
         if part.name not in deferred:
             materials[part.name] = material
         assignments[part.name] = a

@@ -187,15 +187,16 @@ def _face_point(face: MemberFace, rng: np.random.Generator) -> np.ndarray:
     return face.centre + offsets[0] * face.tangents[0] + offsets[1] * face.tangents[1]
 
 
+def _upright(face: MemberFace) -> tuple[int, int]:
+    """The indices of a column face's tangent along its height and of the one across it."""
+    v = int(abs(face.tangents[1] @ _UP) > abs(face.tangents[0] @ _UP))
+    return v, 1 - v
+
+
 def _up_the_face(face: MemberFace) -> tuple[np.ndarray, float]:
     """A column face's tangent that points up, and half the face's extent along it."""
-    v = int(abs(face.tangents[1] @ _UP) > abs(face.tangents[0] @ _UP))
+    v, _ = _upright(face)
     return face.tangents[v] * np.sign(face.tangents[v] @ _UP), face.half_extents[v]
-
-
-def _across_the_face(face: MemberFace) -> float:
-    """Half a column face's horizontal extent (its width)."""
-    return face.half_extents[int(abs(face.tangents[1] @ _UP) <= abs(face.tangents[0] @ _UP))]
 
 
 def _foot_point(face: MemberFace, scene: _Scene, rng: np.random.Generator
@@ -205,7 +206,7 @@ def _foot_point(face: MemberFace, scene: _Scene, rng: np.random.Generator
     no ground lies under the face's top there or the ground is off the face (a column
     standing on a beam)."""
     up, half_up = _up_the_face(face)
-    h = int(abs(face.tangents[1] @ _UP) <= abs(face.tangents[0] @ _UP))
+    _, h = _upright(face)
     half = face.half_extents[h]
     across = rng.uniform(-1.0, 1.0) * max(half - min(EDGE_MARGIN_M, half / 2), 0.0)
     top = face.centre + across * face.tangents[h] + half_up * up
@@ -389,7 +390,7 @@ class FaceTargets:
         aims = crack_aims(env.parts, faces, cracks) if cracks else None
         feet = np.array([i for i, f in enumerate(faces)
                          if env.parts[f.part].kind is PartKind.COLUMN], int)
-        width = np.array([_across_the_face(faces[i]) for i in feet])
+        width = np.array([faces[i].half_extents[_upright(faces[i])[1]] for i in feet])
         return cls(env, faces, area / area.sum(), _Scene.of(env.parts), aims,
                    feet if feet.size else None, width / width.sum() if feet.size else None)
 
