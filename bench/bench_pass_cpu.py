@@ -1,9 +1,10 @@
-"""Where a paper-preset view's CPU time goes: each render pass, the read-back, and the CPU-side
+"""Where a view's CPU time goes: each render pass, the read-back, and the CPU-side
 work of a generated view (filters, label maps, image counts, PNG encoding), as CPU seconds of
 the whole process (llvmpipe's threads included) and wall seconds, medians over the cameras.
 
-    .venv/bin/python bench/bench_pass_cpu.py [--env 0] [--cameras 8]
+    .venv/bin/python bench/bench_pass_cpu.py [--preset paper|inspection] [--env 0] [--cameras 8]
 
+Writes bench/results/pass_cpu.json (the paper preset) or pass_cpu_<preset>.json.
 CPU seconds are the steadier figure on a shared machine. The GL work is finished before and
 after each pass, so the passes do not overlap as they do in a plain render; the sum of the
 passes is therefore a little above a plain render's CPU time, given beside it.
@@ -17,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import paper_views, write_results  # noqa: E402
+from common import preset_views, write_results  # noqa: E402
 
 from glsynth.core.fileio import image_bytes  # noqa: E402
 from glsynth.core.filters import removal_reason  # noqa: E402
@@ -64,7 +65,7 @@ def cpu_side(times: Timings, view: EnvironmentView, placement, output) -> None:
 
 
 def main() -> None:
-    env, config, cameras = paper_views()
+    preset, env, config, cameras = preset_views()
     renderer = Renderer(config.render)
     view = EnvironmentView.open(config, 0, env, renderer)
     view.render(cameras[0], photo=False)  # compiles llvmpipe's shader variants
@@ -79,12 +80,12 @@ def main() -> None:
         placement, output = view.render(index, photo=False)
         cpu_side(times, view, placement, output)
     renderer.release()
-    results: dict = {"environment": env, "cameras": cameras, "ms": {}}
+    results: dict = {"preset": preset, "environment": env, "cameras": cameras, "ms": {}}
     for name, pairs in {**plain, **times}.items():
         results["ms"][name.strip("_")] = {
             "cpu_median": round(1e3 * statistics.median(c for c, _ in pairs), 1),
             "wall_median": round(1e3 * statistics.median(w for _, w in pairs), 1)}
-    write_results("pass_cpu", results)
+    write_results("pass_cpu" if preset == "paper" else f"pass_cpu_{preset}", results)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import paper_views, write_results  # noqa: E402
+from common import preset_views, write_results  # noqa: E402
 
 from glsynth.core.config import Config  # noqa: E402
 from glsynth.render.gl.renderer import Renderer  # noqa: E402
@@ -57,7 +57,7 @@ def timings(view: EnvironmentView, cameras: list[int]) -> dict[str, float]:
 
 
 def main() -> None:
-    env, base, cameras = paper_views()
+    _, env, base, cameras = preset_views()
     results: dict = {"environment": env, "cameras": cameras, "variants": {}}
     for name, render in VARIANTS.items():
         config = variant(base, **render)

@@ -27,7 +27,7 @@ from pathlib import Path
 import moderngl
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import paper_views, write_results  # noqa: E402
+from common import preset_views, write_results  # noqa: E402
 
 import glsynth.render.gl.programs as programs  # noqa: E402
 from glsynth.core.config import Config  # noqa: E402
@@ -123,7 +123,7 @@ def measure(config: Config, cameras: list[int], source: str, env: int) -> tuple[
 
 def main() -> None:
     _lenient_uniforms()
-    env, base, cameras = paper_views()
+    _, env, base, cameras = preset_views()
     results: dict = {"environment": env, "cameras": cameras, "settings": {}}
     for setting, render in SETTINGS.items():
         config = dataclasses.replace(base, render=dataclasses.replace(base.render, **render))

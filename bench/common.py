@@ -60,15 +60,18 @@ def write_results(name: str, results: dict) -> Path:
     return path
 
 
-def paper_views() -> tuple[int, Config, list[int]]:
-    """The setting that bench_passes and bench_shader_cost share, from --env (0) and --cameras
-    (8): the environment, the paper preset with damage textures at 512 px (the open is faster;
-    the texture size barely changes the drawing), and the camera indices spread over it."""
+def preset_views() -> tuple[str, int, Config, list[int]]:
+    """The setting that bench_passes, bench_shader_cost and bench_pass_cpu share, from --preset
+    (paper), --env (0) and --cameras (8): the preset's name, the environment (of seed 0), the
+    preset with damage textures at 512 px (the paper preset's open is faster; the texture size
+    barely changes the drawing), and the camera indices spread over it."""
     parser = argparse.ArgumentParser()
+    parser.add_argument("--preset", default="paper", choices=("paper", "inspection"))
     parser.add_argument("--env", type=int, default=0)
     parser.add_argument("--cameras", type=int, default=8)
     args = parser.parse_args()
-    base = load_config("paper")
+    base = load_config(args.preset)
     base = dataclasses.replace(base, damage=dataclasses.replace(base.damage, resolution=512))
     step = max(1, base.cameras.total // args.cameras)
-    return args.env, base, list(range(0, base.cameras.total, step))[:args.cameras]
+    return (args.preset, args.env, base,
+            list(range(0, base.cameras.total, step))[:args.cameras])
