@@ -65,7 +65,7 @@ def cpu_side(times: Timings, view: EnvironmentView, placement, output) -> None:
 
 
 def main() -> None:
-    preset, env, config, cameras = preset_views()
+    preset, env, config, cameras = preset_views(("paper", "inspection"))
     renderer = Renderer(config.render)
     view = EnvironmentView.open(config, 0, env, renderer)
     view.render(cameras[0], photo=False)  # compiles llvmpipe's shader variants

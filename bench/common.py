@@ -60,18 +60,21 @@ def write_results(name: str, results: dict) -> Path:
     return path
 
 
-def preset_views() -> tuple[str, int, Config, list[int]]:
-    """The setting that bench_passes, bench_shader_cost and bench_pass_cpu share, from --preset
-    (paper), --env (0) and --cameras (8): the preset's name, the environment (of seed 0), the
+def preset_views(presets: tuple[str, ...] = ("paper",)) -> tuple[str, int, Config, list[int]]:
+    """The setting that bench_passes, bench_shader_cost and bench_pass_cpu share, from --env
+    (0), --cameras (8) and, where a bench offers more than the paper preset, --preset (one of
+    ``presets``, the first by default): the preset's name, the environment (of seed 0), the
     preset with damage textures at 512 px (the paper preset's open is faster; the texture size
     barely changes the drawing), and the camera indices spread over it."""
     parser = argparse.ArgumentParser()
-    parser.add_argument("--preset", default="paper", choices=("paper", "inspection"))
+    if len(presets) > 1:
+        parser.add_argument("--preset", default=presets[0], choices=presets)
     parser.add_argument("--env", type=int, default=0)
     parser.add_argument("--cameras", type=int, default=8)
     args = parser.parse_args()
-    base = load_config(args.preset)
+    preset = getattr(args, "preset", presets[0])
+    base = load_config(preset)
     base = dataclasses.replace(base, damage=dataclasses.replace(base.damage, resolution=512))
     step = max(1, base.cameras.total // args.cameras)
-    return (args.preset, args.env, base,
+    return (preset, args.env, base,
             list(range(0, base.cameras.total, step))[:args.cameras])

@@ -260,11 +260,12 @@ CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     vec2 near_d = vec2(1e30);
     // One loop over the box's cells in the order nested loops would take (x fastest, then y,
     // then z), the cell stepped along rather than divided out of the count: llvmpipe pays for
-    // each level of nesting around crack_walk's own loop (a quarter of the label pass with
-    // cracks, docs/results.md, "An inspection sample").
+    // each level of nesting around crack_walk's own loop (docs/results.md, "An inspection
+    // sample").
     ivec3 span = max(hi - lo + 1, ivec3(0));
+    int cells = span.x * span.y * span.z;
     ivec3 c = lo;
-    for (int i = 0; i < span.x * span.y * span.z; ++i) {
+    for (int i = 0; i < cells; ++i) {
         crack_walk(crack_cell_index(c), p, dpdx, dpdy, hit, nearest, near, near_d);
         bool wrap_x = c.x == hi.x, wrap_y = wrap_x && c.y == hi.y;
         c.x = wrap_x ? lo.x : c.x + 1;
