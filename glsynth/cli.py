@@ -805,10 +805,10 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
                    help="share of the real folder held out for testing; 1 tests on all of "
                         "it and trains no network on it (a folder too small to split)")
     p.add_argument("--seed", type=non_negative_int, default=0)
-    p.add_argument("--repeats", type=positive_int, default=1,
+    p.add_argument("--repeats", type=positive_int, default=3,
                    help="networks trained per training set, each from its own draws; the one "
                         "of median F1 is reported, with every repeat's scores (single runs "
-                        "scatter: docs/design.md)")
+                        "scatter: docs/design.md); 1 for a quick look")
     p.add_argument("--out", required=True, help="folder for sim2real.json and predictions.png")
     p.set_defaults(func=cmd_bench_sim2real)
 

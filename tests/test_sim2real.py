@@ -179,7 +179,7 @@ def test_sim2real_runs_end_to_end(tiny_inspection, tmp_path, capsys):
     def argv(folder):
         return ["bench", "sim2real", "--synthetic", str(tiny_inspection), "--real", str(real),
                 "--out", str(folder), "--steps", "6", "--crop", "64", "--batch", "2",
-                "--width", "4"]
+                "--width", "4", "--repeats", "1"]
 
     assert main(argv(out)) == 0
     assert "trained on ds " in capsys.readouterr().out
@@ -233,7 +233,8 @@ def test_sim2real_other_real_folders_on_a_test_only_folder(tiny_inspection, tmp_
     out = tmp_path / "bench"
     assert main(["bench", "sim2real", "--synthetic", str(tiny_inspection), "--real", str(real),
                  "--other-real", str(other), "--test-share", "1", "--out", str(out),
-                 "--steps", "6", "--crop", "64", "--batch", "2", "--width", "4"]) == 0
+                 "--steps", "6", "--crop", "64", "--batch", "2", "--width", "4",
+                 "--repeats", "1"]) == 0
     console = capsys.readouterr().out
     assert "trained on pavement " in console and "other real folder, whole" in console
     assert f"no network trained on the real folder: --test-share 1 tests on all {len(frames)}" \
@@ -292,7 +293,8 @@ def test_a_stopped_run_keeps_the_networks_it_finished(tmp_path, monkeypatch):
                 for i in range(2)]
     monkeypatch.setattr(sim2real, "read_synthetic", lambda path: rendered)
     real, other = write_real(tmp_path / "photos"), write_real(tmp_path / "pavement")
-    settings = sim2real.Sim2RealSettings(steps=2, crop=16, batch=2, width=4, test_share=1.0)
+    settings = sim2real.Sim2RealSettings(steps=2, crop=16, batch=2, width=4, test_share=1.0,
+                                         repeats=1)
     trained = sim2real.train_network
 
     def stop_at_second(images, settings, item):
@@ -340,7 +342,7 @@ def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_pa
         cv2.imwrite(str(real / "images" / f"p{i}.png"), rgb)
         cv2.imwrite(str(real / "masks" / f"p{i}.png"), crack.astype(np.uint8) * 255)
     settings = sim2real.Sim2RealSettings(steps=12, crop=16, batch=2, width=4, learning_rate=1e-2,
-                                         test_share=1.0)
+                                         test_share=1.0, repeats=1)
     once = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "one", settings)
     thrice = sim2real.run_sim2real([tmp_path / "ds"], real, tmp_path / "three",
                                    dataclasses.replace(settings, repeats=3))
