@@ -6,9 +6,12 @@ Each glsynth dataset is read as `glsynth bench sim2real` reads it (crack = crack
 0, the image brought down to the map's 640x360) and each real folder (images/ and masks/) as
 is. Per set: the crack pixels' share of a view (mean over images); the crack's width in
 pixels, twice the distance to the background at each pixel of the mask's skeleton (a one-pixel
-line reads 2), median and 90th percentile over all skeleton pixels; and the median over
-images of the crack pixels' mean luma over the rest's (Rec. 601 of the sRGB bytes). Writes
-bench/results/crack_masks.json.
+line reads 2), median and 90th percentile over all skeleton pixels; the median over images of
+the crack pixels' mean luma over the rest's (Rec. 601 of the sRGB bytes); and, against the
+concrete just beside the crack (the median luma of a ring RING_PX outside the mask), the
+median over images of the crack pixels' median luma, of the mask's edge pixels' (those within
+one pixel of the background), and the share of crack pixels darker than DARK of the ring: how
+far a mask reaches past the crack's dark core. Writes bench/results/crack_masks.json.
 """
 
 import argparse
@@ -21,10 +24,33 @@ from skimage.morphology import skeletonize
 
 from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
 
+RING_PX = (4.0, 8.0)
+"""The ring of background beside a crack: pixels this far from the mask (exclusive, inclusive)."""
+DARK = 0.85
+"""A crack pixel counts as dark below this share of the ring's luma."""
+
+
+def local_contrast(crack: np.ndarray, luma: np.ndarray) -> tuple[float, float, float] | None:
+    """(crack pixels' median luma, the mask edge's median luma, the share of crack pixels
+    darker than DARK) over the ring's median luma; None without a ring."""
+    inside = cv2.distanceTransform(crack.astype(np.uint8), cv2.DIST_L2, 5)
+    outside = cv2.distanceTransform((~crack).astype(np.uint8), cv2.DIST_L2, 5)
+    ring = (outside > RING_PX[0]) & (outside <= RING_PX[1])
+    if not ring.any():
+        return None
+    beside = max(float(np.median(luma[ring])), 1e-6)
+    edge = crack & (inside <= 1.0)
+    return (float(np.median(luma[crack])) / beside, float(np.median(luma[edge])) / beside,
+            float(np.mean(luma[crack] < DARK * beside)))
+
+
+def _median(values: list[float]) -> float | None:
+    return round(float(np.median(values)), 3) if values else None
+
 
 def mask_stats(images: list[CrackImage]) -> dict:
     """The statistics of one set (the module's docstring)."""
-    widths, contrast = [], []
+    widths, contrast, local = [], [], []
     for image in images:
         if not image.crack.any():
             continue
@@ -34,13 +60,18 @@ def mask_stats(images: list[CrackImage]) -> dict:
         luma = image.rgb.astype(float) @ LUMA
         if (~image.crack).any():
             contrast.append(luma[image.crack].mean() / max(luma[~image.crack].mean(), 1e-6))
+        beside = local_contrast(image.crack, luma)
+        if beside is not None:
+            local.append(beside)
     every = np.concatenate(widths) if widths else np.zeros(0)
     return {"images": len(images), "images_without_cracks": len(images) - len(widths),
             "crack_share_pct": round(100 * float(np.mean([i.crack.mean() for i in images])), 3),
             "width_px_median": round(float(np.median(every)), 2) if every.size else None,
             "width_px_p90": round(float(np.percentile(every, 90)), 2) if every.size else None,
-            "crack_over_background_luma": round(float(np.median(contrast)), 3)
-            if contrast else None}
+            "crack_over_background_luma": _median(contrast),
+            "crack_over_beside_luma": _median([c for c, _, _ in local]),
+            "edge_over_beside_luma": _median([e for _, e, _ in local]),
+            "crack_darker_share": _median([d for _, _, d in local])}
 
 
 def main() -> None:
