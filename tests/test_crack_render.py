@@ -12,7 +12,7 @@ from scipy import ndimage
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.appearance.materials import Material, srgb_decode
 from glsynth.core.labels import Component, Damage
-from glsynth.render.cracks_index import CRACK_CONTRAST
+from glsynth.render.cracks_index import CRACK_CONTRAST, crack_contrast
 from glsynth.render.gl.renderer import Renderer
 from glsynth.world.meshes import box
 
@@ -68,17 +68,33 @@ def vertical_crack(z: float, width_m: float, x_px: float = 80.3) -> CrackNetwork
 @pytest.mark.parametrize("z", [1.0, 1.1])
 def test_a_straight_crack_has_its_width_and_darkens_by_its_share_of_each_pixel(renderer, z):
     w = 2e-3
-    base, out = render(renderer, plane(z), vertical_crack(z, w))
+    net = vertical_crack(z, w)
+    base, out = render(renderer, plane(z), net)
     crack = out.damage == Damage.CONCRETE
     assert np.array_equal(base.damage, np.full((H, W), Damage.NO_DAMAGE))
     assert np.all(out.crack_width[crack] == np.float32(w * 1000)) and crack.sum() >= H
     assert not out.crack_width[~crack].any() and not base.crack_width.any()
     per_row = darkening(out, base).sum(1)
-    expected = CRACK_CONTRAST * w / (z / W)
+    expected = crack_contrast(net) * w / (z / W)
     assert np.abs(per_row / expected - 1).max() <= 0.10
     # Away from the crack, not a byte changes.
     far = np.abs(np.arange(W) - 80.3) > 4
     assert np.array_equal(out.color[:, far], base.color[:, far])
+
+
+def test_each_crack_network_darkens_by_its_own_contrast(renderer):
+    """A network's contrast lies in CRACK_CONTRAST's range, is the same for the same network
+    and differs between networks (here by more than a tenth); each renders with its own."""
+    z, widths = 1.0, (2.0e-3, 2.1e-3)
+    nets = [vertical_crack(z, w) for w in widths]
+    contrasts = [crack_contrast(n) for n in nets]
+    assert all(CRACK_CONTRAST[0] <= c <= CRACK_CONTRAST[1] for c in contrasts)
+    assert crack_contrast(vertical_crack(z, widths[0])) == contrasts[0]
+    assert abs(contrasts[1] - contrasts[0]) > 0.1
+    for net, w, contrast in zip(nets, widths, contrasts, strict=True):
+        base, out = render(renderer, plane(z), net)
+        per_row = darkening(out, base).sum(1)
+        assert np.abs(per_row / (contrast * w / (z / W)) - 1).max() <= 0.10
 
 
 def test_the_darkening_per_unit_length_is_the_same_at_1_and_1_1_m(renderer):
@@ -90,7 +106,7 @@ def test_the_darkening_per_unit_length_is_the_same_at_1_and_1_1_m(renderer):
         # the crack's length in view (H pixels of z / W).
         per_length.append(darkening(out, base).sum() * (z / W) ** 2 / (H * z / W))
     assert per_length[1] == pytest.approx(per_length[0], rel=0.05)
-    assert per_length[0] == pytest.approx(CRACK_CONTRAST * w, rel=0.10)
+    assert per_length[0] == pytest.approx(crack_contrast(vertical_crack(1.0, w)) * w, rel=0.10)
 
 
 def test_a_tenth_of_a_pixel_crack_is_labelled_on_every_centreline_pixel(renderer):
@@ -118,7 +134,7 @@ def test_a_tenth_of_a_pixel_crack_is_labelled_on_every_centreline_pixel(renderer
     across_row = 0.1 * np.hypot(dx, dy) / abs(dy)
     rows = slice(int((H - 1) / 2 - 50), int((H - 1) / 2 + 50))
     per_row = darkening(out, base)[rows].sum(1)
-    assert per_row.mean() == pytest.approx(CRACK_CONTRAST * across_row, rel=0.10)
+    assert per_row.mean() == pytest.approx(crack_contrast(net) * across_row, rel=0.10)
     assert np.all(out.crack_width[crack] == np.float32(0.1 * s * 1000))
 
 
@@ -188,11 +204,12 @@ def test_widths_at_both_ends_near_and_far(renderer, w, z):
     """0.05 and 5 mm cracks at 0.3 m (1.9 mm pixels) and 16 m (100 mm pixels: the grid's
     reach, |dp/dx| + |dp/dy| up to four cell edges) are labelled on every row with their
     width, and darken by w / pixel x contrast."""
-    base, out = render(renderer, plane(z), vertical_crack(z, w))
+    net = vertical_crack(z, w)
+    base, out = render(renderer, plane(z), net)
     crack = out.damage == Damage.CONCRETE
     assert crack.any(1).all() and ndimage.label(crack)[1] == 1
     assert np.all(out.crack_width[crack] == np.float32(w * 1000))
-    expected = CRACK_CONTRAST * w / (z / W)
+    expected = crack_contrast(net) * w / (z / W)
     per_row = darkening(out, base).sum(1)
     # Below one 8-bit step (about 1 % of the light here) darkening cannot be measured.
     assert np.abs(per_row - expected).max() <= max(0.10 * expected, 0.03)
@@ -239,7 +256,7 @@ def test_a_crack_far_from_the_mesh_frames_origin_renders_as_near_it(renderer):
     assert crack.any(1).all()
     assert np.array_equal(far.damage, near.damage)
     assert np.array_equal(far.crack_width, near.crack_width)
-    expected = CRACK_CONTRAST * w / (z / fx)
+    expected = crack_contrast(net) * w / (z / fx)
     assert np.abs(near_rows / expected - 1).max() <= 0.10
     assert np.abs(far_rows - near_rows).max() <= 0.02 * expected
 

@@ -30,6 +30,7 @@ of a pixel's footprint. Relative to the corner only the vertices' own rounding (
 250 m, the same for the drawn surface) remains.
 """
 
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,10 +47,21 @@ the cache (docs/design.md, "Packing", gives the speed-up)."""
 ROW = 4096
 """Texels a row of every crack texture: a power of two (CRACK_ROW_BITS, the shader's shift,
 in glsynth.render.gl.programs)."""
-CRACK_CONTRAST = 0.85
-"""Share of the surface's reflected light that a crack's interior takes away: a crack is a
-cavity much deeper than wide, which traps most of the light that enters it (its effective
-albedo is about 15 % of the surface's)."""
+CRACK_CONTRAST = (0.5, 0.9)
+"""The range of the share of the surface's reflected light that a crack's interior takes away,
+one value per crack network (a member's cracks; crack_contrast): a crack is a cavity much
+deeper than wide, which traps most of the light that enters it (an effective albedo of 10 %
+of the surface's for a clean, deep opening), but dust, fines and efflorescence settle in
+cracks, more in some members' than in others', and give some of it back (at the range's
+low end, half)."""
+
+
+def crack_contrast(network: CrackNetwork) -> float:
+    """A network's share in CRACK_CONTRAST's range, from a hash (CRC-32) of its widths: drawn
+    from the network itself, so from its seeds, with no generator of its own that would move
+    any other draw; GL and the Cycles twin read the same value."""
+    low, high = CRACK_CONTRAST
+    return low + (high - low) * (zlib.crc32(np.asarray(network.widths_m).tobytes()) / 2**32)
 
 
 @dataclass(frozen=True, eq=False)

@@ -37,7 +37,7 @@ from glsynth.render.crack_texture import (
     encode,
     framed,
 )
-from glsynth.render.cracks_index import CRACK_CONTRAST
+from glsynth.render.cracks_index import crack_contrast
 from glsynth.render.export import describe_lighting
 from glsynth.render.gltf import gltf_binary
 from glsynth.render.tonemap import tone_map
@@ -148,7 +148,8 @@ def crack_jobs(parts: Sequence[Part], materials: dict[str, Material],
         for name, rgb in images.items():
             atomic_write_bytes(work / f"cracks_{i}_{name}.png", png_bytes(rgb))
         jobs.append({
-            "part": part.name, "pose": part.pose.tolist(), "contrast": CRACK_CONTRAST,
+            "part": part.name, "pose": part.pose.tolist(),
+            "contrast": crack_contrast(materials[part.name].cracks),
             "tolerance_m": LOOKUP_TOLERANCE_M, "block_m": BLOCK * texture.texel_m,
             **{name: str(work / f"cracks_{i}_{name}.png") for name in images},
             "indirection_size": list(texture.indirection.shape[::-1]),

@@ -58,7 +58,7 @@ from glsynth.core.errors import UserError
 from glsynth.core.interrupts import RenderInterrupted
 from glsynth.core.labels import Component, Damage
 from glsynth.core.memory import available_bytes
-from glsynth.render.cracks_index import CRACK_CONTRAST, CrackIndex, pack_cracks
+from glsynth.render.cracks_index import CrackIndex, crack_contrast, pack_cracks
 from glsynth.render.gl.context import check_render_size, create_context
 from glsynth.render.gl.programs import (
     MAX_VIS,
@@ -139,16 +139,19 @@ class CrackTextures:
     """The leaching cracks' items, cells, entries (glsynth.render.leachate_index), or None."""
     leach_grid: tuple[tuple[float, float, float], float, tuple[int, int, int]] | None = None
     """Their grid's origin (relative to ``origin``), cell edge and dims."""
+    contrast: float = 0.0
+    """The share of the reflected light the network's cracks take away (crack_contrast)."""
 
     @property
     def all(self) -> tuple[moderngl.Texture, ...]:
         """Every texture, to release."""
         return self.textures + (self.leach or ())
 
-    def bind_leachate(self, prog: moderngl.Program, units: TextureUnits) -> None:
-        """A colour program's crack grid origin and leachate (shaders/crack_leachate.glsl),
-        with the crack segments whose paths it follows."""
+    def bind_colour(self, prog: moderngl.Program, units: TextureUnits) -> None:
+        """A colour program's crack grid origin, the cracks' contrast and their leachate
+        (shaders/crack_leachate.glsl), with the crack segments whose paths it follows."""
         prog["u_crack_origin"].value = self.origin
+        prog["u_crack_contrast"].value = self.contrast
         prog["u_has_leach"].value = self.leach is not None
         if self.leach is None:
             return
@@ -358,16 +361,16 @@ def _texel_textures(ctx: moderngl.Context, arrays: tuple[np.ndarray, np.ndarray,
 
 
 def upload_cracks(ctx: moderngl.Context, index: CrackIndex,
-                  leach: LeachateIndex | None = None) -> CrackTextures:
+                  leach: LeachateIndex | None = None, contrast: float = 0.0) -> CrackTextures:
     """A packed crack network's textures, and its leaching cracks' if any (the caller
-    releases them)."""
+    releases them); ``contrast``: its cracks' (crack_contrast)."""
     textures = _texel_textures(ctx, (index.segments, index.cells, index.entries))
     leach_textures = leach_grid = None
     if leach is not None:
         leach_textures = _texel_textures(ctx, (leach.items, leach.cells, leach.entries))
         leach_grid = (tuple(float(v) for v in leach.origin), leach.cell_m, leach.dims)
     return CrackTextures(textures, tuple(float(v) for v in index.origin), index.cell_m,
-                         index.dims, index.rough, leach_textures, leach_grid)
+                         index.dims, index.rough, leach_textures, leach_grid, contrast)
 
 
 class Renderer:
@@ -799,13 +802,11 @@ class Renderer:
         gains = tuple(lighting.exposure * w for w in lighting.white_balance)
         sky["u_exposure"].value = gains
         sky_sh, ground_sh = lighting.irradiance_sh()
-        for variant, color in self.programs.variants("color"):
+        for _, color in self.programs.variants("color"):
             color["u_exposure"].value = gains
             color["u_sun_color"].value = (lighting.sun_irradiance,) * 3
             color["u_sh_sky"].write(sky_sh.astype("f4").tobytes())
             color["u_sh_ground"].write(ground_sh.astype("f4").tobytes())
-            if Variant.CRACKS in variant:
-                color["u_crack_contrast"].value = CRACK_CONTRAST
         sky["u_sky_model"].value = 0 if lighting.sky == "preetham" else 1
         sky["u_sky_strength"].value = lighting.sky_strength
         sky["u_sky_uniform"].value = tuple(lighting.sky_strength * np.array(lighting.sky_rgb))
@@ -923,7 +924,8 @@ class Renderer:
         for draw in waiting[:limit]:
             index = pack_cracks(draw.cracks)
             draw.crack_textures = upload_cracks(self.ctx, index,
-                                                pack_leachate(draw.cracks, index.origin))
+                                                pack_leachate(draw.cracks, index.origin),
+                                                crack_contrast(draw.cracks))
         return sum(d.cracks is not None and d.crack_textures is None for d in self._draws)
 
     def _check_request(self, camera: Camera, passes: frozenset[str] | set[str]) -> None:
@@ -1141,7 +1143,7 @@ class Renderer:
                 if draw.detail is not None:
                     draw.detail.set(prog)
                 if Variant.CRACKS in key[1]:
-                    draw.crack_textures.bind_leachate(prog, self.units)
+                    draw.crack_textures.bind_colour(prog, self.units)
                 draw.vaos[key].render()
             self._draw_sky(camera)
 
