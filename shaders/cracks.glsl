@@ -125,7 +125,7 @@ vec3 crack_normal(vec3 dpdx, vec3 dpdy) {
     return lead < 0.0 ? -n : n;
 }
 
-// The darkening a crack gives a pixel, as a share of the interior's (CRACK_CONTRAST): the
+// The darkening a crack gives a pixel, as a share of the interior's (u_crack_contrast): the
 // band it covers; on a rough crack a chip ``chip`` m deep out of the lip on the pixel's side
 // (crack_chip), darkened by CRACK_CHIP_SHARE of the interior's; beyond it the lips, rounded
 // edges min(w, CRACK_LIP_M) wide each side, which turn from the light and darken by

@@ -84,17 +84,28 @@ def test_a_straight_crack_has_its_width_and_darkens_by_its_share_of_each_pixel(r
 
 def test_each_crack_network_darkens_by_its_own_contrast(renderer):
     """A network's contrast lies in CRACK_CONTRAST's range, is the same for the same network
-    and differs between networks (here by more than a tenth); each renders with its own."""
+    and differs between networks (here by more than a tenth); two members in one view, the
+    left half and the right, each darken by their own."""
     z, widths = 1.0, (2.0e-3, 2.1e-3)
-    nets = [vertical_crack(z, w) for w in widths]
+    nets = [vertical_crack(z, w, x) for w, x in zip(widths, (40.3, 120.3), strict=True)]
     contrasts = [crack_contrast(n) for n in nets]
     assert all(CRACK_CONTRAST[0] <= c <= CRACK_CONTRAST[1] for c in contrasts)
     assert crack_contrast(vertical_crack(z, widths[0])) == contrasts[0]
     assert abs(contrasts[1] - contrasts[0]) > 0.1
-    for net, w, contrast in zip(nets, widths, contrasts, strict=True):
-        base, out = render(renderer, plane(z), net)
-        per_row = darkening(out, base).sum(1)
-        assert np.abs(per_row / (contrast * w / (z / W)) - 1).max() <= 0.10
+    x_mid = 0.0  # on the plane, between image columns 79 and 80
+    halves = [quad([[-z, -z, -z], [x_mid, -z, -z], [x_mid, z, -z], [-z, z, -z]]),
+              quad([[x_mid, -z, -z], [z, -z, -z], [z, z, -z], [x_mid, z, -z]])]
+    outs = []
+    for cracks in ((None, None), nets):
+        items = [(f"member_{i}", Component.COLUMN, mesh, Material(base_color=GREY, cracks=c))
+                 for i, (mesh, c) in enumerate(zip(halves, cracks, strict=True))]
+        renderer.load(scene_of(*items), LIGHT)
+        outs.append(renderer.render(camera(W, H)))
+    per_row = darkening(outs[1], outs[0])
+    for w, contrast, columns in zip(widths, contrasts, (slice(0, W // 2), slice(W // 2, W)),
+                                    strict=True):
+        expected = contrast * w / (z / W)
+        assert np.abs(per_row[:, columns].sum(1) / expected - 1).max() <= 0.10
 
 
 def test_the_darkening_per_unit_length_is_the_same_at_1_and_1_1_m(renderer):

@@ -10,7 +10,7 @@ from glsynth.appearance import crack_paths
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.render.cracks_index import ROW, pack_cracks
+from glsynth.render.cracks_index import ROW, crack_contrast, pack_cracks
 from glsynth.render.gl.renderer import upload_cracks
 
 EPS = float(np.finfo(np.float32).eps)
@@ -257,7 +257,7 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     dpdy = np.array([0, 0, 1.0]) * side[:, 1:]
     origin = index.origin.astype(np.float64)  # the shader reads positions relative to it
     rows = [_rows(x) for x in (p - origin, dpdx, dpdy)]
-    textures = upload_cracks(glsl.ctx, index)
+    textures = upload_cracks(glsl.ctx, index, crack_contrast(network))
     out = glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
                    "crack_hit(in0.xyz, in1.xyz, in2.xyz).width_mm, "
                    "float(crack_hit(in0.xyz, in1.xyz, in2.xyz).labelled), "

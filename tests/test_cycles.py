@@ -104,8 +104,15 @@ of a horizontal one). Vertical cracks span rows 0-30, horizontal ones columns 0-
 68-127 (0.2 mm), so each is measured alone."""
 
 
+UNSEEN = ("vertical", 1.0, 200.0)
+"""A fifth crack on the plane, beside the view: the Cycles job frames its texture to the
+cracks in view, but the network's contrast is the whole network's (0.58 with it, 0.87 with the
+four in view alone)."""
+
+
 def _crack_scene(cam) -> tuple[list[Part], Material, CrackNetwork]:
-    """A matte plane 1 m before ``cam`` (at the origin, looking down -z) and CRACKS on it."""
+    """A matte plane 1 m before ``cam`` (at the origin, looking down -z), CRACKS on it and
+    UNSEEN beside the view."""
     k = cam.K
 
     def at(column: float, row: float) -> list[float]:  # pixel edges at n - 0.5 .. n + 0.5
@@ -114,9 +121,9 @@ def _crack_scene(cam) -> tuple[list[Part], Material, CrackNetwork]:
     segments = {"vertical": lambda p: [at(p, -4), at(p, 30)],
                 "horizontal": lambda p: ([at(-4, p), at(60, p)] if p < 50
                                          else [at(68, p), at(132, p)])}
-    points = np.array([segments[d](p) for d, _, p in CRACKS])
-    widths = np.repeat([[w / 1000] for _, w, _ in CRACKS], 2, axis=1)
-    net = CrackNetwork(points, widths, np.arange(4, dtype=np.int32), ("flexural",) * 4)
+    points = np.array([segments[d](p) for d, _, p in (*CRACKS, UNSEEN)])
+    widths = np.repeat([[w / 1000] for _, w, _ in (*CRACKS, UNSEEN)], 2, axis=1)
+    net = CrackNetwork(points, widths, np.arange(5, dtype=np.int32), ("flexural",) * 5)
     plane = quad([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]])
     return [Part("column_face", PartKind.COLUMN, None, plane, np.eye(4))], MATTE, net
 
@@ -146,6 +153,8 @@ def test_cracks_darken_the_same_pixels_by_the_same_share_in_cycles(tmp_path):
     width, height, focal = CRACK_VIEW
     cam = camera(width, height, focal)
     parts, plain, net = _crack_scene(cam)
+    # A contrast far from the 0.85 every crack once had: a constant would fail below.
+    assert abs(crack_contrast(net) - 0.85) > 0.2
     cracked = dataclasses.replace(plain, cracks=net)
     gl, cycles = {}, {}
     for name, material in (("plain", plain), ("cracked", cracked)):

@@ -57,11 +57,13 @@ low end, half)."""
 
 
 def crack_contrast(network: CrackNetwork) -> float:
-    """A network's share in CRACK_CONTRAST's range, from a hash (CRC-32) of its widths: drawn
-    from the network itself, so from its seeds, with no generator of its own that would move
-    any other draw; GL and the Cycles twin read the same value."""
+    """A network's share in CRACK_CONTRAST's range, from a hash (CRC-32) of its widths (as
+    little-endian float64, -0 as 0): drawn from the network itself, with no generator of its
+    own that would move any other draw (a change to how widths are drawn draws it anew); GL
+    and the Cycles twin read the same value, from the whole network."""
     low, high = CRACK_CONTRAST
-    return low + (high - low) * (zlib.crc32(np.asarray(network.widths_m).tobytes()) / 2**32)
+    widths = np.ascontiguousarray(network.widths_m, "<f8") + 0.0
+    return low + (high - low) * (zlib.crc32(widths.tobytes()) / 2**32)
 
 
 @dataclass(frozen=True, eq=False)

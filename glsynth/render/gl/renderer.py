@@ -135,12 +135,12 @@ class CrackTextures:
     rough: bool
     """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
     demo environment's would add 155 MB to the RSS)."""
+    contrast: float
+    """The share of the reflected light the network's cracks take away (crack_contrast)."""
     leach: tuple[moderngl.Texture, moderngl.Texture, moderngl.Texture] | None = None
     """The leaching cracks' items, cells, entries (glsynth.render.leachate_index), or None."""
     leach_grid: tuple[tuple[float, float, float], float, tuple[int, int, int]] | None = None
     """Their grid's origin (relative to ``origin``), cell edge and dims."""
-    contrast: float = 0.0
-    """The share of the reflected light the network's cracks take away (crack_contrast)."""
 
     @property
     def all(self) -> tuple[moderngl.Texture, ...]:
@@ -360,8 +360,8 @@ def _texel_textures(ctx: moderngl.Context, arrays: tuple[np.ndarray, np.ndarray,
     return tuple(textures)
 
 
-def upload_cracks(ctx: moderngl.Context, index: CrackIndex,
-                  leach: LeachateIndex | None = None, contrast: float = 0.0) -> CrackTextures:
+def upload_cracks(ctx: moderngl.Context, index: CrackIndex, contrast: float,
+                  leach: LeachateIndex | None = None) -> CrackTextures:
     """A packed crack network's textures, and its leaching cracks' if any (the caller
     releases them); ``contrast``: its cracks' (crack_contrast)."""
     textures = _texel_textures(ctx, (index.segments, index.cells, index.entries))
@@ -370,7 +370,7 @@ def upload_cracks(ctx: moderngl.Context, index: CrackIndex,
         leach_textures = _texel_textures(ctx, (leach.items, leach.cells, leach.entries))
         leach_grid = (tuple(float(v) for v in leach.origin), leach.cell_m, leach.dims)
     return CrackTextures(textures, tuple(float(v) for v in index.origin), index.cell_m,
-                         index.dims, index.rough, leach_textures, leach_grid, contrast)
+                         index.dims, index.rough, contrast, leach_textures, leach_grid)
 
 
 class Renderer:
@@ -923,9 +923,8 @@ class Renderer:
             self.make_current()
         for draw in waiting[:limit]:
             index = pack_cracks(draw.cracks)
-            draw.crack_textures = upload_cracks(self.ctx, index,
-                                                pack_leachate(draw.cracks, index.origin),
-                                                crack_contrast(draw.cracks))
+            draw.crack_textures = upload_cracks(self.ctx, index, crack_contrast(draw.cracks),
+                                                pack_leachate(draw.cracks, index.origin))
         return sum(d.cracks is not None and d.crack_textures is None for d in self._draws)
 
     def _check_request(self, camera: Camera, passes: frozenset[str] | set[str]) -> None:
