@@ -30,10 +30,11 @@ DARK = 0.85
 """A crack pixel counts as dark below this share of the ring's luma."""
 
 
-def local_contrast(crack: np.ndarray, luma: np.ndarray) -> tuple[float, float, float] | None:
+def local_contrast(crack: np.ndarray, inside: np.ndarray, luma: np.ndarray
+                   ) -> tuple[float, float, float] | None:
     """(crack pixels' median luma, the mask edge's median luma, the share of crack pixels
-    darker than DARK) over the ring's median luma; None without a ring."""
-    inside = cv2.distanceTransform(crack.astype(np.uint8), cv2.DIST_L2, 5)
+    darker than DARK) over the ring's median luma; ``inside``: each crack pixel's distance to
+    the background; None without a ring."""
     outside = cv2.distanceTransform((~crack).astype(np.uint8), cv2.DIST_L2, 5)
     ring = (outside > RING_PX[0]) & (outside <= RING_PX[1])
     if not ring.any():
@@ -60,7 +61,7 @@ def mask_stats(images: list[CrackImage]) -> dict:
         luma = image.rgb.astype(float) @ LUMA
         if (~image.crack).any():
             contrast.append(luma[image.crack].mean() / max(luma[~image.crack].mean(), 1e-6))
-        beside = local_contrast(image.crack, luma)
+        beside = local_contrast(image.crack, distance, luma)
         if beside is not None:
             local.append(beside)
     every = np.concatenate(widths) if widths else np.zeros(0)
