@@ -11,6 +11,7 @@ uniform isampler2D u_crack_entries;  // segment ids, cell after cell
 uniform float u_crack_cell_m;        // its cells' edge
 uniform ivec3 u_crack_dims;          // its cells along x, y, z
 uniform bool u_crack_rough;          // carry each segment's path on below its ends (below)
+uniform float u_crack_footprint_m;   // the half footprint its own cell's list serves
 
 // A crack's path is self-affine: the lateral offset between points x apart has variance
 // (A xi)^2 (x / xi)^(2H), H fine below the coarse aggregate's size xi, coarse above it. The
@@ -244,16 +245,16 @@ void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout 
                 nearest);
 }
 
-// The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a pixel whose derivatives are dpdx, dpdy.
-// The own cell's list holds every crack within one cell edge beyond its edge; a pixel whose
-// half footprint reaches further also reads the cells within the rest of it, up to one more
-// each way (glsynth.render.cracks_index).
+// The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a
+// pixel whose derivatives are dpdx, dpdy. The own cell's list holds every crack that a pixel
+// of half footprint up to u_crack_footprint_m needs; a pixel whose half footprint reaches
+// further also reads the cells within the rest of it, up to one more each way
+// (glsynth.render.cracks_index).
 CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     CrackHit hit = CrackHit(0.0, 0.0, false);
     float nearest = 1e30;
     float h = u_crack_cell_m;
-    float reach = u_crack_rough ? CRACK_REACH_M : 0.0;
-    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) + reach - h, 0.0, h);
+    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) - u_crack_footprint_m, 0.0, h);
     ivec3 lo = max(crack_grid(p - extra), ivec3(0));
     ivec3 hi = min(crack_grid(p + extra), u_crack_dims - 1);
     ivec2 near = ivec2(-1);

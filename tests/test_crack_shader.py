@@ -286,6 +286,121 @@ def test_crack_hit_through_the_grid_matches_every_segment(glsl):
     assert labelled.mean() > 0.3 and (coverage > 0).mean() > 0.3
 
 
+def _rough_network(rng: np.random.Generator) -> CrackNetwork:
+    """The column network with each segment cut into 4 cm steps, as the generators' rough
+    cracks are (their paths then stray a few millimetres), rough."""
+    network = _column_network(rng)
+    points, widths = [], []
+    for (a, b), (w0, w1) in zip(network.points, network.widths_m, strict=True):
+        cuts = np.linspace(0, 1, max(1, round(np.linalg.norm(b - a) / 0.04)) + 1)
+        ends = a + cuts[:, None] * (b - a)
+        points.append(np.stack([ends[:-1], ends[1:]], 1))
+        w = w0 + cuts * (w1 - w0)
+        widths.append(np.stack([w[:-1], w[1:]], 1))
+    points, widths = np.concatenate(points), np.concatenate(widths)
+    return CrackNetwork(points, widths, np.zeros(len(points), np.int32), ("flexural",), True)
+
+
+def test_a_paths_stray_bounds_its_offsets_at_every_footprint():
+    """path_stray: no offset of a segment's path, at any footprint and anywhere along it, lies
+    further from its chord; and it is a near bound, not the shader's 3 cm margin for all."""
+    rng = make_rng(7, 0, Stream.DAMAGE)
+    n = 2000
+    length = rng.uniform(0.005, 0.3, n)
+    seeds = crack_paths.segment_seeds(rng.uniform(5e-5, 5e-3, (n, 2)))
+    stray = crack_paths.path_stray(length, seeds)
+    t = rng.uniform(0, 1, (n, 300))
+    for finest in (1e-5, 3e-4, 3e-3):
+        offsets = np.abs(crack_paths.shader_offsets(t, length[:, None], seeds[:, None],
+                                                    finest)).max(1)
+        assert np.all(offsets <= stray)
+        assert np.median(offsets / stray) > 0.5
+    short = length < 0.05
+    assert np.all(stray <= REACH) and np.median(stray[short]) < 0.2 * REACH
+
+
+def test_a_rough_networks_cells_list_every_path_within_the_footprint_of_their_points():
+    """pack_cracks, rough network: from every corner and from random points of cells near its
+    cracks, every segment whose path (crack_paths.shader_offsets, sampled finely at the finest
+    footprint) or chipped lips come within ROUGH_FOOTPRINT_M is in the cell's list."""
+    from glsynth.render.cracks_index import ROUGH_FOOTPRINT_M
+
+    c = crack_paths.SHADER_CONSTANTS
+    rng = make_rng(9, 0, Stream.DAMAGE)
+    network = _rough_network(rng)
+    index = pack_cracks(network)
+    assert index.rough and index.footprint_m == ROUGH_FOOTPRINT_M
+    a, b = network.points[:, 0], network.points[:, 1]
+    t = np.linspace(0, 1, 257)[None, :]
+    stray = np.abs(crack_paths.shader_offsets(
+        t, np.linalg.norm(b - a, axis=1)[:, None],
+        crack_paths.segment_seeds(network.widths_m)[:, None], 1e-5)).max(1)
+    edge = stray + (0.5 + c["CRACK_CHIP_MAX"]) * network.widths_m.max(1) + c["CRACK_LIP_M"]
+    # Cells around points near the cracks; in each, its 8 corners (a hair inside) and 8
+    # random points.
+    seg = rng.integers(0, len(a), 1500)
+    near = a[seg] + rng.uniform(0, 1, (1500, 1)) * (b[seg] - a[seg]) \
+        + rng.normal(0, 0.03, (1500, 3))
+    origin = index.origin.astype(np.float64)
+    ijk = np.floor((near - origin) / index.cell_m).astype(int)
+    ijk = np.unique(ijk[np.all((ijk >= 0) & (ijk < index.dims), 1)], axis=0)
+    corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)]) * 0.999 \
+        + 0.0005
+    inside = np.concatenate([corners, rng.uniform(0, 1, (8, 3))])
+    points = origin + (ijk[:, None] + inside[None]) * index.cell_m  # (cells, 16, 3)
+    d, _ = segment_distance(points.reshape(-1, 1, 3), a[None], b[None])
+    need = (d <= edge + ROUGH_FOOTPRINT_M).reshape(len(ijk), len(inside), -1).any(1)
+    cells, entries = index.cells.reshape(-1, 2), index.entries.ravel()
+    cell_id = ijk[:, 0] + index.dims[0] * (ijk[:, 1] + index.dims[1] * ijk[:, 2])
+    for k in range(len(ijk)):
+        start, count = cells[cell_id[k]]
+        assert set(np.nonzero(need[k])[0]) <= set(entries[start:start + count])
+    # The lists are near what is needed: the corners reach about as far as the lists.
+    listed = cells[cell_id, 1].sum()
+    assert need.sum() > 2000 and listed < 1.5 * need.sum()
+
+
+def test_a_rough_networks_short_lists_find_what_every_segment_finds(glsl, monkeypatch):
+    """crack_hit on a rough network through its cell lists (each segment as far as its own
+    path, chips and lips reach; list_reach) gives, bit for bit, what it gives when every cell
+    lists every segment, for pixels near and far up to the documented bound (|dpdx| + |dpdy|
+    <= 14 cm), grazing ones included."""
+    import glsynth.render.cracks_index as cracks_index
+
+    rng = make_rng(8, 0, Stream.DAMAGE)
+    network = _rough_network(rng)
+    n = 8192
+    seg = rng.integers(0, len(network.points), n)
+    a, b = network.points[seg, 0], network.points[seg, 1]
+    p = a + rng.uniform(0, 1, (n, 1)) * (b - a)
+    on_x = np.isclose(np.abs(p[:, 0]), 0.4)
+    sides = np.array([[5e-5, 5e-5], [1e-3, 1e-3], [1e-2, 1e-2], [0.07, 0.07], [0.02, 0.12]])
+    side = sides[rng.integers(0, len(sides), n)]
+    p[:, 2] += rng.normal(0, 0.01, n) + np.where(side[:, 1] >= 0.07,
+                                                 rng.uniform(-0.07, 0.07, n), 0.0)
+    dpdx = np.where(on_x[:, None], [0, 1, 0], [1, 0, 0]) * side[:, :1]
+    dpdy = np.array([0, 0, 1.0]) * side[:, 1:]
+    short = pack_cracks(network)
+    monkeypatch.setattr(cracks_index, "list_reach",
+                        lambda net, cell: (np.full(len(net.points), 1e3), 1e3))
+    every = pack_cracks(network)
+    assert short.origin.tobytes() == every.origin.tobytes()
+    assert every.longest == len(network.points) > 4 * short.longest
+    origin = short.origin.astype(np.float64)
+    rows = [_rows(x) for x in (p - origin, dpdx, dpdy)]
+    outs = []
+    for index in (short, every):
+        textures = upload_cracks(glsl.ctx, index, crack_contrast(network))
+        outs.append(glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
+                             "crack_hit(in0.xyz, in1.xyz, in2.xyz).width_mm, "
+                             "float(crack_hit(in0.xyz, in1.xyz, in2.xyz).labelled), 0.0",
+                             *rows, setup=lambda prog, t=textures: t.bind(prog, glsl.units)))
+        for texture in textures.textures:
+            texture.release()
+    assert np.array_equal(outs[0], outs[1])
+    assert (outs[0][:, 2] == 1).mean() > 0.2 and (outs[0][:, 0] > 0).mean() > 0.3
+
+
 def test_each_cell_lists_every_segment_within_reach_of_its_points():
     """pack_cracks: from any point of a cell, every segment whose crack edge lies within one
     cell edge is in the cell's list; ``longest`` is the longest list."""

@@ -198,3 +198,38 @@ def shader_offsets(t: np.ndarray, length_m: np.ndarray, seed: np.ndarray,
         interval = np.where(active, interval / 2, interval)
     reach = c["CRACK_REACH_M"]
     return np.clip(lo + (hi - lo) * (t - a) / (b - a), -reach, reach)
+
+
+STRAY_EXACT_LEVELS = 5
+"""path_stray draws a path's first this many levels (31 midpoints); below them it adds the
+most the rest can add."""
+_DRAW_BOUND = math.sqrt(6.0)
+"""|crack_draw| is below this: the sum of two uniforms, scaled to variance 1."""
+
+
+def path_stray(length_m: np.ndarray, seed: np.ndarray) -> np.ndarray:
+    """(N,) the most (m) each segment's path (shader_offsets, at any footprint) strays from
+    its chord, as a bound: the largest |offset| of its midpoints on the first
+    STRAY_EXACT_LEVELS levels, drawn as the shader draws them, plus, for each deeper level,
+    the most one draw can move a point (its spread times _DRAW_BOUND); at most CRACK_REACH_M.
+    A path is linear between its midpoints, and a midpoint lies between its interval's ends
+    moved by one draw, so no point of it strays further (the shader's float32 sums differ
+    from these by under 0.1 um: tests/test_crack_shader.py). The cell lists of a rough
+    network reach as far as its segments' own paths do (glsynth.render.cracks_index), not
+    the shader's margin for all: a 4 cm segment strays about 4 mm, not 30."""
+    c = SHADER_CONSTANTS
+    length = np.asarray(length_m, np.float64)
+    seed = np.asarray(seed, np.uint32)[:, None]
+    nodes = np.zeros((len(length), 2))  # the ends, then each level's midpoints between them
+    stray = np.zeros(len(length))
+    for level in range(STRAY_EXACT_LEVELS):
+        index = np.arange(2 ** level, dtype=np.uint64)[None, :]
+        middle = (nodes[:, :-1] + nodes[:, 1:]) / 2 \
+            + midpoint_sd(length / 2 ** level)[:, None] * _draw(seed, level, index)
+        stray = np.maximum(stray, np.abs(middle).max(1))
+        merged = np.empty((len(length), 2 * nodes.shape[1] - 1))
+        merged[:, 0::2], merged[:, 1::2] = nodes, middle
+        nodes = merged
+    for level in range(STRAY_EXACT_LEVELS, int(c["CRACK_LEVELS"])):
+        stray = stray + _DRAW_BOUND * midpoint_sd(length / 2 ** level)
+    return np.minimum(stray, c["CRACK_REACH_M"])

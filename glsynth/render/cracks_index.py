@@ -3,19 +3,27 @@ uniform 3D grid over them so that a fragment tests only the segments that can re
 
 The grid covers the network's box in the mesh frame, grown by half the widest width and two
 cell edges on every side. Its cells are cubes of edge ``cell_m``: 5 cm, or larger where the
-box would need more than 2^20 cells (the edge then grows by 25 % steps until it fits). A cell
-lists every segment whose centreline comes within half the segment's widest width plus two
-cell edges of the cell's centre. Any point of the cell lies within 0.87 cell edges of its
-centre, so a fragment that reads its own cell sees every segment within half its width plus
-one cell edge (1.13, rounded down) of it. The labelling and coverage rules need cracks up to
-half a pixel footprint beyond their edge (docs/design.md, "Cracks"), so a fragment whose half
-footprint (half of |dp/dx| + |dp/dy|) exceeds one cell edge also reads the cells within the
-rest of it, at most one more each way (shaders/cracks.glsl). The rules then hold exactly while
-|dp/dx| + |dp/dy| is at most four cell edges, 20 cm at 5 cm cells (square pixels of 10 cm: a
-1920-pixel-wide view through a 36 mm lens on the 36 mm sensor, 190 m away). Beyond that, a
-pixel misses a crack further than two cell edges from its centre, whose darkening there is
-below w / 10 cm anyway. The cost's worst case is the longest cell list times 27 cells (a far
-fragment), or one list for every fragment nearer: ``CrackIndex.longest`` reports it.
+box would need more than 2^20 cells (the edge then grows by 25 % steps until it fits). The
+labelling and coverage rules need cracks up to half a pixel footprint beyond their edge
+(docs/design.md, "Cracks"). A cell lists every segment whose centreline comes within the
+segment's own reach of the cell's centre (list_reach), so that a fragment anywhere in the cell
+finds in its list every crack whose edge lies within ``footprint_m`` of it:
+- straight networks: half the segment's widest width plus two cell edges, ``footprint_m`` one
+  cell edge (any point of a cell lies within 0.87 cell edges of its centre);
+- rough networks: 0.87 cell edges plus ``footprint_m`` (ROUGH_FOOTPRINT_M) plus how far the
+  crack's edge may lie from its chord: its path's stray (crack_paths.path_stray, a few
+  millimetres for a 4 cm segment) and its chipped lips, up to (0.5 + CRACK_CHIP_MAX) widths
+  and CRACK_LIP_M. A pixel walks 40 % fewer entries than under the rule of straight networks
+  with the shader's 3 cm margin for every path, which rough networks used before.
+A fragment whose half footprint (half of |dp/dx| + |dp/dy|) is at most ``footprint_m`` reads
+its own cell alone; one whose half footprint is larger also reads the cells within the rest of
+it, at most one more each way (shaders/cracks.glsl). The rules then hold exactly while
+|dp/dx| + |dp/dy| is at most 2 (``footprint_m`` + one cell edge): 20 cm for a straight
+network, 14 cm for a rough one (square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm
+lens on the 36 mm sensor, 130 m away). Beyond that, a pixel misses a crack further than that
+from its centre, whose darkening there is below w / 7 cm anyway. The cost's worst case is the
+longest cell list times 27 cells (a far fragment), or one list for every fragment nearer:
+``CrackIndex.longest`` reports it.
 
 Every texture is 4096 texels wide (ROW), filled row by row; the shader finds an entry's texel
 by a mask and a shift of its index (CRACK_ROW_BITS).
@@ -35,11 +43,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glsynth.appearance.crack_paths import SHADER_CONSTANTS, path_stray, segment_seeds
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance_axes
 
 CELL_M = 0.05
 """The grid's smallest cell edge."""
+HALF_DIAGONAL = 0.8661
+"""The most any point of a cell lies from its centre, in cell edges (sqrt(3) / 2 rounded up:
+3.7 um to spare at 5 cm for the float32 positions)."""
+ROUGH_FOOTPRINT_M = 0.02
+"""The half footprint up to which a fragment of a rough network reads its own cell alone: the
+close views' pixels (under a millimetre) with room to spare, and lists about half as long as a
+whole cell edge's (a view's label pass walks every entry of its pixels' lists)."""
 MAX_CELLS = 1 << 20
 BATCH = 1 << 16
 """The most (cell, segment) pairs tested at once: their temporaries (0.5 MB each) stay in
@@ -86,6 +102,9 @@ class CrackIndex:
     """The longest cell list: the most segments one fragment tests."""
     rough: bool = False
     """The network's segments carry their paths on below their ends (CrackNetwork.rough)."""
+    footprint_m: float = CELL_M
+    """The half footprint up to which a fragment's own cell lists every crack it needs
+    (list_reach)."""
 
 
 def _rows(flat: np.ndarray) -> np.ndarray:
@@ -143,6 +162,21 @@ def _near_pairs(points: np.ndarray, reach: np.ndarray, origin: np.ndarray, cell:
     return np.sort(np.concatenate(keys))
 
 
+def list_reach(network: CrackNetwork, cell: float) -> tuple[np.ndarray, float]:
+    """(N,) how far from a cell's centre each segment's centreline may lie and still be in the
+    cell's list, and the half footprint that a fragment's own cell then serves (this module's
+    docstring)."""
+    half = network.widths_m.max(1) / 2
+    if not network.rough:
+        return half + 2 * cell, cell
+    c = SHADER_CONSTANTS
+    points = network.points
+    stray = path_stray(np.linalg.norm(points[:, 1] - points[:, 0], axis=1),
+                       segment_seeds(network.widths_m))
+    edge = (1 + 2 * c["CRACK_CHIP_MAX"]) * half + c["CRACK_LIP_M"]
+    return HALF_DIAGONAL * cell + ROUGH_FOOTPRINT_M + stray + edge, ROUGH_FOOTPRINT_M
+
+
 def pack_cracks(network: CrackNetwork) -> CrackIndex:
     """The textures and grid of ``network`` (docstring of this module)."""
     points, widths = network.points, network.widths_m
@@ -156,7 +190,7 @@ def pack_cracks(network: CrackNetwork) -> CrackIndex:
     half = widths.max(1) / 2
     origin, cell, dims = _grid(points.reshape(-1, 3), float(half.max()))
     origin = origin.astype(np.float32).astype(np.float64)  # the corner the shader subtracts
-    reach = half + 2 * cell
+    reach, footprint = list_reach(network, cell)
     low = np.floor((points.min(1) - reach[:, None] - origin) / cell).astype(np.int64)
     high = np.floor((points.max(1) + reach[:, None] - origin) / cell).astype(np.int64)
     keys = _near_pairs(points, reach, origin, cell, dims, low, high)
@@ -167,4 +201,4 @@ def pack_cracks(network: CrackNetwork) -> CrackIndex:
     return CrackIndex(_rows(segments.astype(np.float32)),
                       _rows(np.stack([starts, counts], 1).astype(np.int32)), _rows(entries),
                       origin.astype(np.float32), cell, tuple(int(d) for d in dims),
-                      int(counts.max()), network.rough)
+                      int(counts.max()), network.rough, footprint)

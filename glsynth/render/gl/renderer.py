@@ -133,6 +133,7 @@ class CrackTextures:
     cell_m: float
     dims: tuple[int, int, int]
     rough: bool
+    footprint_m: float
     """The grid's uniforms; the index's arrays are not kept (the textures hold them, and a
     demo environment's would add 155 MB to the RSS)."""
     contrast: float
@@ -176,6 +177,7 @@ class CrackTextures:
         prog["u_crack_cell_m"].value = self.cell_m
         prog["u_crack_dims"].value = self.dims
         prog["u_crack_rough"].value = self.rough
+        prog["u_crack_footprint_m"].value = self.footprint_m
 
 
 @dataclass(frozen=True, eq=False)
@@ -370,7 +372,8 @@ def upload_cracks(ctx: moderngl.Context, index: CrackIndex, contrast: float,
         leach_textures = _texel_textures(ctx, (leach.items, leach.cells, leach.entries))
         leach_grid = (tuple(float(v) for v in leach.origin), leach.cell_m, leach.dims)
     return CrackTextures(textures, tuple(float(v) for v in index.origin), index.cell_m,
-                         index.dims, index.rough, contrast, leach_textures, leach_grid)
+                         index.dims, index.rough, index.footprint_m, contrast, leach_textures,
+                         leach_grid)
 
 
 class Renderer:
