@@ -301,20 +301,33 @@ def _rough_network(rng: np.random.Generator) -> CrackNetwork:
     return CrackNetwork(points, widths, np.zeros(len(points), np.int32), ("flexural",), True)
 
 
-def test_a_paths_stray_bounds_its_offsets_at_every_footprint():
-    """path_stray: no offset of a segment's path, at any footprint and anywhere along it, lies
-    further from its chord; and it is a near bound, not the shader's 3 cm margin for all."""
+def test_a_paths_bounds_hold_at_every_footprint():
+    """path_bounds: no offset of a segment's path, at any footprint and anywhere along it,
+    lies further from its chord than its stray, and where a pixel refines it one to five
+    times, none is steeper than that level's slope; the stray is a near bound, not the
+    shader's 3 cm margin for all."""
     rng = make_rng(7, 0, Stream.DAMAGE)
     n = 2000
     length = rng.uniform(0.005, 0.3, n)
     seeds = crack_paths.segment_seeds(rng.uniform(5e-5, 5e-3, (n, 2)))
-    stray = crack_paths.path_stray(length, seeds)
-    t = rng.uniform(0, 1, (n, 300))
-    for finest in (1e-5, 3e-4, 3e-3):
-        offsets = np.abs(crack_paths.shader_offsets(t, length[:, None], seeds[:, None],
-                                                    finest)).max(1)
-        assert np.all(offsets <= stray)
-        assert np.median(offsets / stray) > 0.5
+    stray, slopes = crack_paths.path_bounds(length, seeds)
+    t = rng.uniform(0, 1 - 1e-6, (n, 300))
+    checked = 0
+    for finest in (1e-5, 3e-4, 3e-3, 1e-2):
+        offsets = crack_paths.shader_offsets(t, length[:, None], seeds[:, None], finest)
+        assert np.all(np.abs(offsets).max(1) <= stray)
+        assert np.median(np.abs(offsets).max(1) / stray) > 0.5
+        # The path is linear within its finest interval: a step of 1e-6 of the length reads
+        # its slope (or, across a midpoint, a mean of two).
+        step = crack_paths.shader_offsets(t + 1e-6, length[:, None], seeds[:, None], finest)
+        steepest = (np.abs(step - offsets) / (1e-6 * length[:, None])).max(1)
+        levels = np.floor(np.log2(length / finest)).astype(int)  # as crack_offset counts
+        assert np.all(steepest[levels <= 0] == 0)
+        refined = (levels >= 1) & (levels <= slopes.shape[1])
+        bound = slopes[refined, levels[refined] - 1]
+        assert np.all(steepest[refined] <= bound * (1 + 1e-6) + 1e-9)
+        checked += refined.sum()
+    assert checked > 1000 and np.median(slopes[:, 0]) > 0.05
     short = length < 0.05
     assert np.all(stray <= REACH) and np.median(stray[short]) < 0.2 * REACH
 

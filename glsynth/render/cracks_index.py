@@ -10,17 +10,25 @@ segment's own reach of the cell's centre (list_reach), so that a fragment anywhe
 finds in its list every crack whose edge lies within ``footprint_m`` of it:
 - straight networks: half the segment's widest width plus two cell edges, ``footprint_m`` one
   cell edge (any point of a cell lies within 0.87 cell edges of its centre);
-- rough networks: 0.87 cell edges plus ``footprint_m`` (ROUGH_FOOTPRINT_M) plus how far the
-  crack's edge may lie from its chord: its path's stray (crack_paths.path_stray, a few
-  millimetres for a 4 cm segment) and its chipped lips, up to (0.5 + CRACK_CHIP_MAX) widths
-  and CRACK_LIP_M. A pixel walks 40 % fewer entries than under the rule of straight networks
+- rough networks: 0.87 cell edges plus how far the crack's edge may lie from its chord: its
+  path's stray (crack_paths.path_bounds, a few millimetres for a 4 cm segment), then its
+  chipped lips, up to (0.5 + CRACK_CHIP_MAX) widths and CRACK_LIP_M, plus ``footprint_m``
+  (ROUGH_FOOTPRINT_M), widened by the path's slope at the footprint (the shader measures to
+  the path's local tangent, so a steep stretch reaches 1 / cos of its slope further across
+  the chord). A pixel walks 40 % fewer entries than under the rule of straight networks
   with the shader's 3 cm margin for every path, which rough networks used before.
 A fragment whose half footprint (half of |dp/dx| + |dp/dy|) is at most ``footprint_m`` reads
 its own cell alone; one whose half footprint is larger also reads the cells within the rest of
 it, at most one more each way (shaders/cracks.glsl). The rules then hold exactly while
 |dp/dx| + |dp/dy| is at most 2 (``footprint_m`` + one cell edge): 20 cm for a straight
 network, 14 cm for a rough one (square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm
-lens on the 36 mm sensor, 130 m away). Beyond that, a pixel misses a crack further than that
+lens on the 36 mm sensor, 130 m away). On a rough network, two caveats: the slopes are drawn
+for pixels that refine a path at most five times (half footprints over 1/64 of a segment's
+length); a finer pixel relies on the margin's slack, enough while the path's slope there
+stays under about 1.8 beside the widest (10 mm) cracks and 13 beside 1 mm ones. And the
+shader draws the rough paths of the two segments nearest a pixel by their chords among the
+listed ones within CRACK_REACH_M (crack_walk): the lists decide which compete, so where
+three or more paths meet, the one left out may differ from a search of every segment's. Beyond that, a pixel misses a crack further than that
 from its centre, whose darkening there is below w / 7 cm anyway. The cost's worst case is the
 longest cell list times 27 cells (a far fragment), or one list for every fragment nearer:
 ``CrackIndex.longest`` reports it.
@@ -43,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glsynth.appearance.crack_paths import SHADER_CONSTANTS, path_stray, segment_seeds
+from glsynth.appearance.crack_paths import SHADER_CONSTANTS, path_bounds, segment_seeds
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance_axes
 
@@ -170,11 +178,17 @@ def list_reach(network: CrackNetwork, cell: float) -> tuple[np.ndarray, float]:
     if not network.rough:
         return half + 2 * cell, cell
     c = SHADER_CONSTANTS
-    points = network.points
-    stray = path_stray(np.linalg.norm(points[:, 1] - points[:, 0], axis=1),
-                       segment_seeds(network.widths_m))
+    length = np.linalg.norm(network.points[:, 1] - network.points[:, 0], axis=1)
+    stray, slopes = path_bounds(length, segment_seeds(network.widths_m))
     edge = (1 + 2 * c["CRACK_CHIP_MAX"]) * half + c["CRACK_LIP_M"]
-    return HALF_DIAGONAL * cell + ROUGH_FOOTPRINT_M + stray + edge, ROUGH_FOOTPRINT_M
+    # crack_rough measures to the path's local tangent: across the chord, a pixel of half
+    # footprint f on a stretch of slope s is labelled and darkened up to (edge + f) / cos
+    # further out. A pixel that refines the path j + 1 times has f <= length / 2^(j + 1);
+    # one refining it more (f <= length / 64) has the margin's slack.
+    finest = length[:, None] / 2.0 ** np.arange(1, slopes.shape[1] + 1)
+    sideways = (edge[:, None] + np.minimum(ROUGH_FOOTPRINT_M, finest)) * np.sqrt(1 + slopes ** 2)
+    beside = np.maximum(edge + ROUGH_FOOTPRINT_M, sideways.max(1))
+    return HALF_DIAGONAL * cell + stray + beside, ROUGH_FOOTPRINT_M
 
 
 def pack_cracks(network: CrackNetwork) -> CrackIndex:
