@@ -28,10 +28,11 @@ length); a finer pixel relies on the margin's slack, enough while the path's slo
 stays under about 1.8 beside the widest (10 mm) cracks and 13 beside 1 mm ones. And the
 shader draws the rough paths of the two segments nearest a pixel by their chords among the
 listed ones within CRACK_REACH_M (crack_walk): the lists decide which compete, so where
-three or more paths meet, the one left out may differ from a search of every segment's. Beyond that, a pixel misses a crack further than that
-from its centre, whose darkening there is below w / 7 cm anyway. The cost's worst case is the
-longest cell list times 27 cells (a far fragment), or one list for every fragment nearer:
-``CrackIndex.longest`` reports it.
+three or more paths meet, the one left out may differ from a search of every segment's.
+Beyond the range, a pixel may miss a crack further than the cells it reads: its darkening
+there is below w / 7 cm, but its label is lost (docs/results.md, round nineteen: edge-on
+pixels). The cost's worst case is the longest cell list times 27 cells (a far fragment), or
+one list for every fragment nearer: ``CrackIndex.longest`` reports it.
 
 Every texture is 4096 texels wide (ROW), filled row by row; the shader finds an entry's texel
 by a mask and a shift of its index (CRACK_ROW_BITS).
