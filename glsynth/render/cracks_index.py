@@ -184,11 +184,12 @@ def list_reach(network: CrackNetwork, cell: float) -> tuple[np.ndarray, float]:
     edge = (1 + 2 * c["CRACK_CHIP_MAX"]) * half + c["CRACK_LIP_M"]
     # crack_rough measures to the path's local tangent: across the chord, a pixel of half
     # footprint f on a stretch of slope s is labelled and darkened up to (edge + f) / cos
-    # further out. A pixel that refines the path j + 1 times has f <= length / 2^(j + 1);
-    # one refining it more (f <= length / 64) has the margin's slack.
-    finest = length[:, None] / 2.0 ** np.arange(1, slopes.shape[1] + 1)
-    sideways = (edge[:, None] + np.minimum(ROUGH_FOOTPRINT_M, finest)) * np.sqrt(1 + slopes ** 2)
-    beside = np.maximum(edge + ROUGH_FOOTPRINT_M, sideways.max(1))
+    # further out. A pixel that refines the path j + 1 times (column j) has f at most
+    # length / 2^(j + 1); one refining it more (f <= length / 64) has the margin's slack.
+    half_footprint = np.minimum(ROUGH_FOOTPRINT_M,
+                                length[:, None] / 2.0 ** np.arange(1, slopes.shape[1] + 1))
+    tangent = (edge[:, None] + half_footprint) * np.sqrt(1 + slopes ** 2)
+    beside = np.maximum(edge + ROUGH_FOOTPRINT_M, tangent.max(1))
     return HALF_DIAGONAL * cell + stray + beside, ROUGH_FOOTPRINT_M
 
 
