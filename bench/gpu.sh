@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # glsynth on an NVIDIA GPU, unattended, in under 10 minutes: sets up from a fresh clone, checks
-# that EGL draws on the GPU (and says which device), renders the paper preset there and on the
-# CPU, compares labels and depth, reports samples per second, and times FCN58 training steps.
+# that EGL draws on the GPU (and says which device), renders the paper and inspection presets
+# there and on the CPU, compares labels, depth and crack widths, reports samples per second,
+# and times FCN58 training steps.
 #
 #     bash bench/gpu.sh [OUT] [bench_gpu.py options]   # results in OUT (default out/gpu)
 #
 # OUT gets gpu.json and gpu.log. On a machine that cannot install (no network, no root), set
 # GLSYNTH_PYTHON to an interpreter that already imports glsynth and a CUDA torch (a command on
 # PATH, or a path from the repository root): the install is skipped. Where that machine has
-# no Mesa for the CPU render, pass --cpu-reference with a file that `bench_gpu.py --cpu-only`
-# wrote elsewhere (docs/results.md, "On a GPU").
+# no Mesa for the CPU render, pass --cpu-reference with the folder that
+# `bench_gpu.py --cpu-only` wrote elsewhere (docs/results.md, "On a GPU").
 #
 # Refuses with one line, before installing anything, where no NVIDIA GPU is found.
 set -euo pipefail

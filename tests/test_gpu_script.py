@@ -90,12 +90,42 @@ def test_a_dropped_thin_region_or_a_third_label_on_an_edge_is_no_tie():
     assert not bench_gpu.edge_ties(third, cpu)[3, 2]
 
 
+def test_compare_reports_crack_pixels_and_widths(tmp_path):
+    """A crack drawn a pixel lower is a tie at its edge; a crack pixel only one render drew,
+    away from any crack, is not; widths are compared where both drew the crack."""
+    labels = np.zeros((8, 8), np.uint8)
+    depth = np.full((8, 8), 3.0, np.float32)
+    cpu = np.zeros((8, 8), np.float32)
+    cpu[4, 1:7] = 0.5
+    gpu = np.roll(cpu, 1, axis=0)
+    gpu[4, 1:7] = 0.51  # the crack two rows wide here, 2 % wider
+    gpu[0, 0] = 0.2  # far from the CPU's crack
+    for name, width in (("gpu", gpu), ("cpu", cpu)):
+        np.savez(tmp_path / f"{name}.npz", component_003=labels, damage_003=labels,
+                 depth_003=depth, crack_width_003=width)
+    crack = bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "cpu.npz")["crack"]
+    assert (crack["pixels_gpu"], crack["pixels_cpu"]) == (13, 6)
+    assert (crack["pixels_differ"], crack["pixels_differ_off_edges"]) == (7, 1)
+    assert crack["width_median_rel"] == pytest.approx(0.02, rel=1e-4)
+    same = bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "gpu.npz")["crack"]
+    assert same["pixels_differ"] == 0 and same["width_max_rel"] == 0
+
+
 def test_a_missing_reference_is_one_line_before_any_render(tmp_path):
     done = subprocess.run([sys.executable, str(ROOT / "bench" / "bench_gpu.py"), "--out",
                            str(tmp_path / "gpu"), "--cpu-reference", str(tmp_path / "ref.npz")],
                           capture_output=True, text=True, timeout=60)
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1 and "--cpu-only" in lines[0]
+    assert "cpu_paper.npz" in lines[0] and not (tmp_path / "gpu").exists()
+
+
+def test_an_unknown_preset_is_one_line_before_any_render(tmp_path):
+    done = subprocess.run([sys.executable, str(ROOT / "bench" / "bench_gpu.py"), "--out",
+                           str(tmp_path / "gpu"), "--presets", "paper", "nopreset"],
+                          capture_output=True, text=True, timeout=60)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and "nopreset" in lines[0]
     assert not (tmp_path / "gpu").exists()
 
 
