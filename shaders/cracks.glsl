@@ -245,18 +245,30 @@ void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout 
                 nearest);
 }
 
-// The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a
-// pixel whose derivatives are dpdx, dpdy. The own cell's list holds every crack that a pixel
-// of half footprint up to u_crack_footprint_m needs; a pixel whose half footprint reaches
-// further also reads the cells within the rest of it, up to one more each way
+// The grid cells, lo to hi inclusive, whose lists a pixel at p with derivatives dpdx, dpdy
+// reads. The own cell's list holds every crack that a pixel of half footprint up to
+// u_crack_footprint_m needs; a pixel whose half footprint reaches further also reads every
+// cell within the rest of it (each axis apart), up to one cell edge more each way
 // (glsynth.render.cracks_index).
+struct CrackBox {
+    ivec3 lo;
+    ivec3 hi;
+};
+
+CrackBox crack_box(vec3 p, vec3 dpdx, vec3 dpdy) {
+    float h = u_crack_cell_m;
+    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) - u_crack_footprint_m, 0.0, h);
+    return CrackBox(max(crack_grid(p - extra), ivec3(0)),
+                    min(crack_grid(p + extra), u_crack_dims - 1));
+}
+
+// The cracks at point p (mesh frame, relative to the grid's lower corner), seen through a
+// pixel whose derivatives are dpdx, dpdy: the segments listed in its box's cells.
 CrackHit crack_hit(vec3 p, vec3 dpdx, vec3 dpdy) {
     CrackHit hit = CrackHit(0.0, 0.0, false);
     float nearest = 1e30;
-    float h = u_crack_cell_m;
-    float extra = clamp(0.5 * (length(dpdx) + length(dpdy)) - u_crack_footprint_m, 0.0, h);
-    ivec3 lo = max(crack_grid(p - extra), ivec3(0));
-    ivec3 hi = min(crack_grid(p + extra), u_crack_dims - 1);
+    CrackBox box = crack_box(p, dpdx, dpdy);
+    ivec3 lo = box.lo, hi = box.hi;
     ivec2 near = ivec2(-1);
     vec2 near_d = vec2(1e30);
     // One loop over the box's cells in the order nested loops would take (x fastest, then y,

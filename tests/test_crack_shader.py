@@ -10,7 +10,7 @@ from glsynth.appearance import crack_paths
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.render.cracks_index import ROW, crack_contrast, pack_cracks
+from glsynth.render.cracks_index import ROUGH_FOOTPRINT_M, ROW, crack_contrast, pack_cracks
 from glsynth.render.gl.renderer import upload_cracks
 
 EPS = float(np.finfo(np.float32).eps)
@@ -332,6 +332,43 @@ def test_a_paths_bounds_hold_at_every_footprint():
     assert np.all(stray <= REACH) and np.median(stray[short]) < 0.2 * REACH
 
 
+
+def test_a_rough_segments_reach_and_the_read_box_cover_its_path_at_every_footprint():
+    """list_reach with the read box (the cells within the half footprint beyond footprint_m,
+    up to one cell edge: crack_box): for every pixel size up to the exact range and every
+    segment, a fragment finds the segment wherever its path, chips and lips come within the
+    pixel's half footprint across it, widened by the path's slope at the levels that pixel
+    refines it to (crack_offset; at most five, the documented caveat). The box reaches every
+    point within its extra of p, so the lists must cover the rest: the segment's stray and
+    its edge plus the half footprint, widened, less the box's extra."""
+    from glsynth.render.cracks_index import HALF_DIAGONAL, ROUGH_FOOTPRINT_M, list_reach
+
+    c = crack_paths.SHADER_CONSTANTS
+    rng = make_rng(12, 0, Stream.DAMAGE)
+    n, cell = 3000, 0.05
+    a = rng.uniform(-1, 1, (n, 3))
+    direction = rng.normal(0, 1, (n, 3))
+    length = np.exp(rng.uniform(np.log(0.005), np.log(0.3), n))
+    b = a + direction / np.linalg.norm(direction, axis=1, keepdims=True) * length[:, None]
+    network = CrackNetwork(np.stack([a, b], 1), rng.uniform(5e-5, 1e-2, (n, 2)),
+                           np.zeros(n, np.int32), ("flexural",), True)
+    reach, footprint = list_reach(network, cell)
+    assert footprint == ROUGH_FOOTPRINT_M
+    stray, slopes = crack_paths.path_bounds(length, crack_paths.segment_seeds(network.widths_m))
+    edge = (0.5 + c["CRACK_CHIP_MAX"]) * network.widths_m.max(1) + c["CRACK_LIP_M"]
+    half = np.linspace(1e-5, footprint + cell, 2000)[:, None]  # (footprints, segments)
+    finest = np.maximum(half, length * 2.0 ** -c["CRACK_LEVELS"])
+    levels = np.floor(np.log2(length / finest)).astype(int)
+    slope = np.where(levels >= 1, slopes[np.arange(n), np.clip(levels, 1, 5) - 1], 0.0)
+    needed = stray + (edge + half) * np.sqrt(1 + slope ** 2)
+    served = reach - HALF_DIAGONAL * cell + np.maximum(half - footprint, 0)
+    drawn = levels <= slopes.shape[1]
+    # Equal where a level's largest footprint meets the margin: float64 rounding apart.
+    assert np.all(served[drawn] >= needed[drawn] - 1e-12)
+    # Long segments are refined by pixels larger than the margin: the case the box's extra
+    # must be widened for.
+    assert ((levels >= 1) & (half > footprint)).sum() > 10_000
+
 def test_a_rough_networks_cells_list_every_path_within_the_footprint_of_their_points():
     """pack_cracks, rough network: from every corner and from random points of cells near its
     cracks, every segment whose path (crack_paths.shader_offsets, sampled finely at the finest
@@ -412,6 +449,77 @@ def test_a_rough_networks_short_lists_find_what_every_segment_finds(glsl, monkey
             texture.release()
     assert np.array_equal(outs[0], outs[1])
     assert (outs[0][:, 2] == 1).mean() > 0.2 and (outs[0][:, 0] > 0).mean() > 0.3
+
+
+
+@pytest.mark.parametrize("rough", [False, True])
+def test_the_read_box_holds_the_cells_within_the_footprint_beyond_the_own_cells(glsl, rough):
+    """crack_box: a pixel reads exactly the grid cells that come within its half footprint
+    less the index's footprint_m of it (each axis apart; at most one cell edge more each way;
+    inside the grid), counted here cell by cell from their intervals. With each cell listing
+    every path within footprint_m of its points (the tests above), a segment that reaches a
+    pixel comes within footprint_m of a point of some cell of its box: so no smaller box is
+    exact, and a larger one only walks more."""
+    rng = make_rng(11, 0, Stream.DAMAGE)
+    network = _rough_network(rng) if rough else _column_network(rng)
+    index = pack_cracks(network)
+    cell, dims = index.cell_m, np.asarray(index.dims)
+    n = 20_000
+    # Points anywhere in the grid and a cell beyond it; pixels from 0.1 mm to 30 cm across,
+    # so that some read their own cell alone and some reach past one cell edge beyond
+    # footprint_m and past the grid's sides.
+    p = rng.uniform(-cell, dims * cell + cell, (n, 3)).astype(np.float32)
+    scale = np.where(rng.uniform(0, 1, (2, n, 1)) < 0.5, rng.uniform(0, 0.1, (2, n, 1)),
+                     10 ** rng.uniform(-4, -1.5, (2, n, 1)))
+    dpdx, dpdy = (rng.normal(0, 1, (2, n, 3)) * scale).astype(np.float32)
+    half = 0.5 * (np.linalg.norm(dpdx.astype(np.float64), axis=1)
+                  + np.linalg.norm(dpdy.astype(np.float64), axis=1))
+    extra = np.clip(half - index.footprint_m, 0, cell)[:, None]
+    # Cell i spans [i, i + 1) cell edges: it is read where the pixel's reach overlaps it.
+    base = np.floor(p / cell).astype(int)
+    offsets = np.arange(-3, 4)
+    i = base[:, :, None] + offsets  # (n, 3, 7) candidate cells per axis
+    overlap = (p[:, :, None] + extra[:, :, None] >= i * cell) \
+        & (p[:, :, None] - extra[:, :, None] < (i + 1) * cell) \
+        & (i >= 0) & (i < dims[None, :, None])
+    empty = ~overlap.any(2)
+    first = np.where(empty, 0, i[np.arange(n)[:, None], np.arange(3), overlap.argmax(2)])
+    last = np.where(empty, -1, i[np.arange(n)[:, None], np.arange(3),
+                                 6 - overlap[:, :, ::-1].argmax(2)])
+    # Not compared: pixels whose reach ends within float32 rounding of a cell side.
+    for sign in (-1, 1):
+        edge = (p + sign * extra) / cell
+        clear = np.abs(edge - np.round(edge)) > 1e-4
+        if sign < 0:
+            keep = clear.all(1)
+        else:
+            keep &= clear.all(1)
+
+    def setup(prog) -> None:  # the uniforms crack_box reads, as CrackTextures.bind sets them
+        prog["u_crack_cell_m"].value = index.cell_m
+        prog["u_crack_dims"].value = tuple(index.dims)
+        prog["u_crack_footprint_m"].value = index.footprint_m
+
+    rows = [_rows(x) for x in (p, dpdx, dpdy)]
+    # Both ends in each run: an end the expression never reads is compiled away with its
+    # uniforms.
+    box = [glsl.run(f"vec3(crack_box(in0.xyz, in1.xyz, in2.xyz).{end}), "
+                    f"float(crack_box(in0.xyz, in1.xyz, in2.xyz).{other}.x)", *rows,
+                    setup=setup)[:, :3] for end, other in (("lo", "hi"), ("hi", "lo"))]
+    assert index.footprint_m == (ROUGH_FOOTPRINT_M if rough else cell)
+    assert keep.mean() > 0.99
+    # A pixel beyond the grid's side reads nothing (lo > hi on that axis): the grid reaches
+    # two cell edges beyond every crack's edge.
+    outside, read = empty.any(1), ~(box[0] > box[1]).any(1)
+    assert np.array_equal(read[keep], ~outside[keep])
+    inside = keep & ~outside
+    assert np.array_equal(box[0][inside], first[inside])
+    assert np.array_equal(box[1][inside], last[inside])
+    # Every case is there: own cell only, one more, the clamp at one edge, the grid's sides.
+    spans = (last - first)[inside]
+    assert all((spans == k).any() for k in (0, 1, 2))
+    assert (extra[:, 0] == cell).mean() > 0.05 and (extra[:, 0] == 0).mean() > 0.05
+    assert 0.01 < outside.mean() < 0.5
 
 
 def test_each_cell_lists_every_segment_within_reach_of_its_points():

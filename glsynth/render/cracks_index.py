@@ -19,7 +19,10 @@ finds in its list every crack whose edge lies within ``footprint_m`` of it:
   with the shader's 3 cm margin for every path, which rough networks used before.
 A fragment whose half footprint (half of |dp/dx| + |dp/dy|) is at most ``footprint_m`` reads
 its own cell alone; one whose half footprint is larger also reads the cells within the rest of
-it, at most one more each way (shaders/cracks.glsl). The rules then hold exactly while
+it, at most one more each way (crack_box in shaders/cracks.glsl). That box reaches every point
+within the rest of the footprint, unwidened; so where a larger pixel still refines a rough
+path (segments longer than 2 ``footprint_m``), the list covers the slope's widening of the
+whole footprint (list_reach). The rules then hold exactly while
 |dp/dx| + |dp/dy| is at most 2 (``footprint_m`` + one cell edge): 20 cm for a straight
 network, 14 cm for a rough one (square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm
 lens on the 36 mm sensor, 130 m away). On a rough network, two caveats: the slopes are drawn
@@ -186,9 +189,13 @@ def list_reach(network: CrackNetwork, cell: float) -> tuple[np.ndarray, float]:
     # footprint f on a stretch of slope s is labelled and darkened up to (edge + f) / cos
     # further out. A pixel that refines the path j + 1 times (column j) has f at most
     # length / 2^(j + 1); one refining it more (f <= length / 64) has the margin's slack.
-    half_footprint = np.minimum(ROUGH_FOOTPRINT_M,
+    # Past ROUGH_FOOTPRINT_M the read box reaches f - ROUGH_FOOTPRINT_M further, unwidened
+    # (crack_box), so the list covers the rest: the widening of the whole footprint. That
+    # grows with f, so each level's largest f (within the exact range) bounds it.
+    half_footprint = np.minimum(ROUGH_FOOTPRINT_M + cell,
                                 length[:, None] / 2.0 ** np.arange(1, slopes.shape[1] + 1))
-    tangent = (edge[:, None] + half_footprint) * np.sqrt(1 + slopes ** 2)
+    tangent = (edge[:, None] + half_footprint) * np.sqrt(1 + slopes ** 2) \
+        - np.maximum(half_footprint - ROUGH_FOOTPRINT_M, 0.0)
     beside = np.maximum(edge + ROUGH_FOOTPRINT_M, tangent.max(1))
     return HALF_DIAGONAL * cell + stray + beside, ROUGH_FOOTPRINT_M
 
