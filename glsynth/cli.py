@@ -809,6 +809,9 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
                    help="networks trained per training set, each from its own draws; the one "
                         "of median F1 is reported, with every repeat's scores (single runs "
                         "scatter: docs/design.md); 1 for a quick look")
+    p.add_argument("--device", default="auto",
+                   help="auto, cpu, cuda or cuda:N: where the networks train (default: auto, "
+                        "CUDA when there is one)")
     p.add_argument("--out", required=True, help="folder for sim2real.json and predictions.png")
     p.set_defaults(func=cmd_bench_sim2real)
 
@@ -817,7 +820,8 @@ def cmd_bench_sim2real(args: argparse.Namespace) -> None:
     from glsynth.model.sim2real import Sim2RealSettings, run_sim2real, summary
 
     settings = Sim2RealSettings(args.steps, args.crop, args.batch, args.width,
-                                args.learning_rate, args.test_share, args.seed, args.repeats)
+                                args.learning_rate, args.test_share, args.seed, args.repeats,
+                                args.device)
     result = run_sim2real(args.synthetic, args.real, args.out, settings, args.other_real)
     print(summary(result))
     print(f"-> {args.out}/sim2real.json, predictions.png")

@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 import torch.nn.functional as F
+from glsynth.model.runtime import pick_device
 from glsynth.model.train import seeded_torch
 from torch import nn
 
@@ -34,6 +35,7 @@ CRACK_WEIGHT = 10.0
 """Weight of crack pixels in the loss: cracks are a few percent of the pixels or less."""
 EXAMPLES = 4
 """Test images shown in predictions.png."""
+CPU = torch.device("cpu")
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,10 @@ class Sim2RealSettings:
     of median F1 (the lower middle one for an even count) gives the scores and the picture,
     and every repeat's scores are kept. Three by default: one network's F1 spreads by up to
     0.13 over its draws. Why: docs/design.md, "The sim-to-real benchmark"."""
+    device: str = "auto"
+    """Where the networks train and predict: auto (CUDA when there is one), cpu, cuda or
+    cuda:N. The draws are the same on each; the arithmetic is not, so compare networks
+    trained on one device."""
 
     def __post_init__(self) -> None:
         checks = (("steps", 1 <= self.steps <= 10**6, "an integer in [1, 1000000]"),
@@ -151,24 +157,25 @@ def repeat_item(repeat: int) -> int:
     return 0 if repeat == 0 else SPLIT_ITEM + repeat
 
 
-def train_network(images: list[CrackImage], settings: Sim2RealSettings, item: int
-                  ) -> tuple[CrackUNet, dict]:
-    """A CrackUNet trained on ``images``, its initial weights and draws from ``item``'s
-    generators."""
+def train_network(images: list[CrackImage], settings: Sim2RealSettings, item: int,
+                  device: torch.device = CPU) -> tuple[CrackUNet, dict]:
+    """A CrackUNet trained on ``images`` on ``device``, its initial weights and draws from
+    ``item``'s generators (the weights drawn on the CPU, so the same on every device)."""
     rng = make_rng(settings.seed, 0, Stream.TRAINING, item)
     with seeded_torch(make_seed(settings.seed, 0, Stream.TRAINING, item)):
         net = CrackUNet(settings.width)
+    net.to(device)
     optimiser = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, settings.learning_rate,
                                                    total_steps=settings.steps)
-    weight = torch.tensor(CRACK_WEIGHT)
+    weight = torch.tensor(CRACK_WEIGHT, device=device)
     net.train()
     t0, losses = time.perf_counter(), []
     for _ in range(settings.steps):
         picks = rng.integers(len(images), size=settings.batch)
         crops = [_crop_at(images[int(i)], settings.crop, rng) for i in picks]
-        x = torch.from_numpy(np.stack([c[0] for c in crops]))
-        y = torch.from_numpy(np.stack([c[1] for c in crops]).astype(np.float32))
+        x = torch.from_numpy(np.stack([c[0] for c in crops])).to(device)
+        y = torch.from_numpy(np.stack([c[1] for c in crops]).astype(np.float32)).to(device)
         loss = F.binary_cross_entropy_with_logits(net(x), y, pos_weight=weight)
         optimiser.zero_grad()
         loss.backward()
@@ -180,14 +187,16 @@ def train_network(images: list[CrackImage], settings: Sim2RealSettings, item: in
 
 
 @torch.no_grad()
-def predict(net: CrackUNet, rgb: np.ndarray) -> np.ndarray:
-    """(H, W) float32 crack probability of a whole image (padded to multiples of 8)."""
+def predict(net: CrackUNet, rgb: np.ndarray, device: torch.device = CPU
+            ) -> np.ndarray:
+    """(H, W) float32 crack probability of a whole image (padded to multiples of 8), by
+    ``net`` on ``device``."""
     net.eval()
     h, w = rgb.shape[:2]
     x = _normalised(rgb)
     x = np.pad(x, ((0, 0), (0, -h % 8), (0, -w % 8)), mode="reflect")
-    logits = net(torch.from_numpy(x)[None])[0, :h, :w]
-    return torch.sigmoid(logits).numpy()
+    logits = net(torch.from_numpy(x)[None].to(device))[0, :h, :w]
+    return torch.sigmoid(logits).cpu().numpy()
 
 
 def split_real(images: list[CrackImage], settings: Sim2RealSettings
@@ -268,11 +277,11 @@ class ScoredRun(NamedTuple):
 
 
 def _scored_run(images: list[CrackImage], test: list[CrackImage], settings: Sim2RealSettings,
-                item: int) -> ScoredRun:
+                item: int, device: torch.device) -> ScoredRun:
     """A network trained on ``images`` from ``item``'s draws (every training set draws the
     same crops' randomness and initial weights for one item), scored on ``test``."""
-    net, training = train_network(images, settings, item)
-    probs = [predict(net, image.rgb) for image in test]
+    net, training = train_network(images, settings, item, device)
+    probs = [predict(net, image.rgb, device) for image in test]
     return ScoredRun(best_threshold(probs, [image.crack for image in test]), training,
                      probs[:EXAMPLES])
 
@@ -296,6 +305,7 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
     network; "complete" once all are in) and predictions.png into ``out`` and returns the
     result (networks by name: each dataset's and other folder's name, then "real")."""
     out = Path(out)
+    device = pick_device(settings.device)
     names = network_names(synthetic, other_real, real)
     real_train, test = split_real(read_real_folder(real), settings)
     sets = _training_sets(synthetic, other_real, real_train)
@@ -304,12 +314,13 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
     result: dict = {"settings": dataclasses.asdict(settings),
                     "synthetic": [str(s) for s in synthetic], "real": str(real),
                     "other_real": [str(o) for o in other_real],
-                    "tolerance_px": TOLERANCE_PX, "test_images": len(test),
+                    "device": str(device), "tolerance_px": TOLERANCE_PX,
+                    "test_images": len(test),
                     "real_train_images": len(real_train), "real_trained": bool(real_train),
                     "networks": {}, "complete": False}
     predictions, thresholds = {}, {}
     for name, (kind, images) in zip(names, sets):
-        runs = [_scored_run(images, test, settings, repeat_item(r))
+        runs = [_scored_run(images, test, settings, repeat_item(r), device)
                 for r in range(settings.repeats)]
         median = sorted(range(len(runs)), key=lambda r: runs[r].score["f1"])[(len(runs) - 1) // 2]
         predictions[name] = runs[median].examples

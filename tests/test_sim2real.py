@@ -185,6 +185,7 @@ def test_sim2real_runs_end_to_end(tiny_inspection, tmp_path, capsys):
     assert "trained on ds " in capsys.readouterr().out
     result = json.loads((out / "sim2real.json").read_text())
     assert set(result["networks"]) == {"ds", "real"}  # the dataset's folder names its network
+    assert result["device"] == "cpu" and result["settings"]["device"] == "auto"  # no CUDA here
     n = 2 * len(frames)  # the views the filters kept, two crops each; 30 % of them tested
     assert result["test_images"] == min(n - 1, max(1, round(0.3 * n)))
     assert result["real_train_images"] == n - result["test_images"]
@@ -209,6 +210,12 @@ def test_sim2real_bad_options_are_one_line(tmp_path, capsys):
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert "different folder names" in err and "\n" not in err
+    # A device this machine lacks, before any folder is read (the real one does not exist).
+    assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real",
+                 str(tmp_path / "none"), "--out", str(tmp_path / "o"), "--device",
+                 "cuda:7"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--device 'cuda:7'" in err and "\n" not in err and not (tmp_path / "o").exists()
 
 
 def crops_folder(root, frames, lefts):
@@ -297,11 +304,11 @@ def test_a_stopped_run_keeps_the_networks_it_finished(tmp_path, monkeypatch):
                                          repeats=1)
     trained = sim2real.train_network
 
-    def stop_at_second(images, settings, item):
+    def stop_at_second(images, settings, item, device):
         if stop_at_second.calls:
             raise KeyboardInterrupt
         stop_at_second.calls += 1
-        return trained(images, settings, item)
+        return trained(images, settings, item, device)
 
     stop_at_second.calls = 0
     monkeypatch.setattr(sim2real, "train_network", stop_at_second)
