@@ -3,6 +3,7 @@ folder reader's refusals, and a tiny end-to-end run of glsynth bench sim2real.""
 
 import dataclasses
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -370,3 +371,30 @@ def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_pa
                  "--out", str(tmp_path / "o"), "--repeats", "101"]) == 2
     err = capsys.readouterr().err.strip()
     assert "--repeats 101: must be an integer in [1, 100]" in err and "\n" not in err
+
+
+def test_many_networks_bench_summarises_and_refuses_a_bad_folder_in_one_line(tmp_path):
+    """bench_sim2real_many: medians, means and spreads per step count and training set; a
+    folder that cannot be read is refused in one line before any worker starts (a worker
+    pool would restart a failing worker forever)."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parent.parent
+    sys.path.insert(0, str(root / "bench"))
+    import bench_sim2real_many
+
+    networks = [{"trained_on": name, "steps": steps, "f1": f1}
+                for name, steps, f1 in (("ds", 300, 0.5), ("ds", 300, 0.7), ("ds", 300, 0.6),
+                                        ("pave", 300, 0.4), ("ds", 1500, 0.8))]
+    summary = bench_sim2real_many.summarise(networks)
+    assert summary["300"]["ds"] == {"networks": 3, "median": 0.6, "mean": pytest.approx(0.6),
+                                    "sd": pytest.approx(0.0816, abs=1e-4), "range": [0.5, 0.7]}
+    assert summary["300"]["pave"]["median"] == 0.4 and list(summary["1500"]) == ["ds"]
+    done = subprocess.run([sys.executable, str(root / "bench" / "bench_sim2real_many.py"),
+                           "--real", str(tmp_path / "none"), "--synthetic", str(tmp_path),
+                           "--device", "cpu", "--name", "never"],
+                          capture_output=True, text=True, timeout=120)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 1 and len(lines) == 1 and "bench_sim2real_many:" in lines[0]
+    assert not (root / "bench" / "results" / "never.json").exists()
