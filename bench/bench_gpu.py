@@ -86,8 +86,7 @@ def render_views(out: Path, preset: str, n_views: int) -> dict:
     t0 = time.perf_counter()
     view = EnvironmentView.open(config, 0, 0)
     opening = time.perf_counter() - t0
-    total = config.cameras.total
-    cameras = sorted({round(i * (total - 1) / max(1, n_views - 1)) for i in range(n_views)})
+    cameras = camera_indices(config.cameras.total, n_views)
     maps, times = {}, []
     with view.renderer:
         view.render(cameras[0])  # warm-up: programs linked, textures resident
@@ -96,7 +95,7 @@ def render_views(out: Path, preset: str, n_views: int) -> dict:
             _, output = view.render(index)
             times.append(time.perf_counter() - t0)
             for name in MAPS:
-                if getattr(output, name, None) is not None:  # no crack widths: no cracks
+                if getattr(output, name, None) is not None:  # a pass a preset may not have
                     maps[f"{name}_{index:03d}"] = getattr(output, name)
         device = device_name(view.renderer.ctx)
     np.savez_compressed(out, **maps)
@@ -104,6 +103,12 @@ def render_views(out: Path, preset: str, n_views: int) -> dict:
             "view_s": statistics.median(times), "views": len(cameras),
             "samples_per_s": len(times) / sum(times),
             "versions": versions()}
+
+
+def camera_indices(total: int, n_views: int) -> list[int]:
+    """``n_views`` cameras spread evenly over an environment's ``total`` (fewer where they
+    round to the same one)."""
+    return sorted({round(i * (total - 1) / max(1, n_views - 1)) for i in range(n_views)})
 
 
 def versions() -> dict[str, str]:
@@ -188,7 +193,10 @@ def crack_agreement(gpu: np.ndarray, cpu: np.ndarray) -> dict:
     wrong = on_gpu != on_cpu
     ties = edge_ties(on_gpu.astype(np.uint8), on_cpu.astype(np.uint8))
     both = on_gpu & on_cpu
+    # On two-valued maps a tie is a crack pixel beside the other map's crack: a crack drawn
+    # a pixel wider all along would count as ties, so each side's own pixels are given too.
     return {"gpu": int(on_gpu.sum()), "cpu": int(on_cpu.sum()), "differ": int(wrong.sum()),
+            "gpu_only": int((on_gpu & ~on_cpu).sum()), "cpu_only": int((on_cpu & ~on_gpu).sum()),
             "differ_off_edges": int((wrong & ~ties).sum()),
             "width_rel": np.abs(gpu[both] - cpu[both]) / cpu[both]}
 
@@ -197,7 +205,7 @@ def sum_cracks(views: list[dict]) -> dict:
     """crack_agreement's views together: counts summed, width errors as median and max."""
     rel = np.concatenate([view["width_rel"] for view in views])
     counts = {key: sum(view[key] for view in views)
-              for key in ("gpu", "cpu", "differ", "differ_off_edges")}
+              for key in ("gpu", "cpu", "differ", "gpu_only", "cpu_only", "differ_off_edges")}
     return {"pixels_" + key: value for key, value in counts.items()} | {
         "width_median_rel": float(np.median(rel)) if rel.size else 0.0,
         "width_max_rel": float(rel.max(initial=0.0))}
@@ -258,21 +266,24 @@ def reference_files(reference: Path, preset: str) -> tuple[Path, Path]:
     return reference / f"cpu_{preset}.npz", reference / f"cpu_{preset}.json"
 
 
-def check_inputs(presets: list[str], reference: Path | None) -> None:
+def check_inputs(presets: list[str], reference: Path | None, n_views: int) -> None:
     """Before any render: every preset is one glsynth knows, and a --cpu-reference is a
-    --cpu-only output holding each preset's maps and figures."""
+    --cpu-only output holding each preset's maps and figures, of as many views."""
     from glsynth.core.config import load_config
 
-    for preset in presets:
-        load_config(preset)  # an unknown name: UserError, one line
+    totals = {preset: load_config(preset).cameras.total for preset in presets}  # else UserError
     if reference is None:
         return
     for preset in presets:
-        for path in reference_files(reference, preset):
-            if not path.is_file():
-                raise ValueError(f"--cpu-reference {reference}: no {path.name}; make it on a "
-                                 "machine with Mesa with `bench_gpu.py --out DIR --cpu-only` "
-                                 "and the same --views and --presets")
+        maps, figures = reference_files(reference, preset)
+        views = (json.loads(figures.read_text()).get("views") if figures.is_file() and
+                 maps.is_file() else None)
+        if views != len(camera_indices(totals[preset], n_views)):
+            missing = maps.name if not maps.is_file() else figures.name
+            found = f"{views} views, not --views {n_views}'s" if views else f"no {missing}"
+            raise ValueError(f"--cpu-reference {reference}: {found} for {preset}; make it on "
+                             "a machine with Mesa with `bench_gpu.py --out DIR --cpu-only` "
+                             "and the same --views and --presets")
 
 
 def _save(out: Path, results: dict) -> None:
@@ -335,7 +346,7 @@ def main() -> int:
         return 0
     common = ["--views", str(args.views), "--train-steps", str(args.train_steps)]
     try:
-        check_inputs(args.presets, args.cpu_reference)
+        check_inputs(args.presets, args.cpu_reference, args.views)
         if args.cpu_only:
             cpu_only(args.out, args.presets, common)
             return 0

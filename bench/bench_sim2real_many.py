@@ -29,13 +29,35 @@ _DATA: dict = {}
 """A worker's training and test sets by name, read once when it starts."""
 
 
-def read_sets(folders: dict[str, tuple[str, str]]) -> dict[str, list]:
-    """Every training and test set by name, read in the parent: a bad folder is one line
-    before any worker starts (a pool would restart a failing worker forever)."""
+def read_sets(args: argparse.Namespace) -> dict[str, list]:
+    """Every training set by its network's name (sim2real.network_names: folder names,
+    refused where two are alike or an other real folder is the test folder) and the test
+    folder as "real", read in the parent: a bad folder is one line before any worker starts
+    (a pool would restart a failing worker forever)."""
+    from glsynth.model.sim2real import REAL, network_names
+
     from glsynth.data.crack_folders import read_real_folder, read_synthetic
 
-    return {name: read_synthetic(path) if kind == "synthetic" else read_real_folder(path)
-            for name, (kind, path) in folders.items()}
+    names = network_names(args.synthetic, args.other_real, args.real)
+    data = {REAL: read_real_folder(args.real)}
+    for name, path in zip(names, [*args.synthetic, *args.other_real], strict=True):
+        data[name] = (read_synthetic(path) if name in names[:len(args.synthetic)]
+                      else read_real_folder(path))
+    return data
+
+
+def parse_plan(plan: str) -> list[tuple[int, int]]:
+    """--plan "300:8,1500:4": (steps, repeats) pairs, each at least 1."""
+    from glsynth.core.errors import UserError
+
+    try:
+        pairs = [tuple(int(v) for v in item.split(":", 1)) for item in plan.split(",")]
+    except ValueError:
+        pairs = []
+    if not pairs or any(len(pair) != 2 or min(pair) < 1 for pair in pairs):
+        raise UserError(f"--plan {plan!r}: give steps:repeats pairs of positive integers, "
+                        "comma-separated (e.g. 300:8,1500:4)")
+    return pairs
 
 
 def _start_worker(data: dict[str, list]) -> None:
@@ -66,7 +88,8 @@ def _network(task: tuple[str, str, int, int, str]) -> dict:
 
 
 def summarise(networks: list[dict]) -> dict:
-    """Each (steps, training set): how many networks, the median, mean and spread of F1."""
+    """Each (steps, training set): how many networks, the median, mean, sample standard
+    deviation and range of F1."""
     out: dict = {}
     for steps in sorted({n["steps"] for n in networks}):
         for name in dict.fromkeys(n["trained_on"] for n in networks):
@@ -75,13 +98,9 @@ def summarise(networks: list[dict]) -> dict:
                 out.setdefault(str(steps), {})[name] = {
                     "networks": len(f1), "median": statistics.median(f1),
                     "mean": statistics.fmean(f1),
-                    "sd": statistics.pstdev(f1), "range": [min(f1), max(f1)]}
+                    "sd": statistics.stdev(f1) if len(f1) > 1 else 0.0,
+                    "range": [min(f1), max(f1)]}
     return out
-
-
-def _folders(args: argparse.Namespace) -> dict[str, tuple[str, str]]:
-    folders = {Path(path).name: ("synthetic", path) for path in args.synthetic}
-    return folders | {Path(path).name: ("real", path) for path in [*args.other_real, args.real]}
 
 
 def main() -> None:
@@ -95,33 +114,39 @@ def main() -> None:
     p.add_argument("--name", default="sim2real_many", help="results file name")
     args = p.parse_args()
     from glsynth.model.runtime import pick_device
+    from glsynth.model.sim2real import REAL
 
     from glsynth.core.errors import UserError
 
     try:
+        if args.workers < 1:
+            raise UserError(f"--workers {args.workers}: give 1 or more")
+        plan = parse_plan(args.plan)
         device = str(pick_device(args.device))  # an absent device: one line, before any read
-        data = read_sets(_folders(args))
+        data = read_sets(args)
     except UserError as err:
         sys.exit(f"bench_sim2real_many: {err}")
-    test = Path(args.real).name
-    plan = [tuple(int(v) for v in item.split(":")) for item in args.plan.split(",")]
-    tasks = [(test, name, steps, repeat, device) for steps, repeats in plan
-             for repeat in range(repeats) for name in data if name != test]
+    tasks = [(REAL, name, steps, repeat, device) for steps, repeats in plan
+             for repeat in range(repeats) for name in data if name != REAL]
     tasks.sort(key=lambda task: -task[2])  # the long networks first: the workers end together
-    networks: list[dict] = []
+    result = {"test": Path(args.real).name, "device": device, "plan": args.plan,
+              "workers": args.workers, "cpu_count": os.cpu_count(), "complete": False,
+              "networks": []}
     t0 = time.perf_counter()
     context = multiprocessing.get_context("spawn")  # CUDA cannot be forked into workers
-    with context.Pool(args.workers, _start_worker, (data,)) as pool:
+    # Each worker gets its own copy of the sets (pickled once to each): a few hundred MB.
+    with context.Pool(min(args.workers, len(tasks)), _start_worker, (data,)) as pool:
         for network in pool.imap_unordered(_network, tasks):
-            networks.append(network)
+            result["networks"].append(network)
             print(f"{time.perf_counter() - t0:6.0f} s  {network['trained_on']:20s} "
                   f"steps {network['steps']:5d}  repeat {network['repeat']:2d}  "
                   f"F1 {network['f1']:.3f}", flush=True)
-    result = {"test": test, "device": device, "plan": args.plan, "workers": args.workers,
-              "cpu_count": os.cpu_count(), "wall_s": time.perf_counter() - t0,
-              "summary": summarise(networks), "networks": networks}
+            # Kept as each network ends: a failure later loses none of those finished.
+            result.update(wall_s=time.perf_counter() - t0,
+                          summary=summarise(result["networks"]))
+            write_results(args.name, result, quiet=True)
+    result["complete"] = True
     write_results(args.name, result)
-
 
 if __name__ == "__main__":
     main()

@@ -48,15 +48,17 @@ def summary(times: list[float]) -> dict[str, float]:
             "n": len(times)}
 
 
-def write_results(name: str, results: dict) -> Path:
-    """bench/results/<name>.json, with the command that made it and the machine."""
+def write_results(name: str, results: dict, quiet: bool = False) -> Path:
+    """bench/results/<name>.json, with the command that made it and the machine; printed
+    unless ``quiet``."""
     RESULTS.mkdir(parents=True, exist_ok=True)
     path = RESULTS / f"{name}.json"
     payload = {"command": "python " + " ".join(sys.argv), "machine": platform.node(),
                "python": platform.python_version(), "processor": platform.processor(),
                "results": results}
     path.write_text(json.dumps(payload, indent=2) + "\n")
-    print(json.dumps(payload, indent=2))
+    if not quiet:
+        print(json.dumps(payload, indent=2))
     return path
 
 

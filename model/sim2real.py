@@ -9,7 +9,8 @@ are scored on the rest of that folder (glsynth.measure.crack_scores: F1 with a 2
 tolerance at the best single threshold, IoU). A real folder too small to split is tested
 whole (test_share 1), and then no network is trained on it. Training samples square crops,
 half of them centred on a crack pixel, flipped at random; everything draws from
-Stream.TRAINING generators, so a run is repeated exactly on the same machine."""
+Stream.TRAINING generators, so a run is repeated exactly on the same machine's CPU (on CUDA,
+the same draws, but cuDNN's kernels do not repeat bit for bit)."""
 
 import dataclasses
 import time

@@ -365,6 +365,11 @@ def test_a_rough_segments_reach_and_the_read_box_cover_its_path_at_every_footpri
     drawn = levels <= slopes.shape[1]
     # Equal where a level's largest footprint meets the margin: float64 rounding apart.
     assert np.all(served[drawn] >= needed[drawn] - 1e-12)
+    # crack_walk hands a segment to its rough path only within CRACK_REACH_M beyond the
+    # footprint and edge: enough for segments up to 15 cm (the generators cut paths at about
+    # 5 cm), not for every steep longer one (cracks_index's caveat).
+    gate = c["CRACK_REACH_M"] + half + edge
+    assert np.all((needed <= gate)[drawn & (length <= 0.15)])
     # Long segments are refined by pixels larger than the margin: the case the box's extra
     # must be widened for.
     assert ((levels >= 1) & (half > footprint)).sum() > 10_000

@@ -106,6 +106,7 @@ def test_compare_reports_crack_pixels_and_widths(tmp_path):
     crack = bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "cpu.npz")["crack"]
     assert (crack["pixels_gpu"], crack["pixels_cpu"]) == (13, 6)
     assert (crack["pixels_differ"], crack["pixels_differ_off_edges"]) == (7, 1)
+    assert (crack["pixels_gpu_only"], crack["pixels_cpu_only"]) == (7, 0)
     assert crack["width_median_rel"] == pytest.approx(0.02, rel=1e-4)
     same = bench_gpu.compare(tmp_path / "gpu.npz", tmp_path / "gpu.npz")["crack"]
     assert same["pixels_differ"] == 0 and same["width_max_rel"] == 0
@@ -118,6 +119,20 @@ def test_a_missing_reference_is_one_line_before_any_render(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1 and "--cpu-only" in lines[0]
     assert "cpu_paper.npz" in lines[0] and not (tmp_path / "gpu").exists()
+
+
+def test_a_reference_of_other_views_is_one_line_before_any_render(tmp_path):
+    ref = tmp_path / "ref"
+    ref.mkdir()
+    np.savez(ref / "cpu_paper.npz", component_000=np.zeros((2, 2), np.uint8))
+    (ref / "cpu_paper.json").write_text('{"views": 3}')
+    done = subprocess.run([sys.executable, str(ROOT / "bench" / "bench_gpu.py"), "--out",
+                           str(tmp_path / "gpu"), "--presets", "paper", "--views", "4",
+                           "--cpu-reference", str(ref)],
+                          capture_output=True, text=True, timeout=60)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and "3 views, not --views 4's" in lines[0]
+    assert not (tmp_path / "gpu").exists()
 
 
 def test_an_unknown_preset_is_one_line_before_any_render(tmp_path):

@@ -389,7 +389,7 @@ def test_many_networks_bench_summarises_and_refuses_a_bad_folder_in_one_line(tmp
                                         ("pave", 300, 0.4), ("ds", 1500, 0.8))]
     summary = bench_sim2real_many.summarise(networks)
     assert summary["300"]["ds"] == {"networks": 3, "median": 0.6, "mean": pytest.approx(0.6),
-                                    "sd": pytest.approx(0.0816, abs=1e-4), "range": [0.5, 0.7]}
+                                    "sd": pytest.approx(0.1), "range": [0.5, 0.7]}
     assert summary["300"]["pave"]["median"] == 0.4 and list(summary["1500"]) == ["ds"]
     done = subprocess.run([sys.executable, str(root / "bench" / "bench_sim2real_many.py"),
                            "--real", str(tmp_path / "none"), "--synthetic", str(tmp_path),
@@ -397,4 +397,13 @@ def test_many_networks_bench_summarises_and_refuses_a_bad_folder_in_one_line(tmp
                           capture_output=True, text=True, timeout=120)
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 1 and len(lines) == 1 and "bench_sim2real_many:" in lines[0]
+    # Two sets of one folder name, and a plan that is no steps:repeats list: one line each.
+    for extra, words in ((["--other-real", str(tmp_path / "a" / "x"), str(tmp_path / "b" / "x")],
+                          "different folder names"), (["--plan", "300"], "--plan '300'")):
+        done = subprocess.run([sys.executable, str(root / "bench" / "bench_sim2real_many.py"),
+                               "--real", str(tmp_path / "none"), "--synthetic", str(tmp_path),
+                               "--device", "cpu", "--name", "never", *extra],
+                              capture_output=True, text=True, timeout=120)
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 1 and len(lines) == 1 and words in lines[0]
     assert not (root / "bench" / "results" / "never.json").exists()

@@ -25,11 +25,14 @@ path (segments longer than 2 ``footprint_m``), the list covers the slope's widen
 whole footprint (list_reach). The rules then hold exactly while
 |dp/dx| + |dp/dy| is at most 2 (``footprint_m`` + one cell edge): 20 cm for a straight
 network, 14 cm for a rough one (square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm
-lens on the 36 mm sensor, 130 m away). On a rough network, two caveats: the slopes are drawn
+lens on the 36 mm sensor, 130 m away). On a rough network, three caveats: the slopes are drawn
 for pixels that refine a path at most five times (half footprints over 1/64 of a segment's
 length); a finer pixel relies on the margin's slack, enough while the path's slope there
-stays under about 1.8 beside the widest (10 mm) cracks and 13 beside 1 mm ones. And the
-shader draws the rough paths of the two segments nearest a pixel by their chords among the
+stays under about 1.8 beside the widest (10 mm) cracks and 13 beside 1 mm ones. The shader
+hands a segment to its rough path only within CRACK_REACH_M beyond the footprint and edge
+(crack_walk): enough for segments up to 15 cm (tested; the generators cut paths at about
+STEP_M, 5 cm), while a steep segment of 20 cm or more may reach a few millimetres past it. And
+the shader draws the rough paths of the two segments nearest a pixel by their chords among the
 listed ones within CRACK_REACH_M (crack_walk): the lists decide which compete, so where
 three or more paths meet, the one left out may differ from a search of every segment's.
 Beyond the range, a pixel may miss a crack further than the cells it reads: its darkening
