@@ -5,6 +5,7 @@ reproducible bytes, and the paper preset left as it was."""
 import dataclasses
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -40,7 +41,7 @@ def quiet(**fields) -> SensorConfig:
     base = dict(enabled=True, iso=(100.0, 100.0), full_well_e=1e7, read_noise_e=0.0,
                 f_number=(64.0, 64.0), exposure_s=(1e-4, 1e-4), shake_deg_s=(0.0, 0.0),
                 vignetting=(0.0, 0.0), chromatic_px=(0.0, 0.0), white_balance=(1.0, 1.0),
-                exposure_ev=(0.0, 0.0), jpeg_quality=(100, 100))
+                exposure_ev=(0.0, 0.0), jpeg_quality=(100, 100), sharpen=(0.0, 0.0))
     return SensorConfig(**{**base, **fields})
 
 
@@ -257,6 +258,44 @@ def test_grey_world_gains_leave_out_the_sky_and_clipped_pixels():
     assert camera_model.grey_world_gains(linear, np.zeros((4, 4), bool)) == pytest.approx(1.0)
 
 
+def test_sharpening_rims_an_edge_as_an_unsharp_mask_does():
+    """An edge between grey 60 and 180 gains a dark rim below 60 and a bright one above 180
+    of amount x the step x the Gaussian's tail beyond half a pixel (to a code, for widths of
+    a pixel or more, where OpenCV's sampled kernel is near the continuous one); flat ground
+    stays; an amount of 0 is the image itself."""
+    image = np.full((40, 40, 3), 60, np.uint8)
+    image[:, 20:] = 180
+    for amount, sigma in ((0.5, 1.0), (1.0, 1.3), (1.0, 2.0)):  # OpenCV samples the kernel
+        out = camera_model.sharpen(image, amount, sigma)
+        tail = 0.5 * math.erfc(0.5 / (sigma * math.sqrt(2)))  # the blur's share across
+        rim = amount * 120 * tail
+        assert out[20, 19, 0] == pytest.approx(60 - rim, abs=1.0)
+        assert out[20, 20, 0] == pytest.approx(180 + rim, abs=1.0)
+        assert np.array_equal(out[:, :12], image[:, :12])
+        assert np.array_equal(out[:, 28:], image[:, 28:])
+    assert camera_model.sharpen(image, 0.0, 1.0) is image
+
+
+def test_sharpening_adds_fine_detail_to_a_photograph_and_draws_after_the_rest(view, rendered):
+    """The same view photographed with and without sharpening: the same draws before it (so
+    the same noise), more energy at the finest scale, the same mean."""
+    placement, render, _ = rendered
+
+    def shoot(sharpen):
+        config = quiet(iso=(1600.0, 1600.0), full_well_e=20000.0, read_noise_e=3.0,
+                       sharpen=sharpen, sharpen_sigma_px=(1.0, 1.0))
+        return camera_model.photograph(render.color, render.depth, placement.camera, config,
+                                       make_rng(0, 0, Stream.SENSOR, CAMERA)).astype(np.float32)
+
+    plain, sharp = shoot((0.0, 0.0)), shoot((0.8, 0.8))
+    detail = [cv2.Laplacian(image, cv2.CV_32F).var() for image in (plain, sharp)]
+    assert detail[1] > 1.5 * detail[0]
+    assert abs(sharp.mean() - plain.mean()) < 0.5
+    # Sharpening only what the camera made: the difference is the unsharp mask's detail.
+    blurred = cv2.GaussianBlur(plain, (0, 0), 1.0, borderType=cv2.BORDER_REFLECT)
+    assert np.corrcoef((sharp - plain).ravel(), (plain - blurred).ravel())[0, 1] > 0.9
+
+
 def test_disabled_sensor_is_the_render(view, rendered):
     placement, render, _ = rendered
     off = dataclasses.replace(view.config.sensor, enabled=False)
@@ -275,6 +314,8 @@ def test_disabled_sensor_is_the_render(view, rendered):
     ("jpeg_quality", [70.5, 90], "sensor.jpeg_quality"),
     ("enabled", 1, "sensor.enabled"),
     ("full_well_e", -5, "sensor.full_well_e"),
+    ("sharpen", [-0.5, 1], "sensor.sharpen"),
+    ("sharpen_sigma_px", [0.1, 1], "sensor.sharpen_sigma_px"),
 ])
 def test_bad_sensor_fields_are_one_line(key, value, words):
     with pytest.raises(UserError) as err:

@@ -628,6 +628,11 @@ class SensorConfig:
     """Exposure error in stops."""
     jpeg_quality: tuple[int, int] = bounded((70, 95), Interval(1, 100))
     """Quality of the JPEG round trip the saved image takes (the files stay PNG)."""
+    sharpen: tuple[float, float] = bounded((0.2, 1.0), Interval(0.0, 5.0))
+    """The processing's unsharp mask on the encoded image: the share of the detail finer
+    than sharpen_sigma_px added back (0: none), as a camera's processor sharpens."""
+    sharpen_sigma_px: tuple[float, float] = bounded((0.6, 1.4), Interval(0.3, 5.0))
+    """The unsharp mask's Gaussian, in pixels."""
 
     def __post_init__(self) -> None:
         _validate(self)

@@ -12,7 +12,7 @@ model"), in this order:
    for linear signal x, gain = ISO / 100, drawn as a Gaussian of that variance (the normal
    approximation of the Poisson counts: a pixel holds hundreds of electrons or more);
 4. the camera's processing: automatic white balance (grey world over the surfaces) with an
-   error, the tone curve, 8 bits, a JPEG round trip.
+   error, the tone curve, 8 bits, an unsharp mask, a JPEG round trip.
 
 Labels and depth are the scene's and are not touched. Pure numpy and OpenCV; every draw comes
 from the generator the caller makes for the view (Stream.SENSOR), the noise's from OpenCV's
@@ -113,6 +113,10 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     normals = np.empty(color.shape, np.float32)
     drawing = threading.Thread(target=fill_standard_normal, args=(normals, noise_seed(rng)))
     drawing.start()
+    # Drawn after the noise's seed, so that a view's other draws are those they were before
+    # sharpening was modelled (and with an amount of 0, its bytes).
+    amount = float(rng.uniform(*config.sharpen))
+    sigma = float(rng.uniform(*config.sharpen_sigma_px))
     # The exposure error rides in the decoding table: the same float32 products, one pass.
     linear = cv2.LUT(np.ascontiguousarray(color), _DECODE * np.float32(shot.exposure_gain))
     focus = focus_distance(depth, camera.zfar)
@@ -131,7 +135,7 @@ def photograph(color: np.ndarray, depth: np.ndarray, camera: Camera, config: Sen
     linear = add_sensor_noise(linear, a, b, normals)
     surfaces = depth < np.float32(camera.zfar) * np.float32(0.999)
     gains = grey_world_gains(linear, surfaces) * np.asarray(shot.white_balance, np.float32)
-    return jpeg_round_trip(encode(linear, gains), shot.jpeg_quality)
+    return jpeg_round_trip(sharpen(encode(linear, gains), amount, sigma), shot.jpeg_quality)
 
 
 def grey_world_gains(linear: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -419,6 +423,17 @@ def encode(linear: np.ndarray, gains: np.ndarray | None = None) -> np.ndarray:
     codes = cv2.multiply(linear, (*(float(s) for s in scale), 0.0), dtype=cv2.CV_16U)
     np.minimum(codes, np.uint16(_ENCODE_STEPS), out=codes)
     return _ENCODE[codes]
+
+
+def sharpen(color: np.ndarray, amount: float, sigma_px: float) -> np.ndarray:
+    """``color`` (uint8) with ``amount`` of its detail finer than a Gaussian of ``sigma_px``
+    added back (an unsharp mask), rounded and clipped to 8 bits: what a camera's processor
+    does to every photograph before it compresses it, leaving a bright and a dark rim along
+    each edge. An amount of 0 returns ``color``."""
+    if amount <= 0.0:
+        return color
+    blurred = cv2.GaussianBlur(color, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
+    return cv2.addWeighted(color, 1.0 + amount, blurred, -amount, 0.0)
 
 
 def jpeg_round_trip(color: np.ndarray, quality: int) -> np.ndarray:
