@@ -5,14 +5,14 @@ networks over many repeats, trained in parallel processes (one network each) on 
         [--plan 300:8,1500:4] [--workers 12] [--device cuda] [--name sim2real_many]
 
 Each network is the one `glsynth bench sim2real --test-share 1 --steps S` trains as its
-repeat r (the same functions: train_network with repeat_item(r)'s draws, predict,
-best_threshold), so a run of ``--plan 300:8`` holds the networks of `--repeats 8`; the
-processes only run them side by side. TEST is tested whole (--test-share 1), as in the runs of
+repeat r (the same function, sim2real.scored_run, from repeat_item(r)'s draws), so a run of
+``--plan 300:8`` holds the networks of `--repeats 8`; the processes only run them side by
+side. TEST is tested whole (--test-share 1), as in the runs of
 docs/results.md, and the same-kind network comes from an --other-real training split. One
 network of 300 steps takes a minute or more on two CPU cores; on an H200 machine (16 cores),
-twelve at a time took about 20 s each. Prints each network as it ends; writes
+twelve at a time took about 20 s each. Prints each network as it ends and rewrites
 bench/results/<name>.json (every network's scores, and each training set's median, mean and
-spread per step count) at the end.
+spread per step count; "complete" once all are in).
 """
 
 import argparse
@@ -39,10 +39,11 @@ def read_sets(args: argparse.Namespace) -> dict[str, list]:
     from glsynth.data.crack_folders import read_real_folder, read_synthetic
 
     names = network_names(args.synthetic, args.other_real, args.real)
+    readers = [read_synthetic] * len(args.synthetic) + [read_real_folder] * len(args.other_real)
     data = {REAL: read_real_folder(args.real)}
-    for name, path in zip(names, [*args.synthetic, *args.other_real], strict=True):
-        data[name] = (read_synthetic(path) if name in names[:len(args.synthetic)]
-                      else read_real_folder(path))
+    for name, path, read in zip(names, [*args.synthetic, *args.other_real], readers,
+                                strict=True):
+        data[name] = read(path)
     return data
 
 
@@ -69,22 +70,17 @@ def _start_worker(data: dict[str, list]) -> None:
 
 def _network(task: tuple[str, str, int, int, str]) -> dict:
     """One network trained on a set for ``steps`` from repeat ``repeat``'s draws, scored on
-    the test folder."""
+    the test folder: sim2real.scored_run, as `glsynth bench sim2real` runs each repeat."""
     import torch
     from glsynth.model import sim2real
 
-    from glsynth.measure.crack_scores import best_threshold
-
     test, train, steps, repeat, device_name = task
-    device = torch.device(device_name)
     settings = sim2real.Sim2RealSettings(steps=steps, test_share=1.0, device=device_name)
     t0 = time.perf_counter()
-    net, training = sim2real.train_network(_DATA[train], settings, sim2real.repeat_item(repeat),
-                                           device)
-    probs = [sim2real.predict(net, image.rgb, device) for image in _DATA[test]]
-    score = best_threshold(probs, [image.crack for image in _DATA[test]])
+    run = sim2real.scored_run(_DATA[train], _DATA[test], settings, sim2real.repeat_item(repeat),
+                              torch.device(device_name))
     return {"trained_on": train, "steps": steps, "repeat": repeat,
-            "seconds": time.perf_counter() - t0, **score, **training}
+            "seconds": time.perf_counter() - t0, **run.score, **run.training}
 
 
 def summarise(networks: list[dict]) -> dict:

@@ -37,6 +37,7 @@ CRACK_WEIGHT = 10.0
 EXAMPLES = 4
 """Test images shown in predictions.png."""
 CPU = torch.device("cpu")
+"""Where train_network and predict run unless told otherwise."""
 
 
 @dataclass(frozen=True)
@@ -277,8 +278,8 @@ class ScoredRun(NamedTuple):
     """Its predictions of the test images predictions.png shows."""
 
 
-def _scored_run(images: list[CrackImage], test: list[CrackImage], settings: Sim2RealSettings,
-                item: int, device: torch.device) -> ScoredRun:
+def scored_run(images: list[CrackImage], test: list[CrackImage], settings: Sim2RealSettings,
+               item: int, device: torch.device) -> ScoredRun:
     """A network trained on ``images`` from ``item``'s draws (every training set draws the
     same crops' randomness and initial weights for one item), scored on ``test``."""
     net, training = train_network(images, settings, item, device)
@@ -321,7 +322,7 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
                     "networks": {}, "complete": False}
     predictions, thresholds = {}, {}
     for name, (kind, images) in zip(names, sets):
-        runs = [_scored_run(images, test, settings, repeat_item(r), device)
+        runs = [scored_run(images, test, settings, repeat_item(r), device)
                 for r in range(settings.repeats)]
         median = sorted(range(len(runs)), key=lambda r: runs[r].score["f1"])[(len(runs) - 1) // 2]
         predictions[name] = runs[median].examples
