@@ -88,10 +88,12 @@ float crack_structure(float x) {
     return pow(CRACK_ROUGHNESS * CRACK_AGGREGATE_M, 2.0) * pow(x / CRACK_AGGREGATE_M, 2.0 * h);
 }
 
-// The lateral offset (m) at parameter t of a segment ``length_m`` long, and its slope, by
-// random midpoint displacement from 0 at both ends (the polyline's vertices), halving while
-// the new points lie at least ``finest_m`` apart; clamped to CRACK_REACH_M.
-vec2 crack_offset(float t, float length_m, uint seed, float finest_m) {
+// The lateral offset (m) at parameter t of a segment ``length_m`` long, by random midpoint
+// displacement from 0 at both ends (the polyline's vertices), halving while the new points
+// lie at least ``finest_m`` apart; clamped to CRACK_REACH_M. Then the piece of the path that
+// holds t: its slope across the chord, and how far (m, along the chord) it runs before and
+// after t.
+vec4 crack_offset(float t, float length_m, uint seed, float finest_m) {
     float lo = 0.0, hi = 0.0, a = 0.0, b = 1.0, interval = length_m;
     uint index = 0u;
     float s_whole = crack_structure(interval);
@@ -115,7 +117,7 @@ vec2 crack_offset(float t, float length_m, uint seed, float finest_m) {
         interval *= 0.5;
     }
     float offset = clamp(mix(lo, hi, (t - a) / (b - a)), -CRACK_REACH_M, CRACK_REACH_M);
-    return vec2(offset, (hi - lo) / interval);
+    return vec4(offset, (hi - lo) / interval, (t - a) * length_m, (b - t) * length_m);
 }
 
 // The surface's normal with its largest component positive, whichever way the view sees it:
@@ -224,6 +226,20 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
     }
 }
 
+// The squared distance (m^2, on the surface) from a pixel ``across`` m off the path, measured
+// across the chord at the pixel's place along it, to the path's piece there: slope ``slope``,
+// running ``before`` m back and ``after`` m on along the chord (crack_offset). A crack is its
+// path swept by a disc of its width, so a pixel is measured to the piece, not to the piece's
+// infinite tangent line: where a piece shorter than the width is steep (a tenth of the
+// pieces a tenth of a millimetre long climb more than their length), its tangent line's band
+// would reach (w / 2)(sqrt(1 + slope^2) - 1) past the crack, a needle that no crack has.
+float crack_piece_distance2(float across, float slope, float before, float after) {
+    vec2 dir = vec2(1.0, slope);
+    float k = clamp(across * slope / dot(dir, dir), -before, after);
+    vec2 gap = vec2(0.0, across) - k * dir;
+    return dot(gap, gap);
+}
+
 // Segment s drawn along its rough path (crack_offset), across the chord on the surface.
 void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout float nearest) {
     vec4 a = texelFetch(u_crack_segments, crack_texel(2 * s), 0);
@@ -235,9 +251,10 @@ void crack_rough(int s, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit, inout 
     if (dot(across, across) > 0.0) {
         across = normalize(across);
         uint seed = crack_hash(floatBitsToUint(a.w) ^ crack_hash(floatBitsToUint(b.w)));
-        vec2 o = crack_offset(t, length(ab), seed, 0.5 * (length(dpdx) + length(dpdy)));
+        vec4 o = crack_offset(t, length(ab), seed, 0.5 * (length(dpdx) + length(dpdy)));
         float ra = dot(r, across);
-        d = sqrt((ra - o.x) * (ra - o.x) / (1.0 + o.y * o.y) + max(dot(r, r) - ra * ra, 0.0));
+        d = sqrt(crack_piece_distance2(ra - o.x, o.y, o.z, o.w)
+                 + max(dot(r, r) - ra * ra, 0.0));
         along = normalize(ab) + o.y * across;
         chip = crack_chip(t * length(ab), uint(ra >= o.x), seed, 0.001 * width_mm);
     }

@@ -301,78 +301,119 @@ def _rough_network(rng: np.random.Generator) -> CrackNetwork:
     return CrackNetwork(points, widths, np.zeros(len(points), np.int32), ("flexural",), True)
 
 
-def test_a_paths_bounds_hold_at_every_footprint():
+def test_a_paths_stray_bound_holds_at_every_footprint():
     """path_bounds: no offset of a segment's path, at any footprint and anywhere along it,
-    lies further from its chord than its stray, and where a pixel refines it one to five
-    times, none is steeper than that level's slope; the stray is a near bound, not the
-    shader's 3 cm margin for all."""
+    lies further from its chord than its stray; the stray is a near bound, not the shader's
+    3 cm margin for all."""
     rng = make_rng(7, 0, Stream.DAMAGE)
     n = 2000
     length = rng.uniform(0.005, 0.3, n)
     seeds = crack_paths.segment_seeds(rng.uniform(5e-5, 5e-3, (n, 2)))
-    stray, slopes = crack_paths.path_bounds(length, seeds)
+    stray = crack_paths.path_bounds(length, seeds)
     t = rng.uniform(0, 1 - 1e-6, (n, 300))
-    checked = 0
     for finest in (1e-5, 3e-4, 3e-3, 1e-2):
         offsets = crack_paths.shader_offsets(t, length[:, None], seeds[:, None], finest)
         assert np.all(np.abs(offsets).max(1) <= stray)
         assert np.median(np.abs(offsets).max(1) / stray) > 0.5
-        # The path is linear within its finest interval: a step of 1e-6 of the length reads
-        # its slope (or, across a midpoint, a mean of two).
-        step = crack_paths.shader_offsets(t + 1e-6, length[:, None], seeds[:, None], finest)
-        steepest = (np.abs(step - offsets) / (1e-6 * length[:, None])).max(1)
-        levels = np.floor(np.log2(length / finest)).astype(int)  # as crack_offset counts
-        assert np.all(steepest[levels <= 0] == 0)
-        refined = (levels >= 1) & (levels <= slopes.shape[1])
-        bound = slopes[refined, levels[refined] - 1]
-        assert np.all(steepest[refined] <= bound * (1 + 1e-6) + 1e-9)
-        checked += refined.sum()
-    assert checked > 1000 and np.median(slopes[:, 0]) > 0.05
     short = length < 0.05
     assert np.all(stray <= REACH) and np.median(stray[short]) < 0.2 * REACH
 
 
+def test_a_pixel_is_measured_to_the_piece_of_the_path_beside_it(glsl):
+    """crack_piece_distance2 against the distance to a segment in float64: pixels off pieces
+    of slopes 0 to about 8 (the path's finest pieces reach about 2) and lengths of 1 um to
+    1 cm, the pixel anywhere along the piece; where the foot of the perpendicular lies on the
+    piece, the distance is the tangent line's, as before."""
+    rng = make_rng(13, 0, Stream.DAMAGE)
+    n = 8192
+    slope = rng.choice([-1, 1], n) * np.concatenate([np.zeros(64), rng.exponential(1.5, n - 64)])
+    piece = np.exp(rng.uniform(np.log(1e-6), np.log(1e-2), n))
+    before = rng.uniform(0, 1, n) * piece
+    after = piece - before
+    across = rng.normal(0, 1, n) * piece * rng.choice([0.1, 1, 10], n)
+    rows = _rows(across, slope, before, after)
+    out = glsl.run("crack_piece_distance2(in0.x, in0.y, in0.z, in0.w), 0.0, 0.0, 0.0",
+                   rows)[:, 0]
+    across, slope, before, after = (x.astype(np.float64) for x in rows.T)
+    ends = np.stack([np.stack([-before, -slope * before], 1),
+                     np.stack([after, slope * after], 1)], 1)[:, :, None]
+    pixel = np.stack([np.zeros(n), across, np.zeros(n)], 1)
+    ref, _ = segment_distance(pixel, np.pad(ends[:, 0, 0], ((0, 0), (0, 1))),
+                              np.pad(ends[:, 1, 0], ((0, 0), (0, 1))))
+    scale = np.abs(across) + np.abs(slope) * piece + piece
+    assert np.all(np.abs(np.sqrt(out) - ref) <= 4 * EPS * scale)
+    line = np.abs(across) / np.sqrt(1 + slope ** 2)
+    foot = across * slope / (1 + slope ** 2)
+    on_piece = (foot > -before) & (foot < after)
+    assert 0.2 < on_piece.mean() < 0.9
+    assert np.all(np.abs(np.sqrt(out[on_piece]) - line[on_piece])
+                  <= 4 * EPS * scale[on_piece])
 
-def test_a_rough_segments_reach_and_the_read_box_cover_its_path_at_every_footprint():
-    """list_reach with the read box (the cells within the half footprint beyond footprint_m,
-    up to one cell edge: crack_box): for every pixel size up to the exact range and every
-    segment, a fragment finds the segment wherever its path, chips and lips come within the
-    pixel's half footprint across it, widened by the path's slope at the levels that pixel
-    refines it to (crack_offset; at most five, the documented caveat). The box reaches every
-    point within its extra of p, so the lists must cover the rest: the segment's stray and
-    its edge plus the half footprint, widened, less the box's extra."""
-    from glsynth.render.cracks_index import HALF_DIAGONAL, ROUGH_FOOTPRINT_M, list_reach
+
+def test_nothing_of_a_rough_crack_lies_further_from_its_path_than_its_edge(glsl):
+    """crack_hit on isolated rough segments of 1-10 cm and 0.5-5 mm, through their lists
+    (list_reach and the read box), for pixels of 50 um to the exact range's 7 cm: a pixel is
+    labelled only within half its width or footprint of the path the shader draws at that
+    footprint (crack_paths.shader_offsets, sampled every 2 um), and darkened only within its
+    edge (half the width, the deepest chip and the lip) and half the footprint. A band drawn
+    across the tangent of a steep pixel-long piece reached (w / 2)(sqrt(1 + slope^2) - 1)
+    further: needles on the lips, in labels and image alike."""
+    from scipy.spatial import cKDTree
 
     c = crack_paths.SHADER_CONSTANTS
-    rng = make_rng(12, 0, Stream.DAMAGE)
-    n, cell = 3000, 0.05
-    a = rng.uniform(-1, 1, (n, 3))
-    direction = rng.normal(0, 1, (n, 3))
-    length = np.exp(rng.uniform(np.log(0.005), np.log(0.3), n))
-    b = a + direction / np.linalg.norm(direction, axis=1, keepdims=True) * length[:, None]
-    network = CrackNetwork(np.stack([a, b], 1), rng.uniform(5e-5, 1e-2, (n, 2)),
-                           np.zeros(n, np.int32), ("flexural",), True)
-    reach, footprint = list_reach(network, cell)
-    assert footprint == ROUGH_FOOTPRINT_M
-    stray, slopes = crack_paths.path_bounds(length, crack_paths.segment_seeds(network.widths_m))
-    edge = (0.5 + c["CRACK_CHIP_MAX"]) * network.widths_m.max(1) + c["CRACK_LIP_M"]
-    half = np.linspace(1e-5, footprint + cell, 2000)[:, None]  # (footprints, segments)
-    finest = np.maximum(half, length * 2.0 ** -c["CRACK_LEVELS"])
-    levels = np.floor(np.log2(length / finest)).astype(int)
-    slope = np.where(levels >= 1, slopes[np.arange(n), np.clip(levels, 1, 5) - 1], 0.0)
-    needed = stray + (edge + half) * np.sqrt(1 + slope ** 2)
-    served = reach - HALF_DIAGONAL * cell + np.maximum(half - footprint, 0)
-    drawn = levels <= slopes.shape[1]
-    # Equal where a level's largest footprint meets the margin: float64 rounding apart.
-    assert np.all(served[drawn] >= needed[drawn] - 1e-12)
-    # crack_walk hands a segment to its rough path only within CRACK_REACH_M beyond the
-    # footprint and edge: enough for segments up to 15 cm (the generators cut paths at about
-    # 5 cm), not for every steep longer one (cracks_index's caveat).
-    gate = c["CRACK_REACH_M"] + half + edge
-    assert np.all((needed <= gate)[drawn & (length <= 0.15)])
-    # Long segments are refined by pixels larger than the margin: the case the box's extra
-    # must be widened for.
-    assert ((levels >= 1) & (half > footprint)).sum() > 10_000
+    rng = make_rng(14, 0, Stream.DAMAGE)
+    m = 24
+    a = np.stack([np.arange(m) % 5 * 0.5, np.zeros(m), np.arange(m) // 5 * 0.5], 1)
+    angle = rng.uniform(0, np.pi, m)
+    length = np.exp(rng.uniform(np.log(0.01), np.log(0.1), m))
+    b = a + np.stack([np.cos(angle), np.zeros(m), np.sin(angle)], 1) * length[:, None]
+    widths = np.exp(rng.uniform(np.log(5e-4), np.log(5e-3), (m, 2)))
+    network = CrackNetwork(np.stack([a, b], 1), widths, np.zeros(m, np.int32), ("flexural",),
+                           True)
+    index = pack_cracks(network)
+    textures = upload_cracks(glsl.ctx, index, crack_contrast(network))
+    origin = index.origin.astype(np.float64)
+    seeds = crack_paths.segment_seeds(widths)
+    edge = (0.5 + c["CRACK_CHIP_MAX"]) * widths.max(1) + c["CRACK_LIP_M"]
+    labelled = darkened = 0
+    for side in (5e-5, 2e-4, 1e-3, 7e-3, 0.07):
+        n = 6000
+        seg = rng.integers(0, m, n)
+        t = rng.uniform(0, 1, n)
+        across = np.cross(b - a, [0.0, 1.0, 0.0])[seg]  # across the chord, in the plane
+        across /= np.linalg.norm(across, axis=1, keepdims=True)
+        p = a[seg] + t[:, None] * (b - a)[seg] \
+            + across * rng.uniform(-1, 1, (n, 1)) * (1.5 * edge[seg, None] + side)
+        dpdx, dpdy = np.tile([side, 0, 0], (n, 1)), np.tile([0, 0, side], (n, 1))
+        rows = [_rows(x) for x in (p - origin, dpdx, dpdy)]
+        out = glsl.run("crack_hit(in0.xyz, in1.xyz, in2.xyz).coverage, "
+                       "crack_hit(in0.xyz, in1.xyz, in2.xyz).width_mm, "
+                       "float(crack_hit(in0.xyz, in1.xyz, in2.xyz).labelled), 0.0", *rows,
+                       setup=lambda prog: textures.bind(prog, glsl.units))
+        p = rows[0][:, :3].astype(np.float64) + origin
+        gap = np.full(n, np.inf)
+        for k in range(m):
+            mine = seg == k
+            samples = np.linspace(0, 1, int(length[k] / 2e-6) + 1)
+            offsets = crack_paths.shader_offsets(samples, length[k], seeds[k], side)
+            sense = np.cross([0.0, 1.0, 0.0], b[k] - a[k])  # crack_rough's across
+            path = a[k] + samples[:, None] * (b[k] - a[k]) \
+                + offsets[:, None] * sense / np.linalg.norm(sense)
+            gap[mine] = cKDTree(path).query(p[mine])[0]
+        width = widths[seg, 0] + (widths[seg, 1] - widths[seg, 0]) * t
+        # The pixel's footprint across a crack (footprint_across) is at most its diagonal.
+        across_px = np.sqrt(2) * side
+        tolerance = 4e-6  # the samples' spacing, float32 positions 2 m from the corner
+        on = out[:, 2] == 1
+        assert np.all(gap[on] <= 0.5 * np.maximum(width[on], across_px) + tolerance), side
+        dark = out[:, 0] > 0
+        assert np.all(gap[dark] <= edge[seg[dark]] + 0.5 * across_px + tolerance), side
+        labelled += on.sum()
+        darkened += (dark & ~on).sum()
+    for texture in textures.textures:
+        texture.release()
+    assert labelled > 3000 and darkened > 1500
+
 
 def test_a_rough_networks_cells_list_every_path_within_the_footprint_of_their_points():
     """pack_cracks, rough network: from every corner and from random points of cells near its

@@ -208,28 +208,23 @@ _DRAW_BOUND = math.sqrt(6.0) * (1.0 + 1e-6)
 the ends, and the shader's float32 constant lies one ulp above it)."""
 
 
-def path_bounds(length_m: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def path_bounds(length_m: np.ndarray, seed: np.ndarray) -> np.ndarray:
     """For each of N segments' paths (shader_offsets): the most (m) it strays from its chord
-    at any footprint, (N,); and the steepest slope across the chord of its intervals after
-    each of its first STRAY_EXACT_LEVELS levels, (N, STRAY_EXACT_LEVELS): column j is the
-    slope a pixel meets that refines the path j + 1 times (crack_offset: levels =
-    floor(log2(length / half footprint)), so a half footprint in (length / 2^(j + 2),
-    length / 2^(j + 1)]).
+    at any footprint, (N,).
 
-    The stray is a bound: the largest |offset| of its midpoints on the first
-    STRAY_EXACT_LEVELS levels, drawn as the shader draws them, plus, for each deeper level,
-    the most one draw can move a point (its spread times _DRAW_BOUND); at most CRACK_REACH_M.
-    A path is linear between its midpoints, and a midpoint lies between its interval's ends
-    moved by one draw, so no point of it strays further (the shader's float32 sums differ
-    from these by under 0.1 um: tests/test_crack_shader.py). The cell lists of a rough
-    network reach as far as its segments' own paths do (glsynth.render.cracks_index), not
-    the shader's 3 cm margin for all: a 4 cm segment strays about 4 mm."""
+    A bound: the largest |offset| of its midpoints on the first STRAY_EXACT_LEVELS levels,
+    drawn as the shader draws them, plus, for each deeper level, the most one draw can move a
+    point (its spread times _DRAW_BOUND); at most CRACK_REACH_M. A path is linear between its
+    midpoints, and a midpoint lies between its interval's ends moved by one draw, so no point
+    of it strays further (the shader's float32 sums differ from these by under 0.1 um:
+    tests/test_crack_shader.py). The cell lists of a rough network reach as far as its
+    segments' own paths do (glsynth.render.cracks_index), not the shader's 3 cm margin for
+    all: a 4 cm segment strays about 4 mm."""
     c = SHADER_CONSTANTS
     length = np.asarray(length_m, np.float64)
     seed = np.asarray(seed, np.uint32)[:, None]
     nodes = np.zeros((len(length), 2))  # the ends, then each level's midpoints between them
     stray = np.zeros(len(length))
-    slopes = np.zeros((len(length), STRAY_EXACT_LEVELS))
     for level in range(STRAY_EXACT_LEVELS):
         index = np.arange(2 ** level, dtype=np.uint64)[None, :]
         middle = (nodes[:, :-1] + nodes[:, 1:]) / 2 \
@@ -238,7 +233,6 @@ def path_bounds(length_m: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, np.
         merged = np.empty((len(length), 2 * nodes.shape[1] - 1))
         merged[:, 0::2], merged[:, 1::2] = nodes, middle
         nodes = merged
-        slopes[:, level] = np.abs(np.diff(nodes, axis=1)).max(1) / (length / 2 ** (level + 1))
     for level in range(STRAY_EXACT_LEVELS, int(c["CRACK_LEVELS"])):
         stray = stray + _DRAW_BOUND * midpoint_sd(length / 2 ** level)
-    return np.minimum(stray, c["CRACK_REACH_M"]), slopes
+    return np.minimum(stray, c["CRACK_REACH_M"])

@@ -13,28 +13,21 @@ finds in its list every crack whose edge lies within ``footprint_m`` of it:
 - rough networks: 0.87 cell edges plus how far the crack's edge may lie from its chord: its
   path's stray (crack_paths.path_bounds, a few millimetres for a 4 cm segment), then its
   chipped lips, up to (0.5 + CRACK_CHIP_MAX) widths and CRACK_LIP_M, plus ``footprint_m``
-  (ROUGH_FOOTPRINT_M), widened by the path's slope at the footprint (the shader measures to
-  the path's local tangent, so a steep stretch reaches 1 / cos of its slope further across
-  the chord). A pixel walks 40 % fewer entries than under the rule of straight networks
-  with the shader's 3 cm margin for every path, which rough networks used before.
+  (ROUGH_FOOTPRINT_M). The shader measures a pixel to the piece of the path beside it
+  (crack_piece_distance2), so nothing of a crack lies further from the path than its edge. A
+  pixel walks 40 % fewer entries than under the rule of straight networks with the shader's
+  3 cm margin for every path, which rough networks used before.
 A fragment whose half footprint (half of |dp/dx| + |dp/dy|) is at most ``footprint_m`` reads
 its own cell alone; one whose half footprint is larger also reads the cells within the rest of
 it, at most one more each way (crack_box in shaders/cracks.glsl). That box reaches every point
-within the rest of the footprint, unwidened; so where a larger pixel still refines a rough
-path (segments longer than 2 ``footprint_m``), the list covers the slope's widening of the
-whole footprint (list_reach). The rules then hold exactly while
-|dp/dx| + |dp/dy| is at most 2 (``footprint_m`` + one cell edge): 20 cm for a straight
-network, 14 cm for a rough one (square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm
-lens on the 36 mm sensor, 130 m away). On a rough network, three caveats: the slopes are drawn
-for pixels that refine a path at most five times (half footprints over 1/64 of a segment's
-length); a finer pixel relies on the margin's slack, enough while the path's slope there
-stays under about 1.8 beside the widest (10 mm) cracks and 13 beside 1 mm ones. The shader
-hands a segment to its rough path only within CRACK_REACH_M beyond the footprint and edge
-(crack_walk): enough for segments up to 15 cm (tested; the generators cut paths at about
-STEP_M, 5 cm), while a steep segment of 20 cm or more may reach a few millimetres past it. And
-the shader draws the rough paths of the two segments nearest a pixel by their chords among the
-listed ones within CRACK_REACH_M (crack_walk): the lists decide which compete, so where
-three or more paths meet, the one left out may differ from a search of every segment's.
+within the rest of the footprint. The rules then hold exactly while |dp/dx| + |dp/dy| is at
+most 2 (``footprint_m`` + one cell edge): 20 cm for a straight network, 14 cm for a rough one
+(square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm lens on the 36 mm sensor, 130 m
+away). On a rough network, one caveat: the shader draws the rough paths of the two segments
+nearest a pixel by their chords among the listed ones within CRACK_REACH_M of their edge
+(crack_walk): the lists decide which compete, so where three or more paths meet, the one left
+out may differ from a search of every segment's. (And a path clamped at CRACK_REACH_M, which
+only segments of tens of centimetres stray to, may pass it by the rise of one pixel's piece.)
 Beyond the range, a pixel may miss a crack further than the cells it reads: its darkening
 there is below w / 7 cm, but its label is lost (docs/results.md, round nineteen: edge-on
 pixels). The cost's worst case is the longest cell list times 27 cells (a far fragment), or
@@ -186,21 +179,13 @@ def list_reach(network: CrackNetwork, cell: float) -> tuple[np.ndarray, float]:
         return half + 2 * cell, cell
     c = SHADER_CONSTANTS
     length = np.linalg.norm(network.points[:, 1] - network.points[:, 0], axis=1)
-    stray, slopes = path_bounds(length, segment_seeds(network.widths_m))
+    stray = path_bounds(length, segment_seeds(network.widths_m))
+    # crack_rough measures a pixel to the piece of the path it lies beside, so a pixel of half
+    # footprint up to ROUGH_FOOTPRINT_M is labelled and darkened only within its edge and that
+    # footprint of the path; a larger one reads the cells within the rest of its footprint
+    # (crack_box).
     edge = (1 + 2 * c["CRACK_CHIP_MAX"]) * half + c["CRACK_LIP_M"]
-    # crack_rough measures to the path's local tangent: across the chord, a pixel of half
-    # footprint f on a stretch of slope s is labelled and darkened up to (edge + f) / cos
-    # further out. A pixel that refines the path j + 1 times (column j) has f at most
-    # length / 2^(j + 1); one refining it more (f <= length / 64) has the margin's slack.
-    # Past ROUGH_FOOTPRINT_M the read box reaches f - ROUGH_FOOTPRINT_M further, unwidened
-    # (crack_box), so the list covers the rest: the widening of the whole footprint. That
-    # grows with f, so each level's largest f (within the exact range) bounds it.
-    half_footprint = np.minimum(ROUGH_FOOTPRINT_M + cell,
-                                length[:, None] / 2.0 ** np.arange(1, slopes.shape[1] + 1))
-    tangent = (edge[:, None] + half_footprint) * np.sqrt(1 + slopes ** 2) \
-        - np.maximum(half_footprint - ROUGH_FOOTPRINT_M, 0.0)
-    beside = np.maximum(edge + ROUGH_FOOTPRINT_M, tangent.max(1))
-    return HALF_DIAGONAL * cell + stray + beside, ROUGH_FOOTPRINT_M
+    return HALF_DIAGONAL * cell + stray + edge + ROUGH_FOOTPRINT_M, ROUGH_FOOTPRINT_M
 
 
 def pack_cracks(network: CrackNetwork) -> CrackIndex:
