@@ -91,8 +91,8 @@ float crack_structure(float x) {
 // The lateral offset (m) at parameter t of a segment ``length_m`` long, by random midpoint
 // displacement from 0 at both ends (the polyline's vertices), halving while the new points
 // lie at least ``finest_m`` apart; clamped to CRACK_REACH_M. Then the piece of the path that
-// holds t: its slope across the chord, and how far (m, along the chord) it runs before and
-// after t.
+// holds t: its slope across the chord (0 where the clamp holds it), and how far (m, along the
+// chord) it runs before and after t.
 vec4 crack_offset(float t, float length_m, uint seed, float finest_m) {
     float lo = 0.0, hi = 0.0, a = 0.0, b = 1.0, interval = length_m;
     uint index = 0u;
@@ -116,8 +116,10 @@ vec4 crack_offset(float t, float length_m, uint seed, float finest_m) {
         index = 2u * index + (left ? 0u : 1u);
         interval *= 0.5;
     }
-    float offset = clamp(mix(lo, hi, (t - a) / (b - a)), -CRACK_REACH_M, CRACK_REACH_M);
-    return vec4(offset, (hi - lo) / interval, (t - a) * length_m, (b - t) * length_m);
+    float offset = mix(lo, hi, (t - a) / (b - a));
+    float slope = abs(offset) > CRACK_REACH_M ? 0.0 : (hi - lo) / interval;
+    return vec4(clamp(offset, -CRACK_REACH_M, CRACK_REACH_M), slope, (t - a) * length_m,
+                (b - t) * length_m);
 }
 
 // The surface's normal with its largest component positive, whichever way the view sees it:
@@ -229,10 +231,12 @@ void crack_walk(int cell, vec3 p, vec3 dpdx, vec3 dpdy, inout CrackHit hit,
 // The squared distance (m^2, on the surface) from a pixel ``across`` m off the path, measured
 // across the chord at the pixel's place along it, to the path's piece there: slope ``slope``,
 // running ``before`` m back and ``after`` m on along the chord (crack_offset). A crack is its
-// path swept by a disc of its width, so a pixel is measured to the piece, not to the piece's
-// infinite tangent line: where a piece shorter than the width is steep (a tenth of the
-// pieces a tenth of a millimetre long climb more than their length), its tangent line's band
-// would reach (w / 2)(sqrt(1 + slope^2) - 1) past the crack, a needle that no crack has.
+// path swept by a disc of its width; measured to the piece beside it alone, a pixel is drawn
+// inside that sweep (beside a steep neighbouring piece a few per cent of the sweep is left
+// out: steps of one piece's rise on the lips). Measured to the piece's infinite tangent line
+// instead, where a piece shorter than the width is steep (a tenth of the pieces a tenth of a
+// millimetre long climb more than their length), the band reached (w / 2)(sqrt(1 + slope^2)
+// - 1) past the crack, a needle that no crack has.
 float crack_piece_distance2(float across, float slope, float before, float after) {
     vec2 dir = vec2(1.0, slope);
     float k = clamp(across * slope / dot(dir, dir), -before, after);

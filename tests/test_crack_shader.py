@@ -108,7 +108,8 @@ def test_the_paths_offsets_match_their_numpy_twin(glsl):
     """crack_offset, seeded from a segment's end widths as crack_rough seeds it, against
     crack_paths.shader_offsets (which the meta JSON's crack lists follow): segments of 5 mm to
     0.3 m, footprints of 20 um to 5 cm (from every level of halving to none), everywhere along
-    them."""
+    them. The piece it reports is the path's finest interval around t: as long as the length
+    over 2^levels, its ends on the path, its slope theirs (flat where the clamp holds it)."""
     rng = make_rng(5, 0, Stream.DAMAGE)
     n = 8192
     t, length = rng.uniform(0, 1, n), rng.uniform(0.005, 0.3, n)
@@ -116,13 +117,24 @@ def test_the_paths_offsets_match_their_numpy_twin(glsl):
     finest = np.exp(rng.uniform(np.log(2e-5), np.log(0.05), n))
     rows = _rows(t, length, widths_mm)
     out = glsl.run("crack_offset(in0.x, in0.y, crack_hash(floatBitsToUint(in0.z) ^ "
-                   "crack_hash(floatBitsToUint(in0.w))), in1.x).x, 0.0, 0.0, 0.0",
-                   rows, _rows(finest))[:, 0]
+                   "crack_hash(floatBitsToUint(in0.w))), in1.x)", rows, _rows(finest))
+    offset, slope, before, after = out.T.astype(np.float64)
     t, length, finest = (x.astype(np.float32).astype(np.float64) for x in (t, length, finest))
     seeds = crack_paths.segment_seeds(widths_mm.astype(np.float64) / 1000.0)
     ref = crack_paths.shader_offsets(t, length, seeds, finest)
-    assert np.abs(out - ref).max() <= 1e-7  # float32 sums of offsets of up to 30 mm
+    assert np.abs(offset - ref).max() <= 1e-7  # float32 sums of offsets of up to 30 mm
     assert np.std(ref) > 1e-3 and np.abs(ref).max() <= REACH
+    levels = np.floor(np.log2(length / np.maximum(
+        finest, length * 2.0 ** -crack_paths.SHADER_CONSTANTS["CRACK_LEVELS"])))
+    piece = length * 2.0 ** -np.maximum(levels, 0)
+    assert np.allclose(before + after, piece, rtol=1e-5, atol=1e-9)
+    starts, ends = (crack_paths.shader_offsets(np.clip(x, 0, 1), length, seeds, finest)
+                    for x in (t - before / length, t + after / length))
+    free = np.abs(np.concatenate([starts, ends])).reshape(2, -1).max(0) < REACH
+    # float32: t and the piece's ends to a few ulps, times slopes of up to about 16.
+    assert np.abs(offset - slope * before - starts)[free].max() <= 2e-6
+    assert np.abs(offset + slope * after - ends)[free].max() <= 2e-6
+    assert np.abs(slope).max() > 1 and free.mean() > 0.99
     # At footprints of a segment's length or more, the path is its chord.
     assert np.array_equal(ref[finest >= length], np.zeros((finest >= length).sum()))
 
@@ -321,7 +333,7 @@ def test_a_paths_stray_bound_holds_at_every_footprint():
 
 def test_a_pixel_is_measured_to_the_piece_of_the_path_beside_it(glsl):
     """crack_piece_distance2 against the distance to a segment in float64: pixels off pieces
-    of slopes 0 to about 8 (the path's finest pieces reach about 2) and lengths of 1 um to
+    of slopes 0 to about 16 (the path's finest pieces reach 2-3) and lengths of 1 um to
     1 cm, the pixel anywhere along the piece; where the foot of the perpendicular lies on the
     piece, the distance is the tangent line's, as before."""
     rng = make_rng(13, 0, Stream.DAMAGE)

@@ -14,7 +14,8 @@ finds in its list every crack whose edge lies within ``footprint_m`` of it:
   path's stray (crack_paths.path_bounds, a few millimetres for a 4 cm segment), then its
   chipped lips, up to (0.5 + CRACK_CHIP_MAX) widths and CRACK_LIP_M, plus ``footprint_m``
   (ROUGH_FOOTPRINT_M). The shader measures a pixel to the piece of the path beside it
-  (crack_piece_distance2), so nothing of a crack lies further from the path than its edge. A
+  (crack_piece_distance2), so nothing of a crack lies further from the path than its edge
+  (where the path is clamped at CRACK_REACH_M, the piece is flat there). A
   pixel walks 40 % fewer entries than under the rule of straight networks with the shader's
   3 cm margin for every path, which rough networks used before.
 A fragment whose half footprint (half of |dp/dx| + |dp/dy|) is at most ``footprint_m`` reads
@@ -24,10 +25,9 @@ within the rest of the footprint. The rules then hold exactly while |dp/dx| + |d
 most 2 (``footprint_m`` + one cell edge): 20 cm for a straight network, 14 cm for a rough one
 (square pixels of 7 cm: a 1920-pixel-wide view through a 36 mm lens on the 36 mm sensor, 130 m
 away). On a rough network, one caveat: the shader draws the rough paths of the two segments
-nearest a pixel by their chords among the listed ones within CRACK_REACH_M of their edge
-(crack_walk): the lists decide which compete, so where three or more paths meet, the one left
-out may differ from a search of every segment's. (And a path clamped at CRACK_REACH_M, which
-only segments of tens of centimetres stray to, may pass it by the rise of one pixel's piece.)
+nearest a pixel by their chords among the listed ones within CRACK_REACH_M of their edge and
+half footprint (crack_walk): the lists decide which compete, so where three or more paths
+meet, the one left out may differ from a search of every segment's.
 Beyond the range, a pixel may miss a crack further than the cells it reads: its darkening
 there is below w / 7 cm, but its label is lost (docs/results.md, round nineteen: edge-on
 pixels). The cost's worst case is the longest cell list times 27 cells (a far fragment), or
