@@ -144,5 +144,6 @@ def main() -> None:
     result["complete"] = True
     write_results(args.name, result)
 
+
 if __name__ == "__main__":
     main()

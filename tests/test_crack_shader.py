@@ -347,11 +347,12 @@ def test_a_pixel_is_measured_to_the_piece_of_the_path_beside_it(glsl):
     out = glsl.run("crack_piece_distance2(in0.x, in0.y, in0.z, in0.w), 0.0, 0.0, 0.0",
                    rows)[:, 0]
     across, slope, before, after = (x.astype(np.float64) for x in rows.T)
-    ends = np.stack([np.stack([-before, -slope * before], 1),
-                     np.stack([after, slope * after], 1)], 1)[:, :, None]
-    pixel = np.stack([np.zeros(n), across, np.zeros(n)], 1)
-    ref, _ = segment_distance(pixel, np.pad(ends[:, 0, 0], ((0, 0), (0, 1))),
-                              np.pad(ends[:, 1, 0], ((0, 0), (0, 1))))
+    # The pixel and the piece's ends in the plane (along the chord, across it, 0).
+    zero = np.zeros(n)
+    pixel = np.stack([zero, across, zero], 1)
+    start = np.stack([-before, -slope * before, zero], 1)
+    end = np.stack([after, slope * after, zero], 1)
+    ref, _ = segment_distance(pixel, start, end)
     scale = np.abs(across) + np.abs(slope) * piece + piece
     assert np.all(np.abs(np.sqrt(out) - ref) <= 4 * EPS * scale)
     line = np.abs(across) / np.sqrt(1 + slope ** 2)
