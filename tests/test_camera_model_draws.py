@@ -103,3 +103,62 @@ def test_a_boxes_blur_is_the_whole_images_there(diameter):
         assert np.abs(box - whole[y:y + h, x:x + w]).max() < 1e-6, (x, y, w, h)
     assert camera_model.blur_scale(diameter, linear.shape) == (8 if diameter == 64 else
                                                                 2 if diameter == 16 else 1)
+
+
+def test_level_boxes_cover_the_pixels_that_need_the_level():
+    """Two patches of one level, far apart in one strip of rows, and a third across the next
+    strips' boundary: a box for each patch in each strip (the area between them is not
+    blurred), every needed pixel inside one, none beyond the frame; patches within the
+    blur's margins share a box; an empty mask has none."""
+    shape = (300, 640, 3)
+    needed = np.zeros(shape[:2], np.uint8)
+    needed[10:40, 20:60] = needed[50:90, 500:600] = needed[200:260, 300:330] = 255
+    boxes = camera_model.level_boxes(needed, 3.0, shape)
+    covered = np.zeros_like(needed)
+    for x, y, w, h in boxes:
+        assert 0 <= x and 0 <= y and x + w <= shape[1] and y + h <= shape[0]
+        covered[y:y + h, x:x + w] = 255
+    assert not np.any(needed & ~covered)
+    assert camera_model.STRIP_ROWS == 128
+    assert len(boxes) == 4 and sum(w * h for _, _, w, h in boxes) == 40 * 30 + 100 * 40 + 30 * 60
+    # 4 px apart: the 3 px disc reads 3 px around each box, so one box blurs them.
+    close = np.zeros(shape[:2], np.uint8)
+    close[10:20, 20:30] = close[10:20, 34:40] = 255
+    assert camera_model.level_boxes(close, 3.0, shape) == [(20, 10, 20, 10)]
+    assert camera_model.level_boxes(np.zeros(shape[:2], np.uint8), 3.0, shape) == []
+
+
+def test_level_boxes_fall_back_to_one_box_where_the_blur_takes_the_whole_frame():
+    """A frame whose sides are not whole pixels of the small image a wide disc is blurred on
+    (disc_blur_box then blurs the whole frame): one bounding box, so that it does so once."""
+    shape = (100, 200, 3)
+    assert camera_model.blur_scale(40.0, shape) == 4 and shape[0] % 4 == 0  # the sides do fit
+    odd = (102, 200, 3)
+    needed = np.zeros(odd[:2], np.uint8)
+    needed[5:10, 5:10] = needed[90:95, 150:160] = 255
+    assert camera_model.level_boxes(needed, 40.0, odd) == [(5, 5, 155, 90)]
+    assert len(camera_model.level_boxes(needed, 40.0, (104, 200, 3))) == 2
+
+
+def test_defocus_blurs_each_level_only_where_it_is_needed(monkeypatch):
+    """Two patches of strong blur in the corners of a sharp frame, in one strip of rows: the
+    blend is the weighted sum, and each level blurs the patches' boxes, under a third of the
+    frame, not the bounding box between them."""
+    rng = make_rng(4, 0, Stream.SENSOR, 0)
+    h, w = 256, 512
+    linear = rng.random((h, w, 3), dtype=np.float32)
+    diameter = np.ones((h, w), np.float32)
+    diameter[:60, :80] = diameter[:60, -80:] = np.float32(5.0)  # between levels 4 and 6 px
+    areas: list[int] = []
+    original = camera_model.disc_blur_box
+
+    def recording(image: np.ndarray, diameter_px: float, box: tuple[int, int, int, int]
+                  ) -> np.ndarray:
+        if diameter_px > 1.0:
+            areas.append(box[2] * box[3])
+        return original(image, diameter_px, box)
+
+    monkeypatch.setattr(camera_model, "disc_blur_box", recording)
+    blended = camera_model.defocus(linear, diameter)
+    assert np.abs(blended - _weighted_sum(linear, diameter)).max() < 2e-6
+    assert areas and sum(areas) == 4 * 60 * 80  # two levels, two patches each
