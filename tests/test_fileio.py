@@ -1,5 +1,5 @@
-"""File output: the PNG encoder's round trip and the background writer's ordering, bound and
-failures."""
+"""File output: the PNG encoder's round trip, the background writer's ordering, bound and
+failures, and a rendered view's files (write_render)."""
 
 import io
 import threading
@@ -12,6 +12,9 @@ from PIL import Image
 
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import BackgroundWriter, image_bytes
+from glsynth.render.gl.renderer import RenderOutput
+from glsynth.render.view import write_render
+from glsynth.world.cameras import Camera
 
 
 @pytest.mark.parametrize("shape, dtype", [((7, 5, 3), np.uint8), ((7, 5), np.uint8),
@@ -104,3 +107,33 @@ def test_png_rows_use_the_up_filter():
     rows = zlib.decompress(chunks)
     stride = 1 + 23 * 3
     assert len(rows) == 37 * stride and set(rows[::stride]) == {2}
+
+
+def _small_render() -> tuple[Camera, RenderOutput]:
+    """A free camera and an 8 x 6 view of every pass."""
+    output = RenderOutput(color=(np.arange(144) * 7919 % 256).astype(np.uint8).reshape(6, 8, 3),
+                          component=np.full((6, 8), 2, np.uint8),
+                          damage=np.zeros((6, 8), np.uint8),
+                          depth=np.full((6, 8), 3.5, np.float32),
+                          crack_width=np.zeros((6, 8), np.float32))
+    return Camera(8, 6, 35.0, 36.0, np.eye(4), 0.05, 100.0), output
+
+
+def test_a_view_is_written_whole_with_its_colour_from_a_second_thread(tmp_path):
+    camera, output = _small_render()
+    write_render(tmp_path / "view", camera, output, {"root_seed": 1})
+    names = sorted(p.name for p in (tmp_path / "view").iterdir())
+    assert names == ["camera.json", "component.png", "crack_width.npy", "damage.png",
+                     "depth.npy", "image.png"]
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "view" / "image.png")), output.color)
+
+
+def test_a_failed_colour_write_is_raised_and_no_camera_json_follows(tmp_path):
+    """The colour's PNG is written on a second thread: its failure still stops the view
+    before camera.json, the last file, is written."""
+    camera, output = _small_render()
+    (tmp_path / "view" / "image.png").mkdir(parents=True)  # a folder where the file goes
+    with pytest.raises(UserError, match="image.png"):
+        write_render(tmp_path / "view", camera, output, {"root_seed": 1})
+    assert not (tmp_path / "view" / "camera.json").exists()
+    assert (tmp_path / "view" / "depth.npy").exists()  # the other files were written whole
