@@ -1,11 +1,22 @@
 """The face meter's box test over many posed parts at once (glsynth.appearance.metering.blocked,
-part_boxes): a ray is hidden exactly where it meets some part's triangles."""
+part_boxes): a ray is hidden exactly where it meets some part's triangles; and a face's
+irradiance, cast once for the sun and both skies, is each cast's on its own."""
 
 import numpy as np
 
-from glsynth.appearance.metering import blocked, hemisphere, part_boxes
+from glsynth.appearance.metering import (
+    FACE_NORMALS,
+    LIFT_M,
+    blocked,
+    face_irradiance,
+    hemisphere,
+    part_boxes,
+)
+from glsynth.core.config import load_config
 from glsynth.world import meshes
+from glsynth.world.cameras import FaceAim
 from glsynth.world.environment import Part, PartKind
+from glsynth.world.lighting import environment_lighting, sh_basis
 from glsynth.world.visibility import rays_meet_triangles
 
 
@@ -37,3 +48,34 @@ def test_many_posed_parts_hide_a_ray_where_their_triangles_do():
     one_by_one = np.any([blocked(origin, dirs, [p]) for p in parts], axis=0)
     assert np.array_equal(one_by_one, truth)
     assert not blocked(origin, dirs, []).any()
+
+
+def test_a_faces_irradiance_is_its_three_casts_each_on_its_own():
+    """A column's face among the ring of posed boxes (one of them the aimed member itself,
+    left out of the casts): the sun hidden or not, the face's and the point's open sky, each
+    cast on its own against the other parts, give the irradiance that face_irradiance finds
+    in one cast, with part_boxes gathered by it or handed in."""
+    parts = _posed_boxes()
+    member = parts[3]
+    lighting = environment_lighting(load_config("inspection").lighting, 0, 0)
+    for face in ("+x", "-y", "-z"):
+        normal = member.pose[:3, :3] @ np.array(FACE_NORMALS[face])
+        point = member.pose[:3, 3] + 0.3 * normal
+        aim = FaceAim(member.name, face, tuple(point), 1.0, 0.0, 0.0, 1)
+        origin = point + LIFT_M * normal
+        others = parts[:3] + parts[4:]
+        sun = lighting.sun_direction
+        sun_share = lighting.sun_irradiance * max(float(sun @ normal), 0.0)
+        if blocked(origin, sun[None], others)[0]:
+            sun_share = 0.0
+        seen = hemisphere(normal)
+        seen = seen[seen[:, 2] > 0.0]
+        face_open = 1.0 - blocked(origin, seen, others).mean() if len(seen) else 0.0
+        point_open = 1.0 - blocked(origin, hemisphere(np.array([0.0, 0.0, 1.0])),
+                                   others).mean()
+        sky_sh, ground_sh = lighting.irradiance_sh()
+        basis = sh_basis(normal[None])[0]
+        expected = sun_share + (np.maximum(basis @ sky_sh, 0.0) * face_open
+                                + np.maximum(basis @ ground_sh, 0.0) * (0.25 + 0.75 * point_open))
+        assert np.array_equal(face_irradiance(aim, parts, lighting), expected), face
+        assert np.array_equal(face_irradiance(aim, parts, lighting, part_boxes(parts)), expected)

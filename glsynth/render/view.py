@@ -20,7 +20,7 @@ from glsynth.appearance.dressing import (
     open_repository,
 )
 from glsynth.appearance.materials import surface_albedo
-from glsynth.appearance.metering import face_albedo, metered
+from glsynth.appearance.metering import PartBoxes, face_albedo, metered, part_boxes
 from glsynth.core.config import Config
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
 from glsynth.core.interrupts import RenderInterrupted
@@ -77,6 +77,8 @@ class EnvironmentView:
     opened for cameras given instead (a flight's)."""
     _albedo: dict[str, float] = field(default_factory=dict)
     """Metered members' albedo (glsynth.appearance.metering.face_albedo), found once each."""
+    _part_boxes: PartBoxes | None = None
+    """The environment's parts' boxes for the face meter (metering.part_boxes), found once."""
 
     @classmethod
     def open(cls, config: Config, root_seed: int, env_index: int,
@@ -183,7 +185,10 @@ class EnvironmentView:
         if aim.member not in self._albedo:
             member = next(p for p in self.environment.parts if p.name == aim.member)
             self._albedo[aim.member] = face_albedo(member, self.dressing.materials[aim.member])
-        return metered(self.lighting, aim, self.environment.parts, self._albedo[aim.member])
+        if self._part_boxes is None:
+            self._part_boxes = part_boxes(self.environment.parts)
+        return metered(self.lighting, aim, self.environment.parts, self._albedo[aim.member],
+                       self._part_boxes)
 
 
 def free_camera_json(camera: Camera, meta: dict) -> dict:
