@@ -606,13 +606,13 @@ def test_each_cell_lists_every_segment_within_reach_of_its_points():
 
 
 def test_cell_lists_are_exactly_the_segments_within_reach_of_the_cell_centre(monkeypatch):
-    """pack_cracks tests the pairs in batches of segments grouped by box shape; its lists
+    """pack_cracks tests the pairs in batches of segments (cracks_index.batches); its lists
     hold exactly the segments that segment_distance puts within reach (half the widest width
     plus two cell edges) of each cell's centre, ascending, even across batch boundaries and
     for a zero-length segment."""
     import glsynth.render.cracks_index as cracks_index
 
-    monkeypatch.setattr(cracks_index, "BATCH", 500)  # many batches, split mid-group
+    monkeypatch.setattr(cracks_index, "BATCH", 500)  # many batches
     network = _column_network(make_rng(6, 0, Stream.DAMAGE))
     network = CrackNetwork(np.concatenate([network.points, network.points[:1, :1].repeat(2, 1)]),
                            np.concatenate([network.widths_m, [[2e-3, 2e-3]]]),
@@ -633,3 +633,28 @@ def test_cell_lists_are_exactly_the_segments_within_reach_of_the_cell_centre(mon
         start, count = cells[c]
         assert list(entries[start:start + count]) == list(np.nonzero(near[k])[0])
     assert near.sum() > 1000 and near[:, -1].any()
+
+
+def test_box_cells_are_every_cell_of_each_box_in_order():
+    """Boxes of several shapes, one a single cell and one wider than tall: the cells listed
+    are those of nested loops over each box, z outermost and x fastest, box after box."""
+    from glsynth.render.cracks_index import box_cells
+
+    first = np.array([[0, 0, 0], [5, 2, 1], [3, 7, 4], [1, 1, 1]])
+    size = np.array([[2, 3, 1], [1, 1, 1], [4, 2, 3], [3, 1, 2]])
+    box, (x, y, z) = box_cells(first, size)
+    expected = [(b, f[0] + i, f[1] + j, f[2] + k) for b, (f, n) in enumerate(zip(first, size))
+                for k in range(n[2]) for j in range(n[1]) for i in range(n[0])]
+    assert list(zip(box, x, y, z)) == expected
+
+
+def test_batches_hold_at_most_their_budget_and_every_item_once():
+    from glsynth.render.cracks_index import batches
+
+    count = np.array([3, 4, 9, 1, 1, 2, 5, 2])
+    runs = batches(count, 6)
+    assert runs[0].start == 0 and runs[-1].stop == len(count)
+    assert all(a.stop == b.start for a, b in zip(runs, runs[1:]))
+    # Each run as long as the budget allows, and an item over the budget alone.
+    assert [(r.start, r.stop) for r in runs] == [(0, 1), (1, 2), (2, 3), (3, 6), (6, 7), (7, 8)]
+    assert batches(np.array([], np.int64), 6) == []

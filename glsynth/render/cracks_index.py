@@ -136,37 +136,53 @@ def _grid(points: np.ndarray, half_width: float) -> tuple[np.ndarray, float, np.
         cell *= 1.25
 
 
-def _cell_offsets(size: np.ndarray) -> list[np.ndarray]:
-    """The cells of a box of ``size`` (3,) cells from its lower corner, x fastest, then y,
-    then z: three (m,) arrays."""
-    k, j, i = np.meshgrid(*(np.arange(n) for n in size[::-1]), indexing="ij")
-    return [i.ravel(), j.ravel(), k.ravel()]
+def box_cells(first: np.ndarray, size: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Every cell of n boxes, ``size`` (n, 3) cells from their lower corner cells ``first``
+    (n, 3): the box each cell belongs to (boxes in order) and its cell indices along x, y and
+    z (three arrays; x fastest within a box, then y, then z). All boxes at once, each cell's
+    place in its box taken apart by its box's shape: grouping the boxes by shape cost a
+    Python loop over hundreds of shapes per network."""
+    count = size.prod(1)
+    box = np.repeat(np.arange(len(size)), count)
+    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    nx, ny = size[box, 0], size[box, 1]
+    return box, [first[box, 0] + local % nx, first[box, 1] + local // nx % ny,
+                 first[box, 2] + local // (nx * ny)]
+
+
+def batches(count: np.ndarray, most: int) -> list[slice]:
+    """Runs of consecutive items of ``count`` (n,) cells each, at most ``most`` cells a run
+    (an item of more stands alone): boxes' cells in batches of bounded temporaries."""
+    ends = np.cumsum(count)
+    runs, start = [], 0
+    while start < len(count):
+        # The first item past the budget that the run's cells up to it leave.
+        stop = int(np.searchsorted(ends, ends[start] - count[start] + most, side="right"))
+        stop = max(stop, start + 1)
+        runs.append(slice(start, stop))
+        start = stop
+    return runs
 
 
 def _near_pairs(points: np.ndarray, reach: np.ndarray, origin: np.ndarray, cell: float,
                 dims: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """Sorted keys cell id x segments + segment of every (cell, segment) pair whose cell
     centre lies within the segment's ``reach``, among the cells of the segment's box
-    low..high (inclusive, clipped to the grid). Segments whose boxes have the same shape are
-    tested together, a batch of at most BATCH pairs at a time: broadcasting, not repeating,
-    the per-segment values, and bounding the temporaries."""
+    low..high (inclusive, clipped to the grid). Segments in batches of about BATCH pairs,
+    bounding the temporaries."""
     lo = np.clip(low, 0, dims - 1)
     size = np.clip(high, 0, dims - 1) - lo + 1
     a, ab = points[:, 0], points[:, 1] - points[:, 0]
-    shapes, group = np.unique(size, axis=0, return_inverse=True)
     keys = []
-    for g, shape in enumerate(shapes):
-        offsets = _cell_offsets(shape)
-        members = np.flatnonzero(group.ravel() == g)
-        for seg in np.array_split(members, -(-len(members) * len(offsets[0]) // BATCH)):
-            ijk = [lo[seg, q][:, None] + offsets[q] for q in range(3)]
-            gap, _ = segment_distance_axes([origin[q] + (ijk[q] + 0.5) * cell for q in range(3)],
-                                           [a[seg, q][:, None] for q in range(3)],
-                                           [ab[seg, q][:, None] for q in range(3)])
-            near = gap <= reach[seg, None]
-            i, j, k = (v[near] for v in ijk)
-            keys.append((i + dims[0] * (j + dims[1] * k)) * len(points)
-                        + np.broadcast_to(seg[:, None], near.shape)[near])
+    for run in batches(size.prod(1), BATCH):
+        box, ijk = box_cells(lo[run], size[run])
+        seg = box + run.start
+        gap, _ = segment_distance_axes([origin[q] + (ijk[q] + 0.5) * cell for q in range(3)],
+                                       [a[seg, q] for q in range(3)],
+                                       [ab[seg, q] for q in range(3)])
+        near = gap <= reach[seg]
+        i, j, k = (v[near] for v in ijk)
+        keys.append((i + dims[0] * (j + dims[1] * k)) * len(points) + seg[near])
     return np.sort(np.concatenate(keys))
 
 
