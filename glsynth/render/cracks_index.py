@@ -144,10 +144,16 @@ def box_cells(first: np.ndarray, size: np.ndarray) -> tuple[np.ndarray, list[np.
     Python loop over hundreds of shapes per network."""
     count = size.prod(1)
     box = np.repeat(np.arange(len(size)), count)
-    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    nx, ny = size[box, 0], size[box, 1]
-    return box, [first[box, 0] + local % nx, first[box, 1] + local // nx % ny,
-                 first[box, 2] + local // (nx * ny)]
+    place = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    # Two divisions, each box's value repeated rather than gathered: half the time of a
+    # gather and three.
+    nx, nxy = np.repeat(size[:, 0], count), np.repeat(size[:, 0] * size[:, 1], count)
+    z = place // nxy
+    place -= z * nxy
+    y = place // nx
+    place -= y * nx
+    return box, [np.repeat(first[:, 0], count) + place, np.repeat(first[:, 1], count) + y,
+                 np.repeat(first[:, 2], count) + z]
 
 
 def batches(count: np.ndarray, most: int) -> list[slice]:
