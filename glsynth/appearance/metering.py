@@ -65,7 +65,7 @@ def blocked(origin: np.ndarray, dirs: np.ndarray, parts: Sequence[Part],
         return hit
     lo, hi, rotation, shift = boxes or part_boxes(parts)
     o = np.einsum("pji,pj->pi", rotation, origin - shift)  # origin in each mesh frame
-    d = np.einsum("nj,pji->pni", dirs, rotation)  # (P, N, 3): dirs in each mesh frame
+    d = np.matmul(dirs, rotation)  # (P, N, 3): dirs in each mesh frame (einsum: 40x the time)
     with np.errstate(divide="ignore", invalid="ignore"):
         t0, t1 = (lo[:, None] - o[:, None]) / d, (hi[:, None] - o[:, None]) / d
     # Over the three slabs, NaN (a ray in a box's side plane: 0 / 0) left out as nanmax and
