@@ -110,17 +110,19 @@ def test_level_boxes_cover_the_pixels_that_need_the_level():
     strips' boundary: a box for each patch in each strip (the area between them is not
     blurred), every needed pixel inside one, none beyond the frame; patches within the
     blur's margins share a box; an empty mask has none."""
-    shape = (300, 640, 3)
+    strip = camera_model.STRIP_ROWS
+    shape = (3 * strip, 640, 3)
     needed = np.zeros(shape[:2], np.uint8)
-    needed[10:40, 20:60] = needed[50:90, 500:600] = needed[200:260, 300:330] = 255
+    needed[10:40, 20:60] = needed[50:90, 500:600] = 255
+    needed[2 * strip - 30:2 * strip + 20, 300:330] = 255  # 30 rows above the boundary
     boxes = camera_model.level_boxes(needed, 3.0, shape)
     covered = np.zeros_like(needed)
     for x, y, w, h in boxes:
         assert 0 <= x and 0 <= y and x + w <= shape[1] and y + h <= shape[0]
         covered[y:y + h, x:x + w] = 255
     assert not np.any(needed & ~covered)
-    assert camera_model.STRIP_ROWS == 128
-    assert len(boxes) == 4 and sum(w * h for _, _, w, h in boxes) == 40 * 30 + 100 * 40 + 30 * 60
+    assert sorted(boxes) == [(20, 10, 40, 30), (300, 2 * strip - 30, 30, 30),
+                             (300, 2 * strip, 30, 20), (500, 50, 100, 40)]
     # 4 px apart: the 3 px disc reads 3 px around each box, so one box blurs them.
     close = np.zeros(shape[:2], np.uint8)
     close[10:20, 20:30] = close[10:20, 34:40] = 255
@@ -141,24 +143,26 @@ def test_level_boxes_fall_back_to_one_box_where_the_blur_takes_the_whole_frame()
 
 
 def test_defocus_blurs_each_level_only_where_it_is_needed(monkeypatch):
-    """Two patches of strong blur in the corners of a sharp frame, in one strip of rows: the
-    blend is the weighted sum, and each level blurs the patches' boxes, under a third of the
-    frame, not the bounding box between them."""
+    """Two patches of strong blur at the sides of a sharp frame, in one strip of rows below
+    its top (so the levels' bands start lower): the blend is the weighted sum, and each level
+    blurs the patches' boxes, at their rows, not the bounding box between them."""
     rng = make_rng(4, 0, Stream.SENSOR, 0)
-    h, w = 256, 512
+    h, w = 2 * camera_model.STRIP_ROWS, 512
     linear = rng.random((h, w, 3), dtype=np.float32)
     diameter = np.ones((h, w), np.float32)
-    diameter[:60, :80] = diameter[:60, -80:] = np.float32(5.0)  # between levels 4 and 6 px
-    areas: list[int] = []
+    rows = slice(h // 2, h // 2 + 60)
+    diameter[rows, :80] = diameter[rows, -80:] = np.float32(5.0)  # between levels 4 and 6 px
+    boxes: list[tuple[int, int, int, int]] = []
     original = camera_model.disc_blur_box
 
     def recording(image: np.ndarray, diameter_px: float, box: tuple[int, int, int, int]
                   ) -> np.ndarray:
         if diameter_px > 1.0:
-            areas.append(box[2] * box[3])
+            boxes.append(box)
         return original(image, diameter_px, box)
 
     monkeypatch.setattr(camera_model, "disc_blur_box", recording)
     blended = camera_model.defocus(linear, diameter)
     assert np.abs(blended - _weighted_sum(linear, diameter)).max() < 2e-6
-    assert areas and sum(areas) == 4 * 60 * 80  # two levels, two patches each
+    patches = [(0, rows.start, 80, 60), (w - 80, rows.start, 80, 60)]
+    assert sorted(boxes) == sorted(patches * 2)  # two levels, two patches each

@@ -657,4 +657,7 @@ def test_batches_hold_at_most_their_budget_and_every_item_once():
     assert all(a.stop == b.start for a, b in zip(runs, runs[1:]))
     # Each run as long as the budget allows, and an item over the budget alone.
     assert [(r.start, r.stop) for r in runs] == [(0, 1), (1, 2), (2, 3), (3, 6), (6, 7), (7, 8)]
+    # A run that fills the budget exactly takes its last item.
+    assert [(r.start, r.stop) for r in batches(np.array([2, 4, 6, 3, 3]), 6)] == [
+        (0, 2), (2, 3), (3, 5)]
     assert batches(np.array([], np.int64), 6) == []

@@ -5,6 +5,7 @@ import io
 import threading
 import time
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from PIL import Image
 
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import BackgroundWriter, image_bytes
+from glsynth.render import view as render_view
 from glsynth.render.gl.renderer import RenderOutput
 from glsynth.render.view import write_render
 from glsynth.world.cameras import Camera
@@ -119,9 +121,20 @@ def _small_render() -> tuple[Camera, RenderOutput]:
     return Camera(8, 6, 35.0, 36.0, np.eye(4), 0.05, 100.0), output
 
 
-def test_a_view_is_written_whole_with_its_colour_from_a_second_thread(tmp_path):
+def test_a_view_is_written_whole_with_its_colour_from_a_second_thread(tmp_path, monkeypatch):
+    writers: dict[str, str] = {}
+    original = render_view.atomic_write_bytes
+
+    def recording(path: Path, data: bytes) -> None:
+        writers[Path(path).name] = threading.current_thread().name
+        original(path, data)
+
+    monkeypatch.setattr(render_view, "atomic_write_bytes", recording)
     camera, output = _small_render()
     write_render(tmp_path / "view", camera, output, {"root_seed": 1})
+    main = threading.current_thread().name
+    assert writers.pop("image.png") != main
+    assert set(writers.values()) == {main}  # the labels and depth, here
     names = sorted(p.name for p in (tmp_path / "view").iterdir())
     assert names == ["camera.json", "component.png", "crack_width.npy", "damage.png",
                      "depth.npy", "image.png"]

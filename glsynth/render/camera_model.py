@@ -49,13 +49,13 @@ _UNDER_CLIP = float(np.nextafter(np.float32(AWB_CLIP), np.float32(0)))
 AWB_MAX_GAIN = 4.0
 """The most a white-balance gain corrects (a camera's presets span about 2,500-10,000 K)."""
 CHUNK_ROWS = 64
-STRIP_ROWS = 128
-"""Rows of the strips that the defocus finds each level's boxes in (level_boxes): a level's
-pixels lie in bands that cross the frame at any slant, and one bounding box per strip and run
-of columns blurs less than half the area one box over the frame does, at 128 rows about
-the fewest CPU seconds (96-192 tried on inspection views)."""
 """Rows of a frame that a pass with a temporary works on at a time: the temporary stays in the
 cache, and no frame-sized one is allocated (a fresh one costs the kernel its page faults)."""
+STRIP_ROWS = 128
+"""Rows of the strips that the defocus finds each level's boxes in (level_boxes): a level's
+pixels lie in bands that cross the frame at any slant, and one box per strip and run of
+columns blurs less than half the area that one box over the frame does; 128 rows took the
+fewest CPU seconds of 64-192 on inspection views."""
 FOCUS_WINDOW = 0.1
 """The aimed point: the middle FOCUS_WINDOW x FOCUS_WINDOW of the frame."""
 _DECODE = srgb_decode(np.arange(256)).astype(np.float32).reshape(256, 1)
@@ -224,6 +224,13 @@ def disc_blur(image: np.ndarray, diameter_px: float, scale: int | None = None) -
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
+def crops_on_grid(scale: int, shape: tuple[int, ...]) -> bool:
+    """Whether crops of an image of ``shape`` can lie on the pixels of its 1 / ``scale``
+    image (its sides whole multiples of ``scale``), as disc_blur_box's must to blur as the
+    whole image does; otherwise it blurs the whole image."""
+    return not (shape[0] % scale or shape[1] % scale)
+
+
 def disc_blur_box(image: np.ndarray, diameter_px: float, box: tuple[int, int, int, int]
                   ) -> np.ndarray:
     """disc_blur(image, diameter_px) inside ``box`` (x, y, w, h), from the box and the margin
@@ -233,7 +240,7 @@ def disc_blur_box(image: np.ndarray, diameter_px: float, box: tuple[int, int, in
     x, y, w, h = box
     height, width = image.shape[:2]
     scale = blur_scale(diameter_px, image.shape)
-    if diameter_px <= 1.0 or height % scale or width % scale:
+    if diameter_px <= 1.0 or not crops_on_grid(scale, image.shape):
         return disc_blur(image, diameter_px)[y:y + h, x:x + w]
     margin = (math.ceil(diameter_px / scale / 2) + 1) * scale
     y0, x0 = max(0, (y - margin) // scale * scale), max(0, (x - margin) // scale * scale)
@@ -264,15 +271,15 @@ def level_boxes(needed: np.ndarray, diameter_px: float, shape: tuple[int, ...]
     blurring a disc of ``diameter_px`` in an image of ``shape`` by disc_blur_box: per strip of
     STRIP_ROWS rows, one box per run of columns that hold some, runs closer than the margins
     the blur reads around two boxes joined. One bounding box where disc_blur_box blurs the
-    whole image (sides not on the small image's pixels), so that it does so once; none where
+    whole image (crops_on_grid false), so that it does so once; none where
     no pixel is (a band's rows can span a level that no pixel is near: a sky edge jumps from
     a near surface's level to the last)."""
     scale = blur_scale(diameter_px, shape)
-    if shape[0] % scale or shape[1] % scale:
+    if not crops_on_grid(scale, shape):
         x, y, w, h = cv2.boundingRect(needed)
         return [(x, y, w, h)] if w else []
     gap = 2 * (math.ceil(diameter_px / scale / 2) + 1) * scale
-    boxes = []
+    boxes: list[tuple[int, int, int, int]] = []
     for top in range(0, needed.shape[0], STRIP_ROWS):
         strip = needed[top:top + STRIP_ROWS]
         columns = np.flatnonzero(strip.any(axis=0))
@@ -300,10 +307,11 @@ def defocus(linear: np.ndarray, diameter_px: np.ndarray) -> np.ndarray:
     key = cv2.add(lower, lower, dtype=cv2.CV_8U)
     key += share > 0
     # Each level's blur is copied where it is a pixel's lower level and where its upper one,
-    # and the two blended once at the end: a level's own weight pass costs more. Every pixel
-    # has a lower level, so ``below`` is written everywhere; ``above`` keeps zeros where no
-    # upper level is (np.zeros: fresh pages, no fill pass).
-    below, above = np.empty_like(linear), np.zeros(linear.shape, linear.dtype)
+    # and the two blended once at the end: a level's own weight pass costs more. ``above``
+    # keeps zeros where no upper level is, and ``below`` where no level is at all (a row of
+    # NaN diameters, which no band holds). np.zeros: the kernel's fresh zeroed pages, with
+    # no fill pass (np.zeros_like fills).
+    below, above = np.zeros(linear.shape, linear.dtype), np.zeros(linear.shape, linear.dtype)
     for level, diameter in enumerate(DEFOCUS_LEVELS):
         # Level L serves the pixels whose index lies in (L - 1, L + 1); depth is smooth, so
         # they lie in a band of rows, and only the band is looked at.

@@ -160,7 +160,8 @@ def batches(count: np.ndarray, most: int) -> list[slice]:
     """Runs of consecutive items of ``count`` (n,) cells each, at most ``most`` cells a run
     (an item of more stands alone): boxes' cells in batches of bounded temporaries."""
     ends = np.cumsum(count)
-    runs, start = [], 0
+    runs: list[slice] = []
+    start = 0
     while start < len(count):
         # The first item past the budget that the run's cells up to it leave.
         stop = int(np.searchsorted(ends, ends[start] - count[start] + most, side="right"))
