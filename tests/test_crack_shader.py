@@ -10,7 +10,14 @@ from glsynth.appearance import crack_paths
 from glsynth.appearance.cracks import CrackNetwork
 from glsynth.core.geometry import segment_distance
 from glsynth.core.seeding import Stream, make_rng
-from glsynth.render.cracks_index import ROUGH_FOOTPRINT_M, ROW, crack_contrast, pack_cracks
+from glsynth.render.cracks_index import (
+    ROUGH_FOOTPRINT_M,
+    ROW,
+    batches,
+    box_cells,
+    crack_contrast,
+    pack_cracks,
+)
 from glsynth.render.gl.renderer import upload_cracks
 
 EPS = float(np.finfo(np.float32).eps)
@@ -638,8 +645,6 @@ def test_cell_lists_are_exactly_the_segments_within_reach_of_the_cell_centre(mon
 def test_box_cells_are_every_cell_of_each_box_in_order():
     """Boxes of several shapes, one a single cell and one wider than tall: the cells listed
     are those of nested loops over each box, z outermost and x fastest, box after box."""
-    from glsynth.render.cracks_index import box_cells
-
     first = np.array([[0, 0, 0], [5, 2, 1], [3, 7, 4], [1, 1, 1]])
     size = np.array([[2, 3, 1], [1, 1, 1], [4, 2, 3], [3, 1, 2]])
     box, (x, y, z) = box_cells(first, size)
@@ -649,8 +654,6 @@ def test_box_cells_are_every_cell_of_each_box_in_order():
 
 
 def test_batches_hold_at_most_their_budget_and_every_item_once():
-    from glsynth.render.cracks_index import batches
-
     count = np.array([3, 4, 9, 1, 1, 2, 5, 2])
     runs = batches(count, 6)
     assert runs[0].start == 0 and runs[-1].stop == len(count)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from glsynth.core import fileio
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import BackgroundWriter, image_bytes
 from glsynth.render import view as render_view
@@ -123,13 +124,14 @@ def _small_render() -> tuple[Camera, RenderOutput]:
 
 def test_a_view_is_written_whole_with_its_colour_from_a_second_thread(tmp_path, monkeypatch):
     writers: dict[str, str] = {}
-    original = render_view.atomic_write_bytes
+    original = fileio.atomic_write_bytes
 
     def recording(path: Path, data: bytes) -> None:
         writers[Path(path).name] = threading.current_thread().name
         original(path, data)
 
     monkeypatch.setattr(render_view, "atomic_write_bytes", recording)
+    monkeypatch.setattr(fileio, "atomic_write_bytes", recording)  # the background writer's
     camera, output = _small_render()
     write_render(tmp_path / "view", camera, output, {"root_seed": 1})
     main = threading.current_thread().name

@@ -271,9 +271,9 @@ def level_boxes(needed: np.ndarray, diameter_px: float, shape: tuple[int, ...]
     blurring a disc of ``diameter_px`` in an image of ``shape`` by disc_blur_box: per strip of
     STRIP_ROWS rows, one box per run of columns that hold some, runs closer than the margins
     the blur reads around two boxes joined. One bounding box where disc_blur_box blurs the
-    whole image (crops_on_grid false), so that it does so once; none where
-    no pixel is (a band's rows can span a level that no pixel is near: a sky edge jumps from
-    a near surface's level to the last)."""
+    whole image (crops_on_grid false), so that it does so once; none where no pixel is (a
+    band's rows can span a level that no pixel is near: a sky edge jumps from a near
+    surface's level to the last)."""
     scale = blur_scale(diameter_px, shape)
     if not crops_on_grid(scale, shape):
         x, y, w, h = cv2.boundingRect(needed)

@@ -5,7 +5,6 @@ renderer -> files. Every output is written atomically.
 """
 
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -22,7 +21,14 @@ from glsynth.appearance.dressing import (
 from glsynth.appearance.materials import surface_albedo
 from glsynth.appearance.metering import PartBoxes, face_albedo, metered, part_boxes
 from glsynth.core.config import Config
-from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, npy_bytes, png_bytes
+from glsynth.core.fileio import (
+    BackgroundWriter,
+    atomic_write_bytes,
+    atomic_write_json,
+    npy_bytes,
+    png_bytes,
+    write_files,
+)
 from glsynth.core.interrupts import RenderInterrupted
 from glsynth.core.labels import Component
 from glsynth.core.palette import COMPONENT_RGB, DAMAGE_RGB, depth_rgb, overlay
@@ -204,17 +210,16 @@ def write_render(out_dir: str | Path, placement: CameraPlacement | Camera,
     Camera (placed by hand or flown, not sampled) records kind "free" unless ``meta`` names
     another, and no sampled values."""
     out = Path(out_dir)
-    # The colour's PNG, two thirds of the files' time, is encoded and written on a second
-    # thread while this one writes the rest (OpenCV's encoder and the writes release the
-    # GIL); camera.json still comes last.
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="image-png") as pool:
-        image = pool.submit(lambda: atomic_write_bytes(out / "image.png",
-                                                       png_bytes(output.color)))
+    # The colour's PNG, two thirds of the files' time, is encoded and written by the
+    # background writer while this thread writes the rest (OpenCV's encoder and the writes
+    # release the GIL); leaving the block waits for it and raises its failure, so
+    # camera.json still comes last.
+    with BackgroundWriter() as writer:
+        writer.submit(write_files, out, {"image.png": (output.color, "PNG")}, {})
         atomic_write_bytes(out / "component.png", png_bytes(output.component))
         atomic_write_bytes(out / "damage.png", png_bytes(output.damage))
         atomic_write_bytes(out / "crack_width.npy", npy_bytes(output.crack_width))
         atomic_write_bytes(out / "depth.npy", npy_bytes(output.depth))
-        image.result()
     if isinstance(placement, Camera):
         atomic_write_json(out / "camera.json", free_camera_json(placement, meta))
         return
