@@ -794,6 +794,10 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
     p.add_argument("--other-real", nargs="+", default=[], metavar="FOLDER",
                    help="folders of real photographs of another kind (images/ and masks/), "
                         "one network each trained on the whole folder, tested like the rest")
+    p.add_argument("--groups", metavar="JSON",
+                   help="groups of the real folder's images, each also scored on its own: "
+                        "a JSON object of group names, each a list of image names "
+                        '({"asphalt": ["0011", ...], "concrete": [...]})')
     p.add_argument("--steps", type=positive_int, default=300, help="optimiser steps a network")
     p.add_argument("--crop", type=positive_int, default=128,
                    help="training crop side, pixels (multiple of 8)")
@@ -822,7 +826,8 @@ def cmd_bench_sim2real(args: argparse.Namespace) -> None:
     settings = Sim2RealSettings(args.steps, args.crop, args.batch, args.width,
                                 args.learning_rate, args.test_share, args.seed, args.repeats,
                                 args.device)
-    result = run_sim2real(args.synthetic, args.real, args.out, settings, args.other_real)
+    result = run_sim2real(args.synthetic, args.real, args.out, settings, args.other_real,
+                          args.groups)
     print(summary(result))
     print(f"-> {args.out}/sim2real.json, predictions.png")
 

@@ -29,7 +29,7 @@ from torch import nn
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 from glsynth.core.seeding import Stream, make_rng, make_seed
-from glsynth.data.crack_folders import CrackImage, read_real_folder, read_synthetic
+from glsynth.data.crack_folders import CrackImage, read_groups, read_real_folder, read_synthetic
 from glsynth.measure.crack_scores import TOLERANCE_PX, best_threshold
 
 CRACK_WEIGHT = 10.0
@@ -278,14 +278,36 @@ class ScoredRun(NamedTuple):
     """Its predictions of the test images predictions.png shows."""
 
 
+def test_groups(groups: dict[str, list[int]], images: list[CrackImage],
+                test: list[CrackImage]) -> dict[str, list[int]]:
+    """Each group (indices into the real folder's ``images``) as indices into ``test``, the
+    held-out share; a group none of whose images is held out is refused."""
+    at = {image.name: k for k, image in enumerate(test)}
+    out = {}
+    for group, members in groups.items():
+        out[group] = [at[images[i].name] for i in members if images[i].name in at]
+        if not out[group]:
+            raise UserError(f"--groups: group {group!r} has no image among the "
+                            f"{len(test)} held out for testing; give --test-share 1 to test on "
+                            "the whole real folder, or a group with more images")
+    return out
+
+
 def scored_run(images: list[CrackImage], test: list[CrackImage], settings: Sim2RealSettings,
-               item: int, device: torch.device) -> ScoredRun:
+               item: int, device: torch.device, groups: dict[str, list[int]] | None = None
+               ) -> ScoredRun:
     """A network trained on ``images`` from ``item``'s draws (every training set draws the
-    same crops' randomness and initial weights for one item), scored on ``test``."""
+    same crops' randomness and initial weights for one item), scored on ``test``, and on each
+    group of ``test`` (indices) at its own best threshold, as if the group were the test
+    folder."""
     net, training = train_network(images, settings, item, device)
     probs = [predict(net, image.rgb, device) for image in test]
-    return ScoredRun(best_threshold(probs, [image.crack for image in test]), training,
-                     probs[:EXAMPLES])
+    score = best_threshold(probs, [image.crack for image in test])
+    if groups:
+        score["groups"] = {group: best_threshold([probs[k] for k in members],
+                                                 [test[k].crack for k in members])
+                           for group, members in groups.items()}
+    return ScoredRun(score, training, probs[:EXAMPLES])
 
 
 def _network_entry(kind: str, runs: list[ScoredRun], median: int) -> dict:
@@ -300,16 +322,21 @@ def _network_entry(kind: str, runs: list[ScoredRun], median: int) -> dict:
 
 
 def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | Path,
-                 settings: Sim2RealSettings, other_real: Sequence[str | Path] = ()) -> dict:
+                 settings: Sim2RealSettings, other_real: Sequence[str | Path] = (),
+                 groups: str | Path | None = None) -> dict:
     """Train one network on each dataset of ``synthetic``, one on each whole folder of
     ``other_real`` and one on the training share of ``real`` (none with test_share 1), the
-    same way; score them all on the rest of ``real``. Writes sim2real.json (again after each
+    same way; score them all on the rest of ``real``, and on each group of the ``groups``
+    file (read_groups) among it. Writes sim2real.json (again after each
     network; "complete" once all are in) and predictions.png into ``out`` and returns the
     result (networks by name: each dataset's and other folder's name, then "real")."""
     out = Path(out)
     device = pick_device(settings.device)
     names = network_names(synthetic, other_real, real)
-    real_train, test = split_real(read_real_folder(real), settings)
+    real_images = read_real_folder(real)
+    real_train, test = split_real(real_images, settings)
+    tested = (test_groups(read_groups(groups, real_images), real_images, test)
+              if groups is not None else {})
     sets = _training_sets(synthetic, other_real, real_train)
     names = [*names, REAL][:len(sets)]
     out.mkdir(parents=True, exist_ok=True)
@@ -318,11 +345,12 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
                     "other_real": [str(o) for o in other_real],
                     "device": str(device), "tolerance_px": TOLERANCE_PX,
                     "test_images": len(test),
+                    "groups": {group: len(members) for group, members in tested.items()},
                     "real_train_images": len(real_train), "real_trained": bool(real_train),
                     "networks": {}, "complete": False}
     predictions, thresholds = {}, {}
     for name, (kind, images) in zip(names, sets):
-        runs = [scored_run(images, test, settings, repeat_item(r), device)
+        runs = [scored_run(images, test, settings, repeat_item(r), device, tested)
                 for r in range(settings.repeats)]
         median = sorted(range(len(runs)), key=lambda r: runs[r].score["f1"])[(len(runs) - 1) // 2]
         predictions[name] = runs[median].examples
@@ -348,6 +376,10 @@ def summary(result: dict) -> str:
                      + (f"; the median of {len(s['repeats'])} repeats, F1 "
                         f"{s['f1_range'][0]:.3f}-{s['f1_range'][1]:.3f}" if "repeats" in s
                         else ""))
+        if "groups" in s:
+            lines.append("    by group: " + ", ".join(
+                f"{group} F1 {g['f1']:.3f} (P {g['precision']:.3f}, R {g['recall']:.3f})"
+                for group, g in s["groups"].items()))
     if not result["real_trained"]:
         lines.append(f"  no network trained on the real folder: --test-share 1 tests on all "
                      f"{result['test_images']} of its images")

@@ -373,6 +373,71 @@ def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_pa
     assert "--repeats 101: must be an integer in [1, 100]" in err and "\n" not in err
 
 
+def test_groups_are_scored_each_at_its_own_threshold(tmp_path, monkeypatch, capsys):
+    """--groups: every network is also scored on each group of the real folder alone. The
+    network is replaced by one that finds exactly the dark pixels, so a group of photographs
+    whose cracks are dark scores 1, one whose crack is invisible 0, and a group of every
+    image the network's whole score."""
+    from glsynth.model import sim2real
+
+    real = write_real(tmp_path / "photos", names=("p3", "p4", "p5"))
+    for name in ("p3", "p4"):  # a visible, dark crack where the mask marks one
+        path = real / "images" / f"{name}.jpg"
+        image = cv2.imread(str(path))
+        image[5:9, 3:30] = 10
+        cv2.imwrite(str(path), image)
+    rendered = [CrackImage("v", *striped_crack(0, make_rng(3, 0, Stream.TRAINING)))]
+    monkeypatch.setattr(sim2real, "read_synthetic", lambda path: rendered)
+    monkeypatch.setattr(sim2real, "predict", lambda net, rgb, device=None:
+                        (rgb.mean(axis=2) < 60).astype(np.float32))
+    groups = tmp_path / "groups.json"
+    groups.write_text(json.dumps({"seen": ["p3", "p4.jpg"], "unseen": ["p5"],
+                                  "every": ["p3", "p4", "p5"]}))
+    assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
+                 "--groups", str(groups), "--test-share", "1", "--out", str(tmp_path / "o"),
+                 "--steps", "1", "--crop", "16", "--batch", "1", "--width", "4",
+                 "--repeats", "2"]) == 0
+    result = json.loads((tmp_path / "o" / "sim2real.json").read_text())
+    assert result["groups"] == {"seen": 2, "unseen": 1, "every": 3}
+    net = result["networks"]["ds"]
+    for run in (net, *net["repeats"]):
+        by_group = run["groups"]
+        assert by_group["seen"]["f1"] == 1.0 and by_group["unseen"]["f1"] == 0.0
+        assert by_group["every"] == {k: run[k] for k in by_group["every"]}
+        assert run["recall"] == pytest.approx(2 / 3)
+    assert "by group: seen F1 1.000 (P 1.000, R 1.000), unseen F1 0.000" in \
+        capsys.readouterr().out
+
+
+@pytest.mark.parametrize("content, words", [
+    (None, "--groups file '{path}' does not exist"),
+    ("{not json", "is not valid JSON"),
+    ("[]", "is not a non-empty JSON object"),
+    ('{"a": []}', "group 'a' is not a non-empty list of image names"),
+    ('{"a": ["a", 3]}', "group 'a' is not a non-empty list of image names"),
+    ('{"a": ["a", "c.jpg", "d"]}', "group 'a' names 'c.jpg', not an image of the --real folder "
+                                   "(2 such)"),
+    ('{"a": ["a"], "b": ["b"]}', "group '{held}' has no image among the 1 held out"),
+])
+def test_bad_groups_are_refused_in_one_line_before_training(tmp_path, capsys, content, words):
+    """Each refused before any dataset is read (the synthetic dataset given does not exist)
+    and before the output folder is made."""
+    from glsynth.model.sim2real import Sim2RealSettings, split_real
+
+    real, path = write_real(tmp_path / "photos"), tmp_path / "groups.json"
+    if content is not None:
+        path.write_text(content)
+    share = "0.5" if "held out" in words else "1"
+    _, test = split_real(read_real_folder(real), Sim2RealSettings(test_share=0.5))
+    held = ({"a", "b"} - {test[0].name}).pop()  # the group whose one image trains
+    assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
+                 "--groups", str(path), "--test-share", share,
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert words.format(path=path, held=held) in err and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
 def test_many_networks_bench_summarises_and_refuses_a_bad_folder_in_one_line(tmp_path):
     """bench_sim2real_many: medians, means and spreads per step count and training set; a
     folder that cannot be read is refused in one line before any worker starts (a worker

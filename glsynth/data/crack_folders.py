@@ -1,7 +1,8 @@
 """Crack images and their crack masks for the sim-to-real benchmark (glsynth bench sim2real):
 a folder of real photographs (``images/`` and ``masks/``, one mask per image by file stem)
-and a glsynth dataset in the Tokaido layout (crack pixels: crack-width map > 0, with its
-image brought down to the map's size)."""
+a glsynth dataset in the Tokaido layout (crack pixels: crack-width map > 0, with its image
+brought down to the map's size), and groups of a real folder's images that the benchmark also
+scores alone (--groups: by surface, light or camera)."""
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,7 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from glsynth.core.errors import UserError
+from glsynth.core.errors import UserError, named
+from glsynth.core.reading import MAX_JSON_BYTES, parse_json, read_bytes
 from glsynth.data.readers import read_crack_width_map
 from glsynth.data.tokaido import crack_width_path, read_manifest
 
@@ -101,6 +103,37 @@ def read_real_folder(root: str | Path) -> list[CrackImage]:
         # Also what a JPEG of 0/1 masks decodes to: its 1s lost in compression.
         raise UserError(f"no mask in {str(root / 'masks')!r} marks a crack pixel; mark cracks "
                         "at 1 or 255 (at 255 in a JPEG mask)")
+    return out
+
+
+GROUPS_FIX = ('give a JSON object of group names, each a list of image names of the --real '
+              'folder: {"asphalt": ["0011", "0012.jpg"], "concrete": [...]}')
+
+
+def read_groups(path: str | Path, images: list[CrackImage]) -> dict[str, list[int]]:
+    """The groups of a --groups file as indices into ``images``: a JSON object of group
+    names, each a non-empty list of image names (stems, or names with an image suffix) of
+    the real folder. A name the folder lacks is refused, not skipped: a misspelt name would
+    otherwise shrink a group silently."""
+    what = f"--groups file {named(path)}"
+    groups = parse_json(read_bytes(Path(path), "--groups file", MAX_JSON_BYTES, GROUPS_FIX),
+                        what, GROUPS_FIX)
+    if not isinstance(groups, dict) or not groups:
+        raise UserError(f"{what} is not a non-empty JSON object; {GROUPS_FIX}")
+    index = {image.name: k for k, image in enumerate(images)}
+    out = {}
+    for group, names in groups.items():
+        if not isinstance(names, list) or not names or \
+                not all(isinstance(n, str) for n in names):
+            raise UserError(f"{what}: group {group!r} is not a non-empty list of image names; "
+                            f"{GROUPS_FIX}")
+        stems = [Path(n).stem if Path(n).suffix.lower() in IMAGE_SUFFIXES else n
+                 for n in names]
+        unknown = [n for n, stem in zip(names, stems) if stem not in index]
+        if unknown:
+            raise UserError(f"{what}: group {group!r} names {unknown[0]!r}, not an image of the "
+                            f"--real folder ({len(unknown)} such); fix or remove the name")
+        out[group] = sorted({index[stem] for stem in stems})
     return out
 
 
