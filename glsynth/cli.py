@@ -794,10 +794,10 @@ def add_bench_sim2real_parser(sub: Commands) -> None:
     p.add_argument("--other-real", nargs="+", default=[], metavar="FOLDER",
                    help="folders of real photographs of another kind (images/ and masks/), "
                         "one network each trained on the whole folder, tested like the rest")
-    p.add_argument("--groups", metavar="JSON",
-                   help="groups of the real folder's images, each also scored on its own: "
-                        "a JSON object of group names, each a list of image names "
-                        '({"asphalt": ["0011", ...], "concrete": [...]})')
+    p.add_argument("--groups", metavar="FILE",
+                   help="groups of the real folder's images, each also scored on its own: a "
+                        "JSON file holding an object of group names, each a list of image "
+                        'names ({"asphalt": ["0011", ...], "concrete": [...]})')
     p.add_argument("--steps", type=positive_int, default=300, help="optimiser steps a network")
     p.add_argument("--crop", type=positive_int, default=128,
                    help="training crop side, pixels (multiple of 8)")

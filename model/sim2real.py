@@ -29,7 +29,13 @@ from torch import nn
 from glsynth.core.errors import UserError
 from glsynth.core.fileio import atomic_write_bytes, atomic_write_json, png_bytes
 from glsynth.core.seeding import Stream, make_rng, make_seed
-from glsynth.data.crack_folders import CrackImage, read_groups, read_real_folder, read_synthetic
+from glsynth.data.crack_folders import (
+    CrackImage,
+    group_members,
+    read_groups,
+    read_real_folder,
+    read_synthetic,
+)
 from glsynth.measure.crack_scores import TOLERANCE_PX, best_threshold
 
 CRACK_WEIGHT = 10.0
@@ -278,10 +284,11 @@ class ScoredRun(NamedTuple):
     """Its predictions of the test images predictions.png shows."""
 
 
-def test_groups(groups: dict[str, list[int]], images: list[CrackImage],
-                test: list[CrackImage]) -> dict[str, list[int]]:
+def held_out_groups(groups: dict[str, list[int]], images: list[CrackImage],
+                    test: list[CrackImage]) -> dict[str, list[int]]:
     """Each group (indices into the real folder's ``images``) as indices into ``test``, the
-    held-out share; a group none of whose images is held out is refused."""
+    held-out share; a group with no held-out image, or none that marks a crack (its F1 is 0
+    whatever a network finds), is refused."""
     at = {image.name: k for k, image in enumerate(test)}
     out = {}
     for group, members in groups.items():
@@ -290,6 +297,10 @@ def test_groups(groups: dict[str, list[int]], images: list[CrackImage],
             raise UserError(f"--groups: group {group!r} has no image among the "
                             f"{len(test)} held out for testing; give --test-share 1 to test on "
                             "the whole real folder, or a group with more images")
+        if not any(test[k].crack.any() for k in out[group]):
+            raise UserError(f"--groups: group {group!r} has no crack pixel in its held-out "
+                            "masks, so its F1 is 0 whatever a network finds; add cracked "
+                            "images to it")
     return out
 
 
@@ -333,10 +344,10 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
     out = Path(out)
     device = pick_device(settings.device)
     names = network_names(synthetic, other_real, real)
+    named_groups = read_groups(groups) if groups is not None else {}
     real_images = read_real_folder(real)
     real_train, test = split_real(real_images, settings)
-    tested = (test_groups(read_groups(groups, real_images), real_images, test)
-              if groups is not None else {})
+    tested = held_out_groups(group_members(named_groups, real_images), real_images, test)
     sets = _training_sets(synthetic, other_real, real_train)
     names = [*names, REAL][:len(sets)]
     out.mkdir(parents=True, exist_ok=True)

@@ -373,55 +373,100 @@ def test_repeats_report_the_network_of_median_f1_and_every_repeats_scores(tmp_pa
     assert "--repeats 101: must be an integer in [1, 100]" in err and "\n" not in err
 
 
+def banded_real(root: Path, visible: dict[str, bool]) -> Path:
+    """A real folder whose image k has its crack at rows of its own (so masks cannot stand in
+    for each other); the crack is dark in the image where ``visible`` says so, else absent."""
+    (root / "images").mkdir(parents=True)
+    (root / "masks").mkdir()
+    for k, (name, seen) in enumerate(visible.items()):
+        image = np.full((32, 40, 3), 120, np.uint8)
+        mask = np.zeros((32, 40), np.uint8)
+        rows = slice(2 + 6 * k, 5 + 6 * k)
+        mask[rows, 3:30] = 255
+        if seen:
+            image[rows, 3:30] = 10
+        cv2.imwrite(str(root / "images" / f"{name}.png"), image)
+        cv2.imwrite(str(root / "masks" / f"{name}.png"), mask)
+    return root
+
+
 def test_groups_are_scored_each_at_its_own_threshold(tmp_path, monkeypatch, capsys):
     """--groups: every network is also scored on each group of the real folder alone. The
     network is replaced by one that finds exactly the dark pixels, so a group of photographs
-    whose cracks are dark scores 1, one whose crack is invisible 0, and a group of every
-    image the network's whole score."""
+    whose cracks are dark scores 1, one whose crack is invisible 0, one of each finds half
+    its crack, and a group of every image the network's whole score; with a split, a group
+    of each held-out image scores that image alone."""
     from glsynth.model import sim2real
 
-    real = write_real(tmp_path / "photos", names=("p3", "p4", "p5"))
-    for name in ("p3", "p4"):  # a visible, dark crack where the mask marks one
-        path = real / "images" / f"{name}.jpg"
-        image = cv2.imread(str(path))
-        image[5:9, 3:30] = 10
-        cv2.imwrite(str(path), image)
+    visible = {"p3": True, "p4": True, "p5": False, "p6": True}
+    real = banded_real(tmp_path / "photos", visible)
     rendered = [CrackImage("v", *striped_crack(0, make_rng(3, 0, Stream.TRAINING)))]
     monkeypatch.setattr(sim2real, "read_synthetic", lambda path: rendered)
     monkeypatch.setattr(sim2real, "predict", lambda net, rgb, device=None:
                         (rgb.mean(axis=2) < 60).astype(np.float32))
     groups = tmp_path / "groups.json"
-    groups.write_text(json.dumps({"seen": ["p3", "p4.jpg"], "unseen": ["p5"],
-                                  "every": ["p3", "p4", "p5"]}))
-    assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
-                 "--groups", str(groups), "--test-share", "1", "--out", str(tmp_path / "o"),
-                 "--steps", "1", "--crop", "16", "--batch", "1", "--width", "4",
-                 "--repeats", "2"]) == 0
+    groups.write_text(json.dumps({"seen": ["p3", "p4.PNG"], "unseen": ["p5"],
+                                  "half": ["p5", "p6", "p6"], "every": list(visible)}))
+    argv = ["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
+            "--groups", str(groups), "--steps", "1", "--crop", "16", "--batch", "1",
+            "--width", "4"]
+    assert main(argv + ["--test-share", "1", "--out", str(tmp_path / "o"),
+                        "--repeats", "2"]) == 0
     result = json.loads((tmp_path / "o" / "sim2real.json").read_text())
-    assert result["groups"] == {"seen": 2, "unseen": 1, "every": 3}
+    assert result["groups"] == {"seen": 2, "unseen": 1, "half": 2, "every": 4}
     net = result["networks"]["ds"]
     for run in (net, *net["repeats"]):
         by_group = run["groups"]
         assert by_group["seen"]["f1"] == 1.0 and by_group["unseen"]["f1"] == 0.0
+        assert by_group["half"]["precision"] == 1.0 and by_group["half"]["recall"] == 0.5
         assert by_group["every"] == {k: run[k] for k in by_group["every"]}
-        assert run["recall"] == pytest.approx(2 / 3)
+        assert run["recall"] == 0.75
     assert "by group: seen F1 1.000 (P 1.000, R 1.000), unseen F1 0.000" in \
         capsys.readouterr().out
+
+    settings = sim2real.Sim2RealSettings(test_share=0.5)
+    _, test = sim2real.split_real(read_real_folder(real), settings)
+    held = [image.name for image in test if visible[image.name]]
+    groups.write_text(json.dumps({name: [name] for name in held}))
+    assert main(argv + ["--test-share", "0.5", "--out", str(tmp_path / "split"),
+                        "--repeats", "1"]) == 0
+    split = json.loads((tmp_path / "split" / "sim2real.json").read_text())
+    assert split["test_images"] == 2 and list(split["groups"]) == held
+    assert all(g["f1"] == 1.0 for g in split["networks"]["ds"]["groups"].values())
+
+
+def test_group_names_are_file_names_with_or_without_their_suffix(tmp_path):
+    from glsynth.data.crack_folders import group_members, read_groups
+
+    images = [CrackImage(name, np.zeros((4, 4, 3), np.uint8), np.ones((4, 4), bool))
+              for name in ("a", "IMG_1.2", "scan.png")]
+    groups = {"g": ["a.JPG", "IMG_1.2", "IMG_1.2.jpg", "scan.png", "scan.png.tif", "a"]}
+    assert group_members(groups, images) == {"g": [0, 1, 2]}
+    with pytest.raises(UserError, match="group 'g' names 'a.gif', not an image of the --real "
+                                        "folder \\(1 such\\)"):
+        group_members({"g": ["a", "a.gif"]}, images)
+    path = tmp_path / "g.json"
+    path.write_text(json.dumps(groups))
+    assert read_groups(path) == groups
 
 
 @pytest.mark.parametrize("content, words", [
     (None, "--groups file '{path}' does not exist"),
     ("{not json", "is not valid JSON"),
     ("[]", "is not a non-empty JSON object"),
+    ("{}", "is not a non-empty JSON object"),
     ('{"a": []}', "group 'a' is not a non-empty list of image names"),
     ('{"a": ["a", 3]}', "group 'a' is not a non-empty list of image names"),
+    ('{"a": ["images/a.jpg"]}', "group 'a' names 'images/a.jpg', a path"),
     ('{"a": ["a", "c.jpg", "d"]}', "group 'a' names 'c.jpg', not an image of the --real folder "
                                    "(2 such)"),
     ('{"a": ["a"], "b": ["b"]}', "group '{held}' has no image among the 1 held out"),
+    ('{"a": ["a"], "b": ["b"]}', "group 'b' has no crack pixel in its held-out masks"),
 ])
 def test_bad_groups_are_refused_in_one_line_before_training(tmp_path, capsys, content, words):
-    """Each refused before any dataset is read (the synthetic dataset given does not exist)
-    and before the output folder is made."""
+    """Each refused before any glsynth dataset is read (the one given does not exist) and
+    before the output folder is made; a file that cannot be a groups file, before the real
+    folder is read too (its images here are unreadable)."""
     from glsynth.model.sim2real import Sim2RealSettings, split_real
 
     real, path = write_real(tmp_path / "photos"), tmp_path / "groups.json"
@@ -430,6 +475,10 @@ def test_bad_groups_are_refused_in_one_line_before_training(tmp_path, capsys, co
     share = "0.5" if "held out" in words else "1"
     _, test = split_real(read_real_folder(real), Sim2RealSettings(test_share=0.5))
     held = ({"a", "b"} - {test[0].name}).pop()  # the group whose one image trains
+    if "crack pixel" in words:
+        cv2.imwrite(str(real / "masks" / "b.png"), np.zeros((32, 40), np.uint8))
+    if "names" not in words and "held" not in words and "crack" not in words:
+        (real / "images" / "a.jpg").write_bytes(b"not a jpeg")
     assert main(["bench", "sim2real", "--synthetic", str(tmp_path / "ds"), "--real", str(real),
                  "--groups", str(path), "--test-share", share,
                  "--out", str(tmp_path / "o")]) == 2

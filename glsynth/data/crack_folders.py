@@ -106,33 +106,55 @@ def read_real_folder(root: str | Path) -> list[CrackImage]:
     return out
 
 
-GROUPS_FIX = ('give a JSON object of group names, each a list of image names of the --real '
-              'folder: {"asphalt": ["0011", "0012.jpg"], "concrete": [...]}')
+GROUPS_FIX = ('give a JSON file holding an object of group names, each a list of image names '
+              'of the --real folder: {"asphalt": ["0011", "0012.jpg"], "concrete": [...]}')
 
 
-def read_groups(path: str | Path, images: list[CrackImage]) -> dict[str, list[int]]:
-    """The groups of a --groups file as indices into ``images``: a JSON object of group
-    names, each a non-empty list of image names (stems, or names with an image suffix) of
-    the real folder. A name the folder lacks is refused, not skipped: a misspelt name would
-    otherwise shrink a group silently."""
+def read_groups(path: str | Path) -> dict[str, list[str]]:
+    """The groups of a --groups file, read before the real folder: a JSON object of group
+    names, each a non-empty list of image names (file names of images/, with or without
+    their suffix; no folders)."""
     what = f"--groups file {named(path)}"
     groups = parse_json(read_bytes(Path(path), "--groups file", MAX_JSON_BYTES, GROUPS_FIX),
                         what, GROUPS_FIX)
     if not isinstance(groups, dict) or not groups:
         raise UserError(f"{what} is not a non-empty JSON object; {GROUPS_FIX}")
+    for group, names in groups.items():
+        if not isinstance(names, list) or not names or \
+                not all(isinstance(n, str) and n for n in names):
+            raise UserError(f"{what}: group {group!r} is not a non-empty list of image names; "
+                            f"{GROUPS_FIX}")
+        paths = [n for n in names if "/" in n or "\\" in n]
+        if paths:
+            raise UserError(f"{what}: group {group!r} names {paths[0]!r}, a path; give the "
+                            "image's file name in images/, without folders")
+    return groups
+
+
+def _stem_of(name: str, stems: dict[str, int]) -> str | None:
+    """The stem of the real folder's image that ``name`` names: the name itself, or the name
+    less an image suffix (so a stem that ends like a suffix, 'scan.png' of scan.png.jpg,
+    is found as given)."""
+    if name in stems:
+        return name
+    suffix = Path(name).suffix
+    if suffix.lower() in IMAGE_SUFFIXES and name[:-len(suffix)] in stems:
+        return name[:-len(suffix)]
+    return None
+
+
+def group_members(groups: dict[str, list[str]], images: list[CrackImage]
+                  ) -> dict[str, list[int]]:
+    """Each group as indices into ``images``. A name the folder lacks is refused, not
+    skipped: a misspelt name would otherwise shrink its group silently."""
     index = {image.name: k for k, image in enumerate(images)}
     out = {}
     for group, names in groups.items():
-        if not isinstance(names, list) or not names or \
-                not all(isinstance(n, str) for n in names):
-            raise UserError(f"{what}: group {group!r} is not a non-empty list of image names; "
-                            f"{GROUPS_FIX}")
-        stems = [Path(n).stem if Path(n).suffix.lower() in IMAGE_SUFFIXES else n
-                 for n in names]
-        unknown = [n for n, stem in zip(names, stems) if stem not in index]
+        stems = [_stem_of(n, index) for n in names]
+        unknown = [n for n, stem in zip(names, stems) if stem is None]
         if unknown:
-            raise UserError(f"{what}: group {group!r} names {unknown[0]!r}, not an image of the "
-                            f"--real folder ({len(unknown)} such); fix or remove the name")
+            raise UserError(f"--groups: group {group!r} names {unknown[0]!r}, not an image of "
+                            f"the --real folder ({len(unknown)} such); fix or remove the name")
         out[group] = sorted({index[stem] for stem in stems})
     return out
 
