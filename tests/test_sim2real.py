@@ -195,10 +195,18 @@ def test_sim2real_runs_end_to_end(tiny_inspection, tmp_path, capsys):
         assert np.isfinite(s["last_loss"])
     picture = cv2.imread(str(out / "predictions.png"))
     assert picture.shape[1] == 4 * 320
-    # The same seeds give the same run.
-    assert main(argv(tmp_path / "again")) == 0
+    # The same seeds give the same run; a group of every image, scored on the held-out ones,
+    # scores what the whole test set does, and changes no network.
+    groups = tmp_path / "groups.json"
+    groups.write_text(json.dumps({"every": [p.name for p in (real / "images").iterdir()]}))
+    assert main(argv(tmp_path / "again") + ["--groups", str(groups)]) == 0
     again = json.loads((tmp_path / "again" / "sim2real.json").read_text())
-    assert again["networks"]["real"]["f1"] == result["networks"]["real"]["f1"]
+    assert again["groups"] == {"every": result["test_images"]}
+    for name, s in again["networks"].items():
+        every = s.pop("groups")["every"]
+        assert every == {k: s[k] for k in every}
+        assert {k: v for k, v in s.items() if k != "train_s"} == \
+            {k: v for k, v in result["networks"][name].items() if k != "train_s"}
 
 
 def test_sim2real_bad_options_are_one_line(tmp_path, capsys):
