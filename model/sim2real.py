@@ -338,9 +338,9 @@ def run_sim2real(synthetic: Sequence[str | Path], real: str | Path, out: str | P
     """Train one network on each dataset of ``synthetic``, one on each whole folder of
     ``other_real`` and one on the training share of ``real`` (none with test_share 1), the
     same way; score them all on the rest of ``real``, and on each group of the ``groups``
-    file (read_groups) among it. Writes sim2real.json (again after each
-    network; "complete" once all are in) and predictions.png into ``out`` and returns the
-    result (networks by name: each dataset's and other folder's name, then "real")."""
+    file (read_groups) among it. Writes sim2real.json (again after each network; "complete"
+    once all are in) and predictions.png into ``out`` and returns the result (networks by
+    name: each dataset's and other folder's name, then "real")."""
     out = Path(out)
     device = pick_device(settings.device)
     names = network_names(synthetic, other_real, real)
